@@ -1,0 +1,66 @@
+"""hierplan_opt: plan generation, MAPF-POST scheduling and execution for robot teams.
+
+Example
+-------
+>>> import hierplan_opt as hp
+>>> g = hp.Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
+>>> inst = hp.Instance.mapf(g, [(0, 0), (1, 0)], [(4, 0), (3, 0)])
+>>> res = hp.solve(inst, "cbs", time_limit=10)
+>>> res.status.value, res.cost, hp.validate(inst, res.plan)
+('OPTIMAL', 8, [])
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+from typing import Any
+
+from hierplan_opt.api import solve
+from hierplan_opt.core.errors import HierplanError, InputError, OptionError, UnknownSolverError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Agent, Instance, Kinematics, Team
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.validate import Violation, validate
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+__version__ = "0.1.0"
+
+# Heavier parts load on first use so that `import hierplan_opt` stays fast.
+_LAZY = {
+    "load_instance": "hierplan_opt.io",
+    "load_plan": "hierplan_opt.io",
+    "save_plan": "hierplan_opt.io",
+    "save_instance": "hierplan_opt.io",
+    "postprocess": "hierplan_opt.schedule",
+    "Schedule": "hierplan_opt.schedule",
+    "verify": "hierplan_opt.formulations.verify",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'hierplan_opt' has no attribute {name!r}")
+
+
+__all__ = [
+    "Agent",
+    "Graph",
+    "HierplanError",
+    "InputError",
+    "Instance",
+    "Kinematics",
+    "OptionError",
+    "Plan",
+    "Result",
+    "Status",
+    "Team",
+    "UnknownSolverError",
+    "Violation",
+    "solve",
+    "validate",
+    *_LAZY,
+]

@@ -1,0 +1,78 @@
+"""The ``hierplan`` command line.
+
+Each subcommand lives in its own module of this package with ``HELP``,
+``add_arguments(parser)`` and ``run(args) -> int``; :data:`COMMANDS` lists them in the
+order ``--help`` shows. Heavy imports happen inside ``run``.
+
+Exit codes: 0 success, 1 plan invalid, 2 bad input or usage, 3 proven infeasible,
+4 limit reached without a plan.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from hierplan_opt.cli.common import BAD_INPUT, INTERNAL
+from hierplan_opt.core.errors import HierplanError
+
+COMMANDS = ("solve", "validate", "info", "verify", "post", "bench")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every available subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="hierplan",
+        description="Plan generation (MAPF/TAPF), MAPF-POST scheduling and execution "
+        "for robot teams.",
+        epilog="exit codes: 0 success, 1 plan invalid, 2 bad input or usage, "
+        "3 proven infeasible, 4 limit reached without a plan",
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
+    parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMANDS:
+        try:
+            mod = importlib.import_module(f"hierplan_opt.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name == f"hierplan_opt.cli.{name}":
+                continue  # that part of the toolkit is not installed yet
+            raise
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``hierplan`` console script; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
+    try:
+        return int(args._run(args))
+    except HierplanError as exc:
+        print(f"hierplan {args.command}: error: {exc}", file=sys.stderr)
+        return BAD_INPUT
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"hierplan {args.command}: error: {exc.strerror}{where}", file=sys.stderr)
+        return BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"hierplan {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # an internal bug, not a user error
+        if args.debug:
+            raise
+        print(
+            f"hierplan {args.command}: internal error: {type(exc).__name__}: {exc} "
+            "(run with --debug for the traceback)",
+            file=sys.stderr,
+        )
+        return INTERNAL

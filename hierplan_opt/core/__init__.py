@@ -1,0 +1,1 @@
+"""Domain types shared by every solver: graph, instance, plan, result, validator."""

@@ -1,0 +1,434 @@
+"""Graphs the robots move on: 2D grids, 3D grids and general roadmaps.
+
+Every graph stores its adjacency in CSR form (``indptr``, ``indices``, ``lengths``)
+with integer vertex ids. On grids the vertex id *is* the cell index
+``x + W * (y + H * z)``, blocked cells included (they have no edges and
+``passable[v]`` is False), so coordinates convert to ids by arithmetic and the
+validator can name a blocked cell that a plan steps on.
+
+Distances used by the solvers are *timestep* distances (unit edges, BFS); the
+geometric edge lengths matter only to scheduling (MAPF-POST).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import shortest_path
+
+from hierplan_opt.core.errors import InputError
+
+#: Timestep distance of a vertex that cannot reach the target. Large, so that any
+#: sum of a few of them still fits in a Python int comparison without special cases.
+UNREACHABLE = 1 << 30
+
+Location = tuple[int, ...] | str
+
+
+class Graph:
+    """An immutable graph with integer vertex ids, coordinates and cached distances.
+
+    Build one with :meth:`grid`, :meth:`roadmap` or :meth:`from_networkx`.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 2, obstacles=[(1, 1)])
+    >>> g.vertex((2, 1)), g.location(5), bool(g.passable[4])
+    (5, (2, 1), False)
+    >>> sorted(g.location(u) for u in g.neighbors(g.vertex((1, 0))))
+    [(0, 0), (2, 0)]
+    >>> int(g.dist_to(g.vertex((0, 1)))[g.vertex((2, 1))])
+    4
+    """
+
+    def __init__(
+        self,
+        *,
+        kind: str,
+        coords: np.ndarray,
+        passable: np.ndarray,
+        indptr: np.ndarray,
+        indices: np.ndarray,
+        lengths: np.ndarray,
+        directed: bool = False,
+        shape: tuple[int, ...] | None = None,
+        names: Sequence[str] | None = None,
+        cell_size: float = 1.0,
+    ) -> None:
+        self.kind = kind
+        self.coords = np.asarray(coords, dtype=float)
+        self.passable = np.asarray(passable, dtype=bool)
+        self.indptr = np.asarray(indptr, dtype=np.int64)
+        self.indices = np.asarray(indices, dtype=np.int64)
+        self.lengths = np.asarray(lengths, dtype=float)
+        self.directed = directed
+        self.shape = shape
+        self.names = tuple(names) if names is not None else None
+        self.cell_size = float(cell_size)
+        for arr in (self.coords, self.passable, self.indptr, self.indices, self.lengths):
+            arr.setflags(write=False)
+        self._name_to_id = (
+            {name: i for i, name in enumerate(self.names)} if self.names is not None else None
+        )
+        self._dist_cache: dict[int, np.ndarray] = {}
+        self._dist_list_cache: dict[int, list[int]] = {}
+
+    # ------------------------------------------------------------------ builders
+    @classmethod
+    def grid(
+        cls,
+        width: int,
+        height: int,
+        depth: int | None = None,
+        *,
+        obstacles: Iterable[Sequence[int]] = (),
+        blocked: np.ndarray | None = None,
+        cell_size: float = 1.0,
+    ) -> Graph:
+        """A 4-connected 2D grid (``depth=None``) or a 6-connected 3D grid.
+
+        ``blocked`` is a boolean array indexed ``[y, x]`` (2D) or ``[z, y, x]`` (3D);
+        ``obstacles`` lists blocked cells as ``(x, y[, z])``.
+
+        Example
+        -------
+        >>> Graph.grid(2, 2, 2).num_edges
+        12
+        """
+        dims = (width, height) if depth is None else (width, height, depth)
+        for d in dims:
+            if not isinstance(d, (int, np.integer)) or d <= 0:
+                raise InputError(f"grid dimensions must be positive integers, got {list(dims)}")
+        if not math.isfinite(cell_size) or cell_size <= 0:
+            raise InputError(f"cell_size must be a positive number, got {cell_size!r}")
+        n = int(np.prod(dims))
+        free = np.ones(n, dtype=bool)
+        if blocked is not None:
+            b = np.asarray(blocked, dtype=bool)
+            if b.shape != tuple(reversed(dims)):
+                raise InputError(
+                    f"blocked array has shape {b.shape}, expected {tuple(reversed(dims))}"
+                )
+            free &= ~b.reshape(-1)
+        for cell in obstacles:
+            c = tuple(int(x) for x in cell)
+            if len(c) != len(dims) or any(not 0 <= c[i] < dims[i] for i in range(len(dims))):
+                size = "x".join(map(str, dims))
+                raise InputError(f"obstacle {list(c)} is outside the {size} grid")
+            free[_cell_index(c, dims)] = False
+
+        # Coordinates of every cell (x fastest).
+        grids = np.meshgrid(*[np.arange(d) for d in reversed(dims)], indexing="ij")
+        coords = np.stack([g.reshape(-1) for g in reversed(grids)], axis=1)
+
+        # Edges between free neighbours along every axis, both directions.
+        src: list[np.ndarray] = []
+        dst: list[np.ndarray] = []
+        stride = 1
+        ids = np.arange(n)
+        for axis, d in enumerate(dims):
+            has_next = coords[:, axis] < d - 1
+            a = ids[has_next]
+            b = a + stride
+            ok = free[a] & free[b]
+            src += [a[ok], b[ok]]
+            dst += [b[ok], a[ok]]
+            stride *= d
+        s = np.concatenate(src) if src else np.zeros(0, dtype=np.int64)
+        t = np.concatenate(dst) if dst else np.zeros(0, dtype=np.int64)
+        indptr, indices = _csr(n, s, t)
+        lengths = np.full(len(indices), float(cell_size))
+        return cls(
+            kind="grid",
+            coords=coords,
+            passable=free,
+            indptr=indptr,
+            indices=indices,
+            lengths=lengths,
+            directed=False,
+            shape=tuple(int(d) for d in dims),
+            cell_size=cell_size,
+        )
+
+    @classmethod
+    def roadmap(
+        cls,
+        vertices: Mapping[str, Sequence[float]],
+        edges: Iterable[Sequence[Any]],
+        *,
+        directed: bool = False,
+    ) -> Graph:
+        """A general graph: named vertices with coordinates, edges ``(u, v[, length])``.
+
+        Edge length defaults to the Euclidean distance between the coordinates.
+
+        Example
+        -------
+        >>> g = Graph.roadmap({"A": (0, 0), "B": (3, 4)}, [("A", "B")])
+        >>> g.edge_length(g.vertex("A"), g.vertex("B"))
+        5.0
+        """
+        names = [str(k) for k in vertices]
+        if not names:
+            raise InputError("a roadmap needs at least one vertex")
+        dims = {len(c) for c in vertices.values()}
+        if len(dims) != 1 or dims.pop() not in (2, 3):
+            raise InputError("roadmap vertex coordinates must all have 2 or all have 3 numbers")
+        coords = np.array([[float(x) for x in vertices[k]] for k in vertices], dtype=float)
+        if not np.all(np.isfinite(coords)):
+            bad = names[int(np.argwhere(~np.isfinite(coords))[0][0])]
+            raise InputError(f"roadmap vertex {bad!r} has a coordinate that is not finite")
+        index = {name: i for i, name in enumerate(names)}
+        src: list[int] = []
+        dst: list[int] = []
+        lens: list[float] = []
+        seen: set[tuple[int, int]] = set()
+        for e in edges:
+            if len(e) not in (2, 3):
+                raise InputError(f"roadmap edge {list(e)} must be [u, v] or [u, v, length]")
+            u, v = str(e[0]), str(e[1])
+            for x in (u, v):
+                if x not in index:
+                    raise InputError(f"roadmap edge {[u, v]} names unknown vertex {x!r}")
+            if u == v:
+                raise InputError(f"roadmap edge {[u, v]} is a self-loop; waiting is implicit")
+            a, b = index[u], index[v]
+            if len(e) == 3:
+                length = e[2]
+                if not isinstance(length, (int, float)) or not math.isfinite(length) or length <= 0:
+                    raise InputError(f"roadmap edge {[u, v]} has bad length {length!r}")
+                length = float(length)
+            else:
+                length = float(np.linalg.norm(coords[a] - coords[b]))
+                if length <= 0:
+                    raise InputError(f"roadmap edge {[u, v]} joins two vertices at one position")
+            pairs = [(a, b)] if directed else [(a, b), (b, a)]
+            for p, q in pairs:
+                if (p, q) in seen:
+                    raise InputError(f"roadmap edge {[names[p], names[q]]} is listed twice")
+                seen.add((p, q))
+                src.append(p)
+                dst.append(q)
+                lens.append(length)
+        n = len(names)
+        order = np.lexsort((np.array(dst, dtype=np.int64), np.array(src, dtype=np.int64)))
+        s = np.array(src, dtype=np.int64)[order]
+        t = np.array(dst, dtype=np.int64)[order]
+        lengths = np.array(lens, dtype=float)[order]
+        indptr = np.zeros(n + 1, dtype=np.int64)
+        np.add.at(indptr, s + 1, 1)
+        indptr = np.cumsum(indptr)
+        return cls(
+            kind="roadmap",
+            coords=coords,
+            passable=np.ones(n, dtype=bool),
+            indptr=indptr,
+            indices=t,
+            lengths=lengths,
+            directed=directed,
+            names=names,
+        )
+
+    @classmethod
+    def from_networkx(cls, g: Any, *, pos: str = "pos", length: str = "length") -> Graph:
+        """A roadmap from a ``networkx`` (Di)Graph; nodes need a ``pos`` attribute.
+
+        Example
+        -------
+        >>> import networkx as nx
+        >>> G = nx.path_graph(3)
+        >>> nx.set_node_attributes(G, {0: (0, 0), 1: (1, 0), 2: (2, 0)}, "pos")
+        >>> Graph.from_networkx(G).num_edges
+        2
+        """
+        vertices: dict[str, Sequence[float]] = {}
+        for node, data in g.nodes(data=True):
+            if pos not in data:
+                raise InputError(f"networkx node {node!r} has no {pos!r} attribute")
+            vertices[str(node)] = data[pos]
+        edges = []
+        for u, v, data in g.edges(data=True):
+            edges.append((str(u), str(v), data[length]) if length in data else (str(u), str(v)))
+        return cls.roadmap(vertices, edges, directed=bool(g.is_directed()))
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def n(self) -> int:
+        """Number of vertex ids (on grids: cells, blocked ones included)."""
+        return len(self.passable)
+
+    @property
+    def dim(self) -> int:
+        """2 or 3: the number of coordinates of a vertex."""
+        return int(self.coords.shape[1])
+
+    @cached_property
+    def num_vertices(self) -> int:
+        """Number of passable vertices."""
+        return int(self.passable.sum())
+
+    @cached_property
+    def num_edges(self) -> int:
+        """Number of edges (undirected edges counted once)."""
+        m = len(self.indices)
+        return m if self.directed else m // 2
+
+    @cached_property
+    def adj(self) -> list[list[int]]:
+        """Neighbour lists as plain Python ints (fastest for pure-Python search loops)."""
+        ip = self.indptr.tolist()
+        ind = self.indices.tolist()
+        return [ind[ip[v] : ip[v + 1]] for v in range(self.n)]
+
+    @cached_property
+    def _edge_len(self) -> dict[tuple[int, int], float]:
+        out: dict[tuple[int, int], float] = {}
+        ind = self.indices.tolist()
+        lens = self.lengths.tolist()
+        for u, nbrs in enumerate(self.adj):
+            start = int(self.indptr[u])
+            for k in range(len(nbrs)):
+                out[(u, ind[start + k])] = lens[start + k]
+        return out
+
+    @cached_property
+    def reverse_adj(self) -> list[list[int]]:
+        """Predecessor lists (equal to :attr:`adj` on undirected graphs)."""
+        if not self.directed:
+            return self.adj
+        rev: list[list[int]] = [[] for _ in range(self.n)]
+        for u, nbrs in enumerate(self.adj):
+            for v in nbrs:
+                rev[v].append(u)
+        return rev
+
+    def neighbors(self, v: int) -> np.ndarray:
+        """Successors of ``v`` (not including ``v`` itself)."""
+        return self.indices[self.indptr[v] : self.indptr[v + 1]]
+
+    def has_edge(self, u: int, v: int) -> bool:
+        """Whether a robot may move from ``u`` to ``v`` in one timestep."""
+        return (u, v) in self._edge_len
+
+    def edge_length(self, u: int, v: int) -> float:
+        """Geometric length of edge ``(u, v)``; 0.0 for a wait (``u == v``)."""
+        if u == v:
+            return 0.0
+        try:
+            return self._edge_len[(u, v)]
+        except KeyError:
+            raise InputError(f"{self.location(u)} -> {self.location(v)} is not an edge") from None
+
+    def edges(self) -> Iterable[tuple[int, int]]:
+        """Every directed arc ``(u, v)`` (both directions for undirected graphs)."""
+        return iter(self._edge_len)
+
+    def is_vertex(self, v: int) -> bool:
+        """Whether ``v`` is a valid id of a passable vertex."""
+        return 0 <= v < self.n and bool(self.passable[v])
+
+    def vertex(self, loc: Location | Sequence[int]) -> int:
+        """The id of a location: ``(x, y[, z])`` on grids, a vertex name on roadmaps.
+
+        Raises :class:`InputError` for a location outside the map (a blocked cell
+        still has an id; check :attr:`passable`).
+        """
+        if self.kind == "roadmap":
+            assert self._name_to_id is not None
+            key = str(loc)
+            if key not in self._name_to_id:
+                raise InputError(f"unknown vertex {loc!r}")
+            return self._name_to_id[key]
+        assert self.shape is not None
+        if isinstance(loc, str) or not hasattr(loc, "__len__") or len(loc) != len(self.shape):
+            raise InputError(f"location {loc!r} must have {len(self.shape)} integer coordinates")
+        c = []
+        for x in loc:
+            if isinstance(x, bool) or not isinstance(x, (int, np.integer, float)) or x != int(x):
+                raise InputError(f"location {list(loc)} has a non-integer coordinate")
+            c.append(int(x))
+        if any(not 0 <= c[i] < self.shape[i] for i in range(len(c))):
+            raise InputError(f"location {c} is outside the {'x'.join(map(str, self.shape))} map")
+        return _cell_index(tuple(c), self.shape)
+
+    def location(self, v: int) -> Location:
+        """Inverse of :meth:`vertex`: grid coordinates as a tuple, or the vertex name."""
+        if self.names is not None:
+            return self.names[v]
+        return tuple(int(x) for x in self.coords[v])
+
+    def position(self, v: int) -> np.ndarray:
+        """Geometric position of ``v`` (grid cells scaled by :attr:`cell_size`)."""
+        return self.coords[v] * (self.cell_size if self.kind == "grid" else 1.0)
+
+    # ------------------------------------------------------------------ distances
+    def dist_to(self, target: int) -> np.ndarray:
+        """Timestep distance from every vertex to ``target`` (cached, read-only).
+
+        Unreachable vertices get :data:`UNREACHABLE`.
+        """
+        d = self._dist_cache.get(target)
+        if d is None:
+            d = self.precompute_distances([target])[0]
+        return d
+
+    def dist_list(self, target: int) -> list[int]:
+        """:meth:`dist_to` as a plain list (fast lookups in Python loops)."""
+        d = self._dist_list_cache.get(target)
+        if d is None:
+            d = self.dist_to(target).tolist()
+            self._dist_list_cache[target] = d
+        return d
+
+    def dist(self, source: int, target: int) -> int:
+        """Timestep distance from ``source`` to ``target`` (:data:`UNREACHABLE` if none)."""
+        return int(self.dist_to(target)[source])
+
+    def precompute_distances(self, targets: Iterable[int]) -> list[np.ndarray]:
+        """Fill the distance cache for many targets in one C-level BFS batch."""
+        targets = list(targets)
+        todo = [t for t in dict.fromkeys(targets) if t not in self._dist_cache]
+        if todo:
+            # Distances *to* a target are distances *from* it on the reversed graph.
+            mat = self._csgraph.T if self.directed else self._csgraph
+            res = shortest_path(mat, directed=self.directed, unweighted=True, indices=todo)
+            res = np.atleast_2d(res)
+            for t, row in zip(todo, res, strict=True):
+                arr = np.where(np.isfinite(row), row, UNREACHABLE).astype(np.int64)
+                arr.setflags(write=False)
+                self._dist_cache[t] = arr
+        return [self._dist_cache[t] for t in targets]
+
+    @cached_property
+    def _csgraph(self) -> sp.csr_matrix:
+        data = np.ones(len(self.indices), dtype=float)
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+
+    def __repr__(self) -> str:
+        if self.kind == "grid":
+            size = "x".join(map(str, self.shape or ()))
+            return f"Graph(grid {size}, {self.num_vertices} free cells)"
+        return f"Graph(roadmap, {self.n} vertices, {self.num_edges} edges)"
+
+
+def _cell_index(c: tuple[int, ...], dims: Sequence[int]) -> int:
+    idx = 0
+    stride = 1
+    for i, x in enumerate(c):
+        idx += x * stride
+        stride *= dims[i]
+    return idx
+
+
+def _csr(n: int, src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    order = np.lexsort((dst, src))
+    src = src[order]
+    dst = dst[order]
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(indptr, src + 1, 1)
+    return np.cumsum(indptr), dst
