@@ -1,0 +1,280 @@
+"""Graph, Instance, Plan, Result, registry and the solve() front door."""
+
+from __future__ import annotations
+
+import math
+
+import networkx as nx
+import numpy as np
+import pytest
+
+import hierplan_opt as hp
+from hierplan_opt import Graph, InputError, Instance, Kinematics, OptionError, Plan
+from hierplan_opt.core.feasibility import quick_infeasibility
+from hierplan_opt.core.graph import UNREACHABLE
+from hierplan_opt.core.plan import path_cost
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.timer import Deadline
+
+
+# ---------------------------------------------------------------- graphs
+def test_grid_ids_coordinates_and_edges() -> None:
+    g = Graph.grid(4, 3, obstacles=[(1, 1)])
+    assert g.n == 12 and g.num_vertices == 11
+    assert g.vertex((3, 2)) == 11 and g.location(11) == (3, 2)
+    # 4-connected: horizontal 3*3 + vertical 4*2 = 17 edges, minus 4 touching (1, 1)
+    assert g.num_edges == 13
+    assert not g.has_edge(g.vertex((1, 0)), g.vertex((1, 1)))
+    assert g.has_edge(g.vertex((0, 0)), g.vertex((1, 0)))
+    assert g.adj[g.vertex((1, 1))] == []
+
+
+def test_grid_3d_is_six_connected() -> None:
+    g = Graph.grid(3, 3, 3)
+    centre = g.vertex((1, 1, 1))
+    assert sorted(g.location(u) for u in g.neighbors(centre)) == sorted(
+        [(0, 1, 1), (2, 1, 1), (1, 0, 1), (1, 2, 1), (1, 1, 0), (1, 1, 2)]
+    )
+    assert g.dist(g.vertex((0, 0, 0)), g.vertex((2, 2, 2))) == 6
+
+
+def test_grid_from_blocked_array_matches_obstacles() -> None:
+    blocked = np.zeros((3, 4), dtype=bool)
+    blocked[1, 2] = True  # [y, x]
+    a = Graph.grid(4, 3, blocked=blocked)
+    b = Graph.grid(4, 3, obstacles=[(2, 1)])
+    assert np.array_equal(a.passable, b.passable)
+    assert np.array_equal(a.indices, b.indices)
+
+
+def test_distances_match_networkx_bfs() -> None:
+    rng = np.random.default_rng(3)
+    blocked = rng.random((9, 11)) < 0.25
+    g = Graph.grid(11, 9, blocked=blocked)
+    G = nx.Graph(list(g.edges()))
+    target = next(v for v in range(g.n) if g.passable[v] and v in G)
+    ref = nx.single_source_shortest_path_length(G, target)
+    d = g.dist_to(target)
+    for v in range(g.n):
+        assert d[v] == ref.get(v, UNREACHABLE)
+    assert g.dist_list(target) == d.tolist()
+
+
+def test_directed_roadmap_distances_go_towards_target() -> None:
+    g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (2, 0)}, [("A", "B"), ("B", "C")],
+                      directed=True)  # fmt: skip
+    a, c = g.vertex("A"), g.vertex("C")
+    assert g.dist(a, c) == 2
+    assert g.dist(c, a) == UNREACHABLE
+
+
+def test_roadmap_lengths_and_networkx() -> None:
+    G = nx.Graph()
+    G.add_node("p", pos=(0.0, 0.0))
+    G.add_node("q", pos=(3.0, 4.0))
+    G.add_node("r", pos=(3.0, 0.0))
+    G.add_edge("p", "q")
+    G.add_edge("q", "r", length=7.5)
+    g = Graph.from_networkx(G)
+    assert g.edge_length(g.vertex("p"), g.vertex("q")) == 5.0
+    assert g.edge_length(g.vertex("r"), g.vertex("q")) == 7.5
+    assert g.edge_length(g.vertex("r"), g.vertex("r")) == 0.0
+    with pytest.raises(InputError, match="not an edge"):
+        g.edge_length(g.vertex("p"), g.vertex("r"))
+
+
+def test_grid_positions_scale_with_cell_size() -> None:
+    g = Graph.grid(3, 2, cell_size=0.5)
+    assert list(g.position(g.vertex((2, 1)))) == [1.0, 0.5]
+    assert g.edge_length(0, 1) == 0.5
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: Graph.grid(0, 3), "positive integers"),
+        (lambda: Graph.grid(3, 3, obstacles=[(3, 0)]), "outside"),
+        (lambda: Graph.grid(3, 3, cell_size=-1.0), "cell_size"),
+        (lambda: Graph.grid(3, 3, cell_size=math.nan), "cell_size"),
+        (lambda: Graph.roadmap({"A": (0, 0)}, [("A", "B")]), "unknown vertex 'B'"),
+        (lambda: Graph.roadmap({"A": (0, 0), "B": (1, 0)}, [("A", "B", -2)]), "bad length"),
+        (lambda: Graph.roadmap({"A": (0, 0), "B": (1, 0)}, [("A", "A")]), "self-loop"),
+        (lambda: Graph.roadmap({"A": (0, math.nan)}, []), "not finite"),
+        (
+            lambda: Graph.roadmap({"A": (0, 0), "B": (1, 0)}, [("A", "B"), ("B", "A")]),
+            "listed twice",
+        ),
+        (lambda: Graph.grid(3, 3).vertex((1, 5)), "outside the 3x3 map"),
+        (lambda: Graph.grid(3, 3).vertex((1.5, 1)), "non-integer"),
+    ],
+)
+def test_graph_bad_input(call, message: str) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(InputError, match=message):
+        call()
+
+
+# ---------------------------------------------------------------- instances
+def test_instance_lower_bounds() -> None:
+    g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
+    inst = Instance.mapf(g, [(0, 0), (1, 0)], [(4, 0), (3, 0)])
+    assert inst.soc_lower_bound() == 6 and inst.makespan_lower_bound() == 4
+    assert inst.goals == [4, 3] and not inst.is_tapf
+
+
+def test_tapf_lower_bounds_use_nearest_target() -> None:
+    g = Graph.grid(5, 1)
+    inst = Instance.tapf(g, [([(0, 0), (1, 0)], [(3, 0), (4, 0)])])
+    # each robot's nearest target is (3, 0): 3 + 2; target (4, 0) needs >= 3 steps
+    assert inst.soc_lower_bound() == 5 and inst.makespan_lower_bound() == 3
+    assert inst.goal_set(0) == (3, 4)
+
+
+@pytest.mark.parametrize(
+    ("build", "message"),
+    [
+        (
+            lambda g: Instance.mapf(g, [(1, 1)], [(0, 0)]),
+            r"start of agent 'agent0' \[1, 1\] "
+            "is on an obstacle",
+        ),
+        (lambda g: Instance.mapf(g, [(0, 0)], [(1, 1)]), "goal of agent 'agent0'.*obstacle"),
+        (lambda g: Instance.mapf(g, [(0, 0), (0, 0)], [(2, 0), (0, 2)]), "share the start"),
+        (lambda g: Instance.mapf(g, [(5, 0)], [(0, 0)]), "outside the 3x3 map"),
+        (lambda g: Instance.mapf(g, [(0, 0)], [(2, 0), (0, 2)]), "1 starts but 2 goals"),
+        (lambda g: Instance.mapf(g, [], []), "no agents"),
+        (lambda g: Instance.tapf(g, [([(0, 0), (2, 0)], [(0, 2)])]), "2 robots but 1 targets"),
+        (
+            lambda g: Instance.tapf(g, [([(0, 0)], [(0, 2)]), ([(2, 0)], [(0, 2)])]),
+            "given to both team",
+        ),
+        (
+            lambda g: Instance.mapf(
+                g, [(0, 0)], [(2, 0)], names=["a"], highways=[((0, 0), (2, 0))]
+            ),
+            "not an edge",
+        ),
+    ],
+)
+def test_instance_bad_input(build, message: str) -> None:  # type: ignore[no-untyped-def]
+    g = Graph.grid(3, 3, obstacles=[(1, 1)])
+    with pytest.raises(InputError, match=message):
+        build(g)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"v_max": 0.0}, "v_max must be a positive"),
+        ({"v_max": -1.0}, "v_max must be a positive"),
+        ({"v_max": math.nan}, "v_max must be a positive"),
+        ({"v_max": math.inf}, "v_max must be a positive"),
+        ({"drive": "differential"}, "needs omega_max"),
+        ({"drive": "differential", "omega_max": -2.0}, "omega_max must be a positive"),
+        ({"a_max": 0.0}, "a_max must be a positive"),
+        ({"radius": -0.1}, "radius"),
+        ({"drive": "tracked"}, "drive must be one of"),
+    ],
+)
+def test_kinematics_bad_input(kwargs: dict, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        Kinematics(**kwargs)
+
+
+def test_with_goals_and_subset() -> None:
+    g = Graph.grid(4, 4)
+    tapf = Instance.tapf(g, [([(0, 0), (3, 3)], [(0, 3), (3, 0)])])
+    fixed = tapf.with_goals([g.vertex((3, 0)), g.vertex((0, 3))])
+    assert not fixed.is_tapf and fixed.goals == [3, 12]
+    assert fixed.subset(1).num_agents == 1
+    with pytest.raises(InputError, match="1..2"):
+        fixed.subset(3)
+
+
+def test_quick_infeasibility() -> None:
+    g = Graph.grid(3, 3, obstacles=[(1, 0), (1, 1), (1, 2)])  # a wall splits the grid
+    assert "cannot reach" in (quick_infeasibility(Instance.mapf(g, [(0, 0)], [(2, 2)])) or "")
+    two = Instance.mapf(g, [(0, 0), (0, 2)], [(0, 1), (0, 1)])
+    assert "share the goal" in (quick_infeasibility(two) or "")
+    team = Instance.tapf(g, [([(0, 0), (0, 1)], [(0, 2), (2, 2)])])
+    assert "no assignment" in (quick_infeasibility(team) or "")
+    ok = Instance.tapf(g, [([(0, 0), (2, 1)], [(0, 2), (2, 2)])])
+    assert quick_infeasibility(ok) is None
+
+
+# ---------------------------------------------------------------- plans, results
+def test_plan_costs_ignore_trailing_waits_only() -> None:
+    assert path_cost([4]) == 0
+    assert path_cost([1, 1, 1]) == 0
+    assert path_cost([1, 2, 2, 3, 3]) == 3
+    assert path_cost([1, 2, 1, 1]) == 2  # leaves and comes back: counts
+    p = Plan.from_paths([[0, 1, 1], [5, 6, 7, 7, 7]])
+    assert p.costs == (1, 2) and p.sum_of_costs == 3 and p.makespan == 2
+    assert p.cost("soc") == 3 and p.cost("makespan") == 2
+    assert p.trimmed().paths == ((0, 1), (5, 6, 7))
+    with pytest.raises(ValueError, match="unknown objective"):
+        p.cost("energy")
+
+
+def test_result_gap() -> None:
+    r = Result(Status.FEASIBLE, Plan.from_paths([[0, 1]]), cost=12, lower_bound=10)
+    assert r.solved and r.gap == pytest.approx(1.2)
+    assert Result(Status.TIME_LIMIT, None, lower_bound=10).gap is None
+
+
+def test_deadline() -> None:
+    assert not Deadline(None).expired()
+    assert Deadline(0.0).expired()
+    with pytest.raises(OptionError):
+        Deadline(-1.0)
+
+
+# ---------------------------------------------------------------- registry, front door
+def test_unknown_solver_names_the_known_ones() -> None:
+    g = Graph.grid(2, 1)
+    inst = Instance.mapf(g, [(0, 0)], [(1, 0)])
+    with pytest.raises(hp.UnknownSolverError, match="unknown solver 'astar2'.*cbs"):
+        hp.solve(inst, "astar2")
+
+
+def test_front_door_refuses_bad_objective_and_time_limit() -> None:
+    g = Graph.grid(2, 1)
+    inst = Instance.mapf(g, [(0, 0)], [(1, 0)])
+    with pytest.raises(OptionError, match="unknown objective 'energy'"):
+        hp.solve(inst, "cbs", objective="energy")
+    with pytest.raises(OptionError, match="time_limit"):
+        hp.solve(inst, "cbs", time_limit=-3)
+    with pytest.raises(OptionError, match="time_limit"):
+        hp.solve(inst, "cbs", time_limit=math.nan)
+
+
+def test_front_door_refuses_unknown_option() -> None:
+    g = Graph.grid(2, 1)
+    inst = Instance.mapf(g, [(0, 0)], [(1, 0)])
+    with pytest.raises(OptionError, match="solver 'cbs' has no option 'frobnicate'"):
+        hp.solve(inst, "cbs", frobnicate=True)
+
+
+def test_front_door_turns_an_invalid_plan_into_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    from hierplan_opt import registry
+
+    def broken(instance, *, time_limit=None, seed=0, objective="soc"):  # type: ignore[no-untyped-def]
+        return Result(Status.OPTIMAL, Plan.from_paths([[a.start] for a in instance.agents]), 0)
+
+    registry.register("broken", "x:y", objectives={"soc"}, optimal=True)
+    registry.get("broken")._fn.append(broken)
+    try:
+        g = Graph.grid(3, 1)
+        inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+        r = hp.solve(inst, "broken")
+        assert r.status is Status.ERROR and r.plan is None
+        assert "wrong_goal" in r.stats["violations"][0]
+    finally:
+        registry._REGISTRY.pop("broken")
+
+
+def test_registry_lists_every_issue_solver() -> None:
+    from hierplan_opt import registry
+
+    for name in ["cbs", "ecbs", "cbm", "flow", "mip", "cpsat"]:
+        assert name in registry.names()
+    assert registry.get("cbm").problems == {"mapf", "tapf"}
