@@ -16,7 +16,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from hierplan_opt.cli.common import BAD_INPUT, INTERNAL
+from hierplan_opt.cli.common import BAD_INPUT, INTERNAL, one_line_errors
 from hierplan_opt.core.errors import HierplanError
 
 COMMANDS = ("solve", "validate", "info", "verify", "post", "bench")
@@ -34,6 +34,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    one_line_errors(parser, "hierplan")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
@@ -44,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
                 continue  # that part of the toolkit is not installed yet
             raise
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
+        one_line_errors(p, f"hierplan {name}")
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser

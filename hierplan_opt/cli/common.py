@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance
@@ -61,3 +61,24 @@ def positive_float(text: str) -> float:
     if not math.isfinite(value) or value <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def one_line_errors(p: argparse.ArgumentParser, command: str) -> None:
+    """Make usage errors of a subcommand one line on stderr (exit code 2, no usage dump).
+
+    Example
+    -------
+    >>> p = argparse.ArgumentParser()
+    >>> one_line_errors(p, "hierplan demo")
+    >>> p.add_argument("--k", type=int) and None
+    >>> try:
+    ...     p.parse_args(["--k", "x"])
+    ... except SystemExit as exc:
+    ...     print(exc.code)
+    2
+    """
+
+    def error(message: str) -> NoReturn:
+        p.exit(2, f"{command}: error: {message} (see '{command} --help')\n")
+
+    p.error = error  # type: ignore[method-assign]

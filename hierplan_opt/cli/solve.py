@@ -1,0 +1,172 @@
+"""``hierplan solve``: solve an instance with a registered solver and write the plan."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from typing import Any
+
+from hierplan_opt.cli.common import (
+    INFEASIBLE,
+    INTERNAL,
+    LIMIT,
+    OK,
+    add_instance_arguments,
+    load_instance_from_args,
+    positive_float,
+)
+from hierplan_opt.core.errors import InputError
+
+HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning layout)"
+
+#: The CLI's default time limit (the library's default is no limit).
+DEFAULT_TIME_LIMIT = 60.0
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_instance_arguments(p)
+    p.add_argument("--solver", default="cbs", metavar="NAME", help="solver name (default: cbs)")
+    p.add_argument(
+        "--objective",
+        choices=("soc", "makespan"),
+        help="objective (default: soc for MAPF, makespan for TAPF)",
+    )
+    p.add_argument("--w", type=positive_float, metavar="W", help="suboptimality bound (option w)")
+    p.add_argument(
+        "--time-limit",
+        type=positive_float,
+        default=DEFAULT_TIME_LIMIT,
+        metavar="SECONDS",
+        help=f"wall-clock limit (default: {DEFAULT_TIME_LIMIT:g})",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default: 0)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="any other solver option; VALUE is read as a YAML scalar (repeatable)",
+    )
+    p.add_argument(
+        "--out",
+        metavar="PLAN",
+        help="write the plan here (.yaml, or .json); only written when a plan is found",
+    )
+
+
+def parse_options(pairs: list[str]) -> dict[str, Any]:
+    """``["w=1.5", "bypass=false"]`` -> ``{"w": 1.5, "bypass": False}``.
+
+    Example
+    -------
+    >>> parse_options(["w=1.5", "bypass=false", "mode=fast"])
+    {'w': 1.5, 'bypass': False, 'mode': 'fast'}
+    """
+    import yaml
+
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip()
+        if not sep or not key.isidentifier():
+            raise InputError(f"--set expects KEY=VALUE with a solver option name, got {pair!r}")
+        if key in out:
+            raise InputError(f"--set {key} is given twice")
+        if key in ("time_limit", "seed", "objective"):
+            raise InputError(f"use --{key.replace('_', '-')} instead of --set {key}=...")
+        try:
+            value = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError:
+            value = text
+        if isinstance(value, (list, dict)):
+            raise InputError(f"--set {key}: the value must be a single number, word or bool")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"--set {key}: the value must be finite, got {text!r}")
+        out[key] = value
+    return out
+
+
+def summary(result: Any, instance: Any) -> str:
+    """The one-line summary ``solve`` prints.
+
+    Example
+    -------
+    >>> from hierplan_opt import Graph, Instance, Result, Status
+    >>> inst = Instance.mapf(Graph.grid(2, 1), [(0, 0)], [(1, 0)])
+    >>> summary(Result(Status.TIME_LIMIT, None, lower_bound=7, solver="cbs"), inst)
+    'TIME_LIMIT lb=7 gap=- runtime=0.000s solver=cbs objective=soc agents=1'
+    """
+    parts = [str(result.status)]
+    if result.plan is not None:
+        parts.append(f"cost={_fmt(result.cost)}")
+    parts.append(f"lb={_fmt(result.lower_bound)}")
+    gap = result.gap
+    parts.append(f"gap={gap:.4f}" if gap is not None else "gap=-")
+    if result.plan is not None:
+        parts.append(f"soc={result.plan.sum_of_costs} makespan={result.plan.makespan}")
+    parts.append(f"runtime={result.runtime:.3f}s")
+    parts.append(f"solver={result.solver} objective={result.objective}")
+    parts.append(f"agents={instance.num_agents}")
+    shown = 0
+    for k, v in result.stats.items():
+        if k == "error" or shown >= 6:
+            continue
+        if isinstance(v, (bool, int, float, str)):
+            text = _fmt(v) if not isinstance(v, str) else v
+            if isinstance(v, str) and (len(v) > 30 or " " in v):
+                continue
+            parts.append(f"{k}={text}")
+            shown += 1
+    return " ".join(parts)
+
+
+def _fmt(x: Any) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, bool):
+        return str(x).lower()
+    if isinstance(x, float):
+        return str(int(x)) if x.is_integer() else f"{x:.4g}"
+    return str(x)
+
+
+def run(args: argparse.Namespace) -> int:
+    import hierplan_opt
+    from hierplan_opt.core.result import Status
+    from hierplan_opt.io import save_plan
+
+    options = parse_options(args.set)
+    if args.w is not None:
+        if "w" in options:
+            raise InputError("give w either with --w or with --set w=..., not both")
+        options["w"] = args.w
+    instance = load_instance_from_args(args)
+    result = hierplan_opt.solve(
+        instance,
+        args.solver,
+        time_limit=args.time_limit,
+        seed=args.seed,
+        objective=args.objective,
+        **options,
+    )
+    line = summary(result, instance)
+    if result.plan is not None and args.out:
+        save_plan(args.out, instance, result)
+        line += f" -> {args.out}"
+    print(line)
+    if result.status is Status.ERROR:
+        err = result.stats.get("error", "no details")
+        print(f"hierplan solve: solver error: {err}", file=sys.stderr)
+        return INTERNAL
+    if result.plan is not None:
+        return OK
+    if result.status is Status.INFEASIBLE:
+        reason = result.stats.get("reason") or result.stats.get("infeasible")
+        if isinstance(reason, str):
+            print(f"hierplan solve: infeasible: {reason}", file=sys.stderr)
+        return INFEASIBLE
+    if result.status is Status.TIME_LIMIT:
+        return LIMIT
+    print(f"hierplan solve: solver returned {result.status} without a plan", file=sys.stderr)
+    return INTERNAL

@@ -1,0 +1,38 @@
+"""``hierplan validate``: check a plan file against an instance with the one validator."""
+
+from __future__ import annotations
+
+import argparse
+
+from hierplan_opt.cli.common import (
+    OK,
+    PLAN_INVALID,
+    add_instance_arguments,
+    load_instance_from_args,
+)
+
+HELP = "check a plan file against an instance (prints 'valid' with costs, or the violations)"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_instance_arguments(p)
+    p.add_argument("plan", metavar="PLAN", help="plan file (libMultiRobotPlanning layout)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from hierplan_opt.core.validate import validate
+    from hierplan_opt.io import load_plan
+
+    instance = load_instance_from_args(args)
+    plan = load_plan(args.plan, instance)
+    violations = validate(instance, plan)
+    if violations:
+        for v in violations:
+            print(f"{args.plan}: {v}")
+        return PLAN_INVALID
+    print(
+        f"valid: soc={plan.sum_of_costs} makespan={plan.makespan} "
+        f"agents={plan.num_agents} (lower bounds: soc>={instance.soc_lower_bound()}, "
+        f"makespan>={instance.makespan_lower_bound()})"
+    )
+    return OK

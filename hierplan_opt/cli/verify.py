@@ -1,0 +1,66 @@
+"""``hierplan verify INSTANCE [--scen FILE --agents K] PLAN``: certify a plan's optimality."""
+
+from __future__ import annotations
+
+import argparse
+
+from hierplan_opt.cli.common import (
+    LIMIT,
+    OK,
+    PLAN_INVALID,
+    add_instance_arguments,
+    load_instance_from_args,
+    positive_float,
+)
+
+HELP = "certify that a plan is optimal with an exact formulation (CP-SAT or MIP), or report the gap"
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_instance_arguments(p)
+    p.add_argument("plan", metavar="PLAN", help="plan file (as written by `hierplan solve`)")
+    p.add_argument(
+        "--objective",
+        choices=("soc", "makespan"),
+        help="objective to certify (default: soc for MAPF, makespan for TAPF)",
+    )
+    p.add_argument(
+        "--method",
+        choices=("cpsat", "mip"),
+        default="cpsat",
+        help="exact formulation that decides (default: cpsat)",
+    )
+    p.add_argument(
+        "--time-limit",
+        metavar="S",
+        type=positive_float,
+        help="wall-clock budget in seconds (default: none)",
+    )
+    p.epilog = (
+        "exit codes: 0 proven optimal, 1 plan invalid or not optimal, "
+        "2 bad input, 4 time limit reached before a proof"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from hierplan_opt.formulations.verify import verify
+    from hierplan_opt.io import load_plan
+
+    instance = load_instance_from_args(args)
+    plan = load_plan(args.plan, instance)
+    res = verify(
+        instance,
+        plan,
+        objective=args.objective,
+        method=args.method,
+        time_limit=args.time_limit,
+    )
+    print(res.message())
+    if res.status == "invalid":
+        for v in res.violations[1:]:
+            print(f"  {v}")
+    if res.status == "optimal":
+        return OK
+    if res.status == "unknown":
+        return LIMIT
+    return PLAN_INVALID

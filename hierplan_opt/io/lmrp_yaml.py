@@ -1,0 +1,265 @@
+"""libMultiRobotPlanning YAML instances (Hönig et al.).
+
+::
+
+    map:
+      dimensions: [5, 2]            # [W, H]
+      obstacles: [[0, 1], [1, 1]]   # optional
+    agents:
+      - {name: agent0, start: [0, 0], goal: [4, 0]}
+      - {name: agent1, start: [1, 0], potentialGoals: [[3, 0], [2, 0]]}
+
+``potentialGoals`` (the target-assignment variant, ``cbs_ta``) becomes a TAPF
+instance: agents with the same set of potential goals form one team whose targets are
+that set. This toolkit's teams need disjoint target sets with as many targets as
+robots, so sets that overlap without being equal, or that have more goals than the
+agents sharing them, are refused. An agent with a plain ``goal`` next to agents with
+``potentialGoals`` is a team of one.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import DEFAULT_KINEMATICS, Agent, Instance, Team
+from hierplan_opt.io._common import Unique, loc_text, location, wrap
+from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
+
+TOP_KEYS = ("map", "agents")
+MAP_KEYS = ("dimensions", "obstacles")
+AGENT_KEYS = ("name", "start", "goal", "potentialGoals")
+
+
+def load(path: str | Path) -> Instance:
+    """Read a libMultiRobotPlanning instance file.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> f = os.path.join(tempfile.mkdtemp(), "corridor.yaml")
+    >>> _ = open(f, "w").write('''
+    ... map: {dimensions: [5, 2], obstacles: [[0, 1], [1, 1], [3, 1], [4, 1]]}
+    ... agents:
+    ...   - {name: agent0, start: [0, 0], goal: [4, 0]}
+    ...   - {name: agent1, start: [1, 0], goal: [3, 0]}
+    ... ''')
+    >>> load(f).soc_lower_bound()
+    6
+    """
+    return from_data(read_yaml(path), path)
+
+
+def from_data(data: Any, path: str | Path) -> Instance:
+    """Build the instance from parsed YAML (``path`` names the file in errors).
+
+    Example
+    -------
+    >>> data = {"map": {"dimensions": [3, 1]},
+    ...         "agents": [{"name": "a", "start": [0, 0], "goal": [2, 0]}]}
+    >>> from_data(data, "inline.yaml").agents[0].name
+    'a'
+    """
+    ctx = Ctx(path)
+    top = ctx.mapping(data, "a libMultiRobotPlanning instance", 1)
+    ctx.check_keys(top, "the instance", TOP_KEYS, TOP_KEYS)
+    m = ctx.mapping(top["map"], "map", ctx.line_of(top, "map"))
+    ctx.check_keys(m, "map", MAP_KEYS, ("dimensions",))
+    dline = ctx.line_of(m, "dimensions")
+    dims = ctx.sequence(m["dimensions"], "map dimensions", dline)
+    if len(dims) != 2:
+        raise ctx.error(f"map dimensions must be [W, H], got {list(dims)}", dline)
+    width, height = (ctx.integer(d, "a map dimension", dline, minimum=1) for d in dims)
+    obstacles: list[tuple[int, int]] = []
+    if m.get("obstacles") is not None:
+        obs = ctx.sequence(m["obstacles"], "map obstacles", ctx.line_of(m, "obstacles"))
+        for i, o in enumerate(obs):
+            oline = ctx.line_of(obs, i)
+            if not isinstance(o, list) or len(o) != 2:
+                raise ctx.error(f"an obstacle must be [x, y], got {o!r}", oline)
+            x, y = (ctx.integer(c, "an obstacle coordinate", oline) for c in o)
+            if not (0 <= x < width and 0 <= y < height):
+                raise ctx.error(f"obstacle [{x}, {y}] is outside the {width}x{height} map", oline)
+            obstacles.append((x, y))
+    graph = Graph.grid(width, height, obstacles=obstacles)
+
+    agents_raw = ctx.sequence(top["agents"], "agents", ctx.line_of(top, "agents"))
+    if not agents_raw:
+        raise ctx.error("the instance has no agents", agents_raw.line or None)
+    names: dict[str, int] = {}
+    starts = Unique(ctx, graph, "start")
+    goals = Unique(ctx, graph, "goal")
+    rows: list[tuple[str, int, tuple[int, ...], bool, int | None]] = []
+    for i, a in enumerate(agents_raw):
+        aline = ctx.line_of(agents_raw, i)
+        a = ctx.mapping(a, f"agent {i}", aline)
+        ctx.check_keys(a, f"agent {i}", AGENT_KEYS, ("start",))
+        name = (
+            ctx.string(a["name"], "agent name", ctx.line_of(a, "name"))
+            if "name" in a
+            else f"agent{i}"
+        )
+        if name in names:
+            raise ctx.error(f"agent name {name!r} is used twice", ctx.line_of(a, "name"))
+        names[name] = i
+        start = location(ctx, graph, a["start"], f"agent {name!r} start", ctx.line_of(a, "start"))
+        starts.add(start, f"agent {name!r}", ctx.line_of(a, "start"))
+        if "goal" in a and "potentialGoals" in a:
+            raise ctx.error(f"agent {name!r} has both 'goal' and 'potentialGoals'", aline)
+        if "goal" in a:
+            gline = ctx.line_of(a, "goal")
+            g = location(ctx, graph, a["goal"], f"agent {name!r} goal", gline)
+            rows.append((name, start, (g,), False, gline))
+        elif "potentialGoals" in a:
+            pline = ctx.line_of(a, "potentialGoals")
+            pg = ctx.sequence(a["potentialGoals"], f"potentialGoals of {name!r}", pline)
+            if not pg:
+                raise ctx.error(f"potentialGoals of agent {name!r} is empty", pline)
+            targets: list[int] = []
+            for j, loc in enumerate(pg):
+                v = location(ctx, graph, loc, f"agent {name!r} potential goal", ctx.line_of(pg, j))
+                if v in targets:
+                    raise ctx.error(
+                        f"potentialGoals of agent {name!r} lists {loc_text(graph, v)} twice",
+                        ctx.line_of(pg, j),
+                    )
+                targets.append(v)
+            rows.append((name, start, tuple(targets), True, pline))
+        else:
+            raise ctx.error(f"agent {name!r} needs 'goal' or 'potentialGoals'", aline)
+
+    if not any(r[3] for r in rows):  # plain MAPF
+        for name, _s, (g,), _p, gline in rows:
+            goals.add(g, f"agent {name!r}", gline)
+        agents = tuple(Agent(n, s, gs[0]) for n, s, gs, _p, _l in rows)
+        inst = wrap(ctx, None, lambda: Instance(graph, agents, name=Path(path).stem))
+    else:
+        inst = _tapf(ctx, graph, rows, Path(path).stem)
+    inst.meta.update({"format": "lmrp", "source": str(path)})
+    return inst
+
+
+def _tapf(
+    ctx: Ctx,
+    graph: Graph,
+    rows: list[tuple[str, int, tuple[int, ...], bool, int | None]],
+    stem: str,
+) -> Instance:
+    groups: dict[frozenset[int], list[int]] = {}
+    owner: dict[int, frozenset[int]] = {}
+    for i, (name, _s, targets, _p, line) in enumerate(rows):
+        key = frozenset(targets)
+        for t in targets:
+            other = owner.get(t)
+            if other is not None and other != key:
+                first = rows[groups[other][0]][0]
+                raise ctx.error(
+                    f"agent {name!r} shares the goal {loc_text(graph, t)} with agent {first!r} "
+                    "but their goal sets differ; this toolkit's teams need equal or "
+                    "disjoint goal sets",
+                    line,
+                )
+            owner[t] = key
+        groups.setdefault(key, []).append(i)
+    agents: list[Agent] = []
+    teams: list[Team] = []
+    order = [i for members in groups.values() for i in members]
+    new_index = {old: new for new, old in enumerate(order)}
+    for ti, (key, members) in enumerate(groups.items()):
+        if len(key) != len(members):
+            first = rows[members[0]]
+            who = ", ".join(repr(rows[i][0]) for i in members[:3])
+            more = " ..." if len(members) > 3 else ""
+            raise ctx.error(
+                f"agents {who}{more} share {len(key)} potential goals but are "
+                f"{len(members)} agents; this toolkit's teams need as many goals as robots",
+                first[4],
+            )
+        targets = rows[members[0]][2]  # in the file order of the first member
+        for i in members:
+            agents.append(Agent(rows[i][0], rows[i][1], None, ti))
+        teams.append(Team(f"team{ti}", tuple(new_index[i] for i in members), targets))
+    return wrap(ctx, None, lambda: Instance(graph, tuple(agents), tuple(teams), name=stem))
+
+
+# ---------------------------------------------------------------- writing
+def dumps(instance: Instance) -> str:
+    """The libMultiRobotPlanning YAML text of a 2D-grid instance.
+
+    TAPF teams become ``potentialGoals`` (every robot lists its team's targets).
+    Refuses what the format cannot hold: 3D grids, roadmaps, highways, kinematics,
+    a cell size other than 1.
+
+    Example
+    -------
+    >>> g = Graph.grid(2, 1)
+    >>> print(dumps(Instance.mapf(g, [(0, 0)], [(1, 0)])), end="")
+    map:
+      dimensions: [2, 1]
+      obstacles: []
+    agents:
+      - name: agent0
+        start: [0, 0]
+        goal: [1, 0]
+    """
+    g = instance.graph
+    if g.kind != "grid" or g.shape is None or len(g.shape) != 2:
+        raise InputError("the libMultiRobotPlanning format holds only 2D grids")
+    if instance.highways is not None:
+        raise InputError(
+            "the libMultiRobotPlanning format has no highways; use the hierplan format"
+        )
+    if any(a.kinematics != DEFAULT_KINEMATICS for a in instance.agents):
+        raise InputError(
+            "the libMultiRobotPlanning format has no robot kinematics; use the hierplan format"
+        )
+    if g.cell_size != 1.0:
+        raise InputError(
+            "the libMultiRobotPlanning format has no cell_size; use the hierplan format"
+        )
+    width, height = g.shape
+    lines = ["map:", f"  dimensions: [{width}, {height}]"]
+    blocked = [v for v in range(g.n) if not g.passable[v]]
+    if blocked:
+        lines.append("  obstacles:")
+        lines += [f"    - {loc_text(g, v)}" for v in blocked]
+    else:
+        lines.append("  obstacles: []")
+    lines.append("agents:")
+    for a in instance.agents:
+        lines.append(f"  - name: {yaml_scalar(a.name)}")
+        lines.append(f"    start: {loc_text(g, a.start)}")
+        if a.team is None:
+            assert a.goal is not None
+            lines.append(f"    goal: {loc_text(g, a.goal)}")
+        else:
+            targets = instance.teams[a.team].targets
+            lines.append(f"    potentialGoals: [{', '.join(loc_text(g, t) for t in targets)}]")
+    return "\n".join(lines) + "\n"
+
+
+def save(path: str | Path, instance: Instance) -> None:
+    """Write ``instance`` as a libMultiRobotPlanning YAML file.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> f = os.path.join(tempfile.mkdtemp(), "x.yaml")
+    >>> save(f, Instance.mapf(Graph.grid(2, 1), [(0, 0)], [(1, 0)]))
+    >>> load(f).num_agents
+    1
+    """
+    Path(path).write_text(dumps(instance), encoding="utf-8")
+
+
+def looks_like(data: Any) -> bool:
+    """Whether parsed YAML has the top-level keys of this format.
+
+    Example
+    -------
+    >>> looks_like({"map": {}, "agents": []}), looks_like({"graph": {}})
+    (True, False)
+    """
+    return isinstance(data, LDict | dict) and "map" in data and "agents" in data
