@@ -1,1 +1,61 @@
-"""schedule."""
+"""MAPF-POST: from a valid discrete plan to an execution schedule.
+
+Pipeline: plan -> temporal plan graph (:mod:`.tpg`) -> simple temporal network
+(:mod:`.stn`) -> node times by graph algorithms (:mod:`.solve_graph`) or an LP
+(:mod:`.solve_lp`) -> :class:`Schedule` (:mod:`.output`), checked by a
+continuous-time replay (:mod:`.replay`). The front door is :func:`postprocess`.
+"""
+
+from __future__ import annotations
+
+from hierplan_opt.schedule.output import (
+    Schedule,
+    Waypoints,
+    read_schedule,
+    schedule_text,
+    to_dot,
+    write_schedule,
+)
+from hierplan_opt.schedule.post import default_delta, postprocess
+from hierplan_opt.schedule.replay import ReplayReport, check_bounds, replay
+from hierplan_opt.schedule.solve_graph import (
+    GraphSolution,
+    InconsistentSTNError,
+    bellman_ford,
+    critical_path,
+    earliest_times,
+    latest_times,
+    solve_graph,
+)
+from hierplan_opt.schedule.solve_lp import LPError, LPSolution, solve_lp
+from hierplan_opt.schedule.stn import STN, accel_time, build_stn
+from hierplan_opt.schedule.tpg import TPG, build_tpg
+
+__all__ = [
+    "STN",
+    "TPG",
+    "GraphSolution",
+    "InconsistentSTNError",
+    "LPError",
+    "LPSolution",
+    "ReplayReport",
+    "Schedule",
+    "Waypoints",
+    "accel_time",
+    "bellman_ford",
+    "build_stn",
+    "build_tpg",
+    "check_bounds",
+    "critical_path",
+    "default_delta",
+    "earliest_times",
+    "latest_times",
+    "postprocess",
+    "read_schedule",
+    "replay",
+    "schedule_text",
+    "solve_graph",
+    "solve_lp",
+    "to_dot",
+    "write_schedule",
+]

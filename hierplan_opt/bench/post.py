@@ -1,0 +1,255 @@
+"""``hierplan bench post``: MAPF-POST sizes and times, graph method vs LP.
+
+Plans: ECBS (``hierplan_opt.solve(inst, "ecbs", w=...)``) when that solver is
+available, else prioritized planning with a space-time A* written here (every plan is
+checked with :func:`hierplan_opt.validate`). For each number of robots the table
+gives the TPG/STN sizes and the median over repeats of: building TPG+STN, the earliest
+schedule (graph method), the LP for minimum makespan with the direct HiGHS back end
+and (up to ``--pyomo-max`` robots) with Pyomo + appsi_highs, and the max-safety LP.
+"""
+
+from __future__ import annotations
+
+import argparse
+import heapq
+import logging
+import statistics
+import time
+from pathlib import Path
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAP = "instances/movingai/warehouse-10-20-10-2-1.map"
+DEFAULT_SCEN = "instances/movingai/warehouse-10-20-10-2-1-even-1.scen"
+
+
+# ---------------------------------------------------------------------- plans
+def prioritized_plan(
+    instance: Instance, *, max_time: int | None = None, max_expansions: int = 300_000
+) -> Plan | None:
+    """A valid plan by prioritized planning (agents in index order), or None.
+
+    Each robot runs a space-time A* (timestep distance heuristic) that avoids the
+    vertices and edge swaps of the robots planned before it and their parked goals;
+    it may park at its goal only if no earlier robot passes there later. Gives up
+    (None) when a robot needs more than ``max_expansions`` A* expansions.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(3, 3)
+    >>> inst = Instance.mapf(g, [(0, 0), (2, 0)], [(2, 0), (0, 0)])
+    >>> from hierplan_opt.core.validate import validate
+    >>> validate(inst, prioritized_plan(inst))
+    []
+    """
+    g = instance.graph
+    adj = g.adj
+    if max_time is None:
+        max_time = 2 * max(g.dist(a.start, a.goal) for a in instance.agents) + 200
+    vertex_res: dict[tuple[int, int], int] = {}
+    edge_res: set[tuple[int, int, int]] = set()
+    parked: dict[int, int] = {}  # vertex -> time from which an earlier robot parks there
+    last_use: dict[int, int] = {}  # vertex -> last time an earlier robot occupies it
+    paths: list[list[int]] = []
+    for agent in instance.agents:
+        s, goal = agent.start, agent.goal
+        assert goal is not None
+        h = g.dist_list(goal)
+        path = _st_astar(
+            adj,
+            h,
+            s,
+            goal,
+            vertex_res,
+            edge_res,
+            parked,
+            last_use.get(goal, -1),
+            max_time,
+            max_expansions,
+        )
+        if path is None:
+            return None
+        for t, v in enumerate(path):
+            vertex_res[(v, t)] = 1
+            if v in last_use:
+                last_use[v] = max(last_use[v], t)
+            else:
+                last_use[v] = t
+            if t:
+                edge_res.add((path[t - 1], v, t))
+        parked[path[-1]] = len(path) - 1
+        paths.append(path)
+    return Plan.from_paths(paths)
+
+
+def _st_astar(adj, h, s, goal, vres, eres, parked, goal_busy_until, max_time, max_exp):  # noqa: ANN001, ANN202
+    def blocked(v: int, t: int) -> bool:
+        return (v, t) in vres or (v in parked and t >= parked[v])
+
+    if blocked(s, 0):
+        return None
+    openl = [(h[s], 0, s)]
+    parent: dict[tuple[int, int], tuple[int, int] | None] = {(s, 0): None}
+    expanded = 0
+    while openl:
+        _, t, v = heapq.heappop(openl)
+        expanded += 1
+        if expanded > max_exp:
+            return None
+        if v == goal and t > goal_busy_until:
+            out = []
+            node: tuple[int, int] | None = (v, t)
+            while node is not None:
+                out.append(node[0])
+                node = parent[node]
+            return out[::-1]
+        if t >= max_time:
+            continue
+        for w in (*adj[v], v):
+            nt = t + 1
+            if (w, nt) in parent or blocked(w, nt) or (w, v, nt) in eres:
+                continue
+            parent[(w, nt)] = (v, t)
+            heapq.heappush(openl, (nt + h[w], nt, w))
+    return None
+
+
+def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) -> tuple[Plan, str]:
+    """An ECBS plan if the ECBS solver is available and succeeds, else prioritized."""
+    import hierplan_opt as hp
+
+    try:
+        res = hp.solve(instance, "ecbs", time_limit=time_limit, w=w)
+        if res.plan is not None and not hp.validate(instance, res.plan):
+            return res.plan, f"ecbs(w={w})"
+        log.info("ECBS gave no plan (%s); using prioritized planning", res.status)
+    except Exception as exc:  # the ECBS solver may not exist yet
+        log.info("ECBS unavailable (%s); using prioritized planning", exc)
+    plan = prioritized_plan(instance)
+    if plan is None:
+        raise RuntimeError("prioritized planning failed")
+    bad = hp.validate(instance, plan)
+    if bad:
+        raise RuntimeError(f"prioritized plan invalid: {bad[0]}")
+    return plan, "prioritized"
+
+
+# ---------------------------------------------------------------------- bench
+def _median_time(fn, repeats: int) -> tuple[float, object]:  # noqa: ANN001
+    times = []
+    out = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def main(argv: list[str] | None = None) -> int:
+    from hierplan_opt.io.movingai import load_map, load_scen
+    from hierplan_opt.schedule import build_stn, build_tpg, default_delta, solve_graph, solve_lp
+
+    ap = argparse.ArgumentParser(prog="hierplan bench post", description=__doc__)
+    ap.add_argument("--map", default=DEFAULT_MAP)
+    ap.add_argument("--scen", default=DEFAULT_SCEN)
+    ap.add_argument(
+        "--agents",
+        default="50,100,200,300,450",
+        help="comma-separated robot counts (the warehouse scenario has 450)",
+    )
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--w", type=float, default=1.5, help="ECBS suboptimality bound")
+    ap.add_argument("--pyomo-max", type=int, default=100, help="largest K for the Pyomo LP")
+    ap.add_argument(
+        "--safety-max", type=int, default=100, help="largest K for the max-safety LP (1 run)"
+    )
+    ap.add_argument("--planner", choices=("auto", "prioritized"), default="auto")
+    ap.add_argument("--time-limit", type=float, default=120.0, help="ECBS time limit per plan")
+    ap.add_argument("--cache", metavar="DIR", help="keep plans in DIR and reuse them")
+    args = ap.parse_args(argv)
+
+    root = Path(__file__).resolve().parents[2]
+    map_path = Path(args.map) if Path(args.map).exists() else root / args.map
+    scen_path = Path(args.scen) if Path(args.scen).exists() else root / args.scen
+    graph = load_map(str(map_path))
+    counts = [int(x) for x in args.agents.split(",") if x]
+    header = (
+        f"{'K':>4} {'planner':>12} {'SOC':>7} {'nodes':>7} {'arcs':>7} {'type2':>6} "
+        f"{'build':>7} {'graph':>7} {'lp':>7} {'lp/gr':>6} {'pyomo':>7} {'safety':>7} "
+        f"{'makespan':>9} {'lp_mk':>9} {'R*':>6}"
+    )
+    title = f"MAPF-POST on {map_path.name} + {scen_path.name}: medians of {args.repeats} runs, s"
+    print(title)  # noqa: T201
+    print(header)  # noqa: T201
+    for k in counts:
+        try:
+            inst = load_scen(str(scen_path), graph, agents=k)
+        except InputError as exc:
+            print(f"{k:>4} skipped: {exc}")  # noqa: T201
+            continue
+        t0 = time.perf_counter()
+        cached = None
+        if args.cache:
+            Path(args.cache).mkdir(parents=True, exist_ok=True)
+            cached = Path(args.cache) / f"{scen_path.stem}-{k}-{args.planner}-w{args.w}.yaml"
+        if cached is not None and cached.exists():
+            from hierplan_opt.io import load_plan
+
+            plan = load_plan(cached, inst)
+            planner = "cached"
+        elif args.planner == "prioritized":
+            plan = prioritized_plan(inst)
+            planner = "prioritized"
+            if plan is None:
+                print(f"{k:>4} prioritized planning failed")  # noqa: T201
+                continue
+        else:
+            plan, planner = make_plan(inst, w=args.w, time_limit=args.time_limit)
+        if cached is not None and not cached.exists():
+            from hierplan_opt.io import save_plan
+
+            save_plan(cached, inst, plan)
+        log.info("plan for %d robots by %s in %.1f s", k, planner, time.perf_counter() - t0)
+        delta = default_delta(inst, plan)
+
+        def build(inst=inst, plan=plan, delta=delta):  # noqa: ANN001, ANN202
+            tpg = build_tpg(inst, plan, delta)
+            return build_stn(inst, tpg)
+
+        t_build, stn = _median_time(build, args.repeats)
+        t_graph, gsol = _median_time(lambda stn=stn: solve_graph(stn), args.repeats)
+        t_lp, lp = _median_time(
+            lambda stn=stn: solve_lp(stn, "makespan", backend="highs"), args.repeats
+        )
+        if k <= args.pyomo_max:
+            t_py, lp_py = _median_time(
+                lambda stn=stn: solve_lp(stn, "makespan", backend="pyomo"), 1
+            )
+            assert abs(lp_py.makespan - gsol.makespan) < 1e-6 * max(1, gsol.makespan)
+            py = f"{t_py:7.3f}"
+        else:
+            py = f"{'-':>7}"
+        if k <= args.safety_max:
+            t_safe, safe = _median_time(lambda stn=stn: solve_lp(stn, "safety", backend="highs"), 1)
+            sf, rs = f"{t_safe:7.3f}", f"{safe.R:6.3f}"
+        else:
+            sf, rs = f"{'-':>7}", f"{'-':>6}"
+        graph_total = t_build + t_graph
+        print(  # noqa: T201
+            f"{k:>4} {planner:>12} {plan.sum_of_costs:>7} {stn.num_nodes:>7} {stn.num_arcs:>7} "
+            f"{stn.tpg.num_type2:>6} {t_build:7.3f} {t_graph:7.3f} {t_lp:7.3f} "
+            f"{(t_build + t_lp) / graph_total:6.1f} {py} {sf} "
+            f"{gsol.makespan:9.3f} {lp.makespan:9.3f} {rs}"
+        )
+    print(  # noqa: T201
+        "build = TPG + STN; graph = earliest schedule + latest times + critical path; "
+        "lp = makespan LP via HiGHS direct; lp/gr = (build+lp)/(build+graph); "
+        "pyomo = same LP via Pyomo+appsi_highs (1 run); safety = max-safety LP via HiGHS "
+        "direct (2 stages, 1 run); R* = 1 / slowest piece speed"
+    )
+    return 0

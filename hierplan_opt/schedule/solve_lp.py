@@ -1,0 +1,433 @@
+"""Linear programs over an STN (Pyomo + HiGHS, or the same LP straight to HiGHS).
+
+Variables: one time ``t_v >= 0`` per STN node (``release_v <= t_v <= deadline_v``).
+
+Constraints (the STN): ``lb_e <= t_v - t_u <= ub_e`` for every arc ``e = (u, v)``.
+
+Objectives:
+
+* ``makespan``: minimise ``M`` s.t. ``M >= t_f`` for every robot's final node ``f``.
+  Equal to the graph method's makespan (the earliest schedule is optimal).
+* ``flowtime``: minimise ``sum_f t_f``. Also attained by the earliest schedule (the
+  STN's solutions form a lattice whose least element is the earliest schedule), so it
+  is a cross-check of the graph method, not a different schedule.
+* ``safety``: stage 1 minimises ``R`` s.t. the STN and ``t_v - t_u <= len_e * R`` on
+  every piece (every robot moves at least ``1 / R`` on every piece: robots keep
+  moving and the markers keep their meaning); stage 2 minimises ``M`` with ``R`` fixed
+  at its optimum (times ``1 + 1e-9``).
+
+Back ends: ``"pyomo"`` builds a Pyomo ``ConcreteModel`` and solves it with
+``SolverFactory("appsi_highs")``; ``"highs"`` assembles the identical LP as a sparse
+matrix and hands it to ``highspy`` directly. Pyomo's model construction and the
+appsi translation cost ~100-200 us per constraint, so ``"auto"`` uses Pyomo up to
+:data:`PYOMO_MAX_ARCS` arcs and the direct path above.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hierplan_opt.core.errors import HierplanError, OptionError
+from hierplan_opt.schedule.stn import PIECE, STN
+
+log = logging.getLogger(__name__)
+
+OBJECTIVES = ("makespan", "safety", "flowtime")
+BACKENDS = ("auto", "pyomo", "highs")
+PYOMO_MAX_ARCS = 20_000
+#: Relative slack on R* in stage 2 of the safety LP.
+R_SLACK = 1e-9
+
+
+class LPError(HierplanError):
+    """The LP solver did not reach an optimum (infeasible STN, time limit, failure)."""
+
+
+@dataclass(frozen=True, eq=False)
+class LPSolution:
+    """Node times and objective values of an LP schedule."""
+
+    times: np.ndarray
+    makespan: float
+    objective_value: float
+    R: float | None = None
+    backend: str = ""
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+def solve_lp(
+    stn: STN,
+    objective: str = "makespan",
+    *,
+    backend: str = "auto",
+    time_limit: float | None = None,
+    highs_options: dict[str, Any] | None = None,
+) -> LPSolution:
+    """Solve the LP for ``objective`` over ``stn``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.instance import Instance
+    >>> from hierplan_opt.core.plan import Plan
+    >>> from hierplan_opt.schedule.tpg import build_tpg
+    >>> from hierplan_opt.schedule.stn import build_stn
+    >>> g = Graph.grid(3, 1)
+    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2]])))
+    >>> round(solve_lp(stn, "makespan", backend="pyomo").makespan, 6)
+    2.0
+    >>> round(solve_lp(stn, "safety", backend="highs").R, 6)  # 1 / slowest speed
+    1.0
+    """
+    if objective not in OBJECTIVES:
+        raise OptionError(f"unknown LP objective {objective!r} (use {', '.join(OBJECTIVES)})")
+    if backend not in BACKENDS:
+        raise OptionError(f"unknown LP backend {backend!r} (use {', '.join(BACKENDS)})")
+    if backend == "auto":
+        backend = "pyomo" if stn.num_arcs <= PYOMO_MAX_ARCS else "highs"
+    t0 = time.perf_counter()
+    if backend == "pyomo":
+        sol = _solve_pyomo(stn, objective, time_limit)
+    else:
+        sol = _solve_highs(stn, objective, time_limit, highs_options or {})
+    sol.stats["lp_time"] = time.perf_counter() - t0
+    return sol
+
+
+# ---------------------------------------------------------------------- Pyomo
+def _solve_pyomo(stn: STN, objective: str, time_limit: float | None) -> LPSolution:
+    import pyomo.environ as pyo
+
+    n = stn.num_nodes
+    src = stn.arc_src.tolist()
+    dst = stn.arc_dst.tolist()
+    lb = stn.lb.tolist()
+    ub = stn.ub.tolist()
+    finals = stn.tpg.final_nodes().tolist()
+    release = stn.release.tolist()
+    deadline = stn.deadline.tolist()
+
+    t_build = time.perf_counter()
+    m = pyo.ConcreteModel(name="mapf_post")
+    m.N = pyo.RangeSet(0, n - 1)
+    m.t = pyo.Var(
+        m.N,
+        bounds=lambda _m, v: (release[v], deadline[v] if math.isfinite(deadline[v]) else None),
+    )
+    # Reference every time variable once up front: appsi adds the variables of each
+    # new constraint in a separate HiGHS call otherwise (quadratic-looking slow-down).
+    m.all_vars = pyo.Constraint(expr=pyo.quicksum(m.t[v] for v in range(n)) >= 0)
+
+    # ---- STN arcs: lb <= t_dst - t_src <= ub
+    def arc_rule(_m: Any, k: int) -> Any:
+        hi = ub[k] if math.isfinite(ub[k]) else None
+        return (lb[k], _m.t[dst[k]] - _m.t[src[k]], hi)
+
+    m.A = pyo.RangeSet(0, len(src) - 1) if src else pyo.Set(initialize=[])
+    m.arc = pyo.Constraint(m.A, rule=arc_rule)
+
+    # ---- makespan variable
+    m.M = pyo.Var(bounds=(0, None))
+    m.finish = pyo.Constraint(range(len(finals)), rule=lambda _m, j: _m.t[finals[j]] <= _m.M)
+
+    stats: dict[str, Any] = {}
+    R_val: float | None = None
+    if objective == "safety":
+        pieces = np.flatnonzero((stn.arc_kind == PIECE) & (stn.arc_length > 0)).tolist()
+        length = stn.arc_length.tolist()
+        m.R = pyo.Var(bounds=(0, None))
+        m.speed = pyo.Constraint(
+            range(len(pieces)),
+            rule=lambda _m, i: (
+                _m.t[dst[pieces[i]]] - _m.t[src[pieces[i]]] <= length[pieces[i]] * _m.R
+            ),
+        )
+        m.obj_R = pyo.Objective(expr=m.R)
+        m.obj_M = pyo.Objective(expr=m.M)
+        m.obj_M.deactivate()
+    elif objective == "makespan":
+        m.obj = pyo.Objective(expr=m.M)
+    else:
+        m.obj = pyo.Objective(expr=pyo.quicksum(m.t[f] for f in finals))
+    stats["lp_build_time"] = time.perf_counter() - t_build
+
+    opt = pyo.SolverFactory("appsi_highs")
+    if not opt.available():
+        raise LPError("the HiGHS solver is not available to Pyomo (appsi_highs)")
+    if time_limit is not None:
+        opt.config.time_limit = float(time_limit)
+    opt.config.stream_solver = False
+    # appsi copies HiGHS's log to its logger at INFO; keep it for -v (DEBUG) only.
+    opt.config.log_level = logging.DEBUG
+
+    def run() -> None:
+        res = opt.solve(m, load_solutions=False)
+        if not pyo.check_optimal_termination(res):
+            tc = res.solver.termination_condition
+            raise LPError(f"the LP was not solved to optimality (HiGHS via Pyomo: {tc})")
+        m.solutions.load_from(res)
+
+    run()
+    if objective == "safety":
+        R_val = float(pyo.value(m.R))
+        m.R.setub(R_val * (1 + R_SLACK) + 1e-12)
+        m.obj_R.deactivate()
+        m.obj_M.activate()
+        run()
+        obj_val = float(pyo.value(m.M))
+    elif objective == "makespan":
+        obj_val = float(pyo.value(m.M))
+    else:
+        obj_val = float(sum(pyo.value(m.t[f]) for f in finals))
+    times = np.array([pyo.value(m.t[v]) for v in range(n)], dtype=float)
+    times = _clean(times, stn)
+    return LPSolution(
+        times,
+        float(times[stn.tpg.final_nodes()].max()),
+        obj_val,
+        R_val,
+        "pyomo",
+        stats,
+    )
+
+
+# ---------------------------------------------------------------------- HiGHS direct
+def _solve_highs(
+    stn: STN,
+    objective: str,
+    time_limit: float | None,
+    options: dict[str, Any],
+    compress: bool = True,
+) -> LPSolution:
+    import highspy
+    import scipy.sparse as sp
+
+    inf = highspy.kHighsInf
+    t_build = time.perf_counter()
+    net = _compress(stn) if compress else _Reduced.identity(stn)
+    n = net.n
+    finals = net.finals
+    m_arcs = len(net.src)
+    K = len(finals)
+    iM = n  # makespan column
+    iR = n + 1  # R column (safety only)
+    ncol = n + (2 if objective == "safety" else 1)
+
+    rows = [np.arange(m_arcs), np.arange(m_arcs)]
+    cols = [net.dst, net.src]
+    vals = [np.ones(m_arcs), -np.ones(m_arcs)]
+    row_lo = [net.lb]
+    row_hi = [np.where(np.isfinite(net.ub), net.ub, inf)]
+    r0 = m_arcs
+    # M - t_f >= 0
+    rows += [r0 + np.arange(K), r0 + np.arange(K)]
+    cols += [np.full(K, iM), finals]
+    vals += [np.ones(K), -np.ones(K)]
+    row_lo.append(np.zeros(K))
+    row_hi.append(np.full(K, inf))
+    r0 += K
+    if objective == "safety":
+        pieces = np.flatnonzero((net.kind == PIECE) & (net.length > 0))
+        P = len(pieces)
+        # t_dst - t_src - len * R <= 0
+        rows += [r0 + np.arange(P)] * 3
+        cols += [net.dst[pieces], net.src[pieces], np.full(P, iR)]
+        vals += [np.ones(P), -np.ones(P), -net.length[pieces]]
+        row_lo.append(np.full(P, -inf))
+        row_hi.append(np.zeros(P))
+        r0 += P
+    A = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(r0, ncol)
+    )
+    col_lo = np.concatenate([net.release, np.zeros(ncol - n)])
+    if objective == "safety":
+        col_lo[iR] = net.R_lb  # every merged piece needs R >= lb / length
+    col_hi = np.concatenate(
+        [np.where(np.isfinite(net.deadline), net.deadline, inf), np.full(ncol - n, inf)]
+    )
+    cost = np.zeros(ncol)
+    if objective == "makespan":
+        cost[iM] = 1.0
+    elif objective == "flowtime":
+        cost[finals] = 1.0
+    else:
+        cost[iR] = 1.0
+
+    lp = highspy.HighsLp()
+    lp.num_col_ = ncol
+    lp.num_row_ = r0
+    lp.col_cost_ = cost
+    lp.col_lower_ = col_lo
+    lp.col_upper_ = col_hi
+    lp.row_lower_ = np.concatenate(row_lo)
+    lp.row_upper_ = np.concatenate(row_hi)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
+    lp.a_matrix_.start_ = A.indptr
+    lp.a_matrix_.index_ = A.indices
+    lp.a_matrix_.value_ = A.data
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    if time_limit is not None:
+        h.setOptionValue("time_limit", float(time_limit))
+    for key, value in options.items():
+        h.setOptionValue(key, value)
+    h.passModel(lp)
+    stats: dict[str, Any] = {"lp_build_time": time.perf_counter() - t_build, "lp_rows": r0}
+
+    def run() -> np.ndarray:
+        h.run()
+        status = h.getModelStatus()
+        if status != highspy.HighsModelStatus.kOptimal:
+            raise LPError(
+                f"the LP was not solved to optimality (HiGHS: {h.modelStatusToString(status)})"
+            )
+        return np.asarray(h.getSolution().col_value, dtype=float)
+
+    x = run()
+    R_val = None
+    if objective == "safety":
+        R_val = float(x[iR])
+        h.changeColBounds(iR, 0.0, R_val * (1 + R_SLACK) + 1e-12)
+        h.changeColCost(iR, 0.0)
+        h.changeColCost(iM, 1.0)
+        x = run()
+    times = _clean(net.expand(x[:n], R_val), stn)
+    stats["lp_columns"] = ncol
+    finals = stn.tpg.final_nodes()
+    obj_val = float(times[finals].sum()) if objective == "flowtime" else float(x[iM])
+    return LPSolution(times, float(times[finals].max()), obj_val, R_val, "highs", stats)
+
+
+@dataclass(frozen=True, eq=False)
+class _Reduced:
+    """The STN with chains of plain nodes merged (for the direct HiGHS LP).
+
+    A node is merged away when it is neither a robot's first nor last node, has
+    default node bounds, and exactly one arc in and one out (its robot's pieces,
+    without upper bounds). A chain ``u -> w1 -> ... -> wk -> v`` becomes one piece with
+    the summed lower bound and length; the pieces' own speed limits survive as the
+    lower bound ``R >= max lb_i / len_i`` on ``R``. :meth:`expand` puts the merged
+    nodes back, spreading the chain's extra time over its pieces in proportion to
+    ``lb_i`` (or, with ``R``, to the room ``len_i R - lb_i``), which keeps every
+    piece within its bounds.
+    """
+
+    n: int
+    src: np.ndarray
+    dst: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    kind: np.ndarray
+    length: np.ndarray
+    release: np.ndarray
+    deadline: np.ndarray
+    finals: np.ndarray
+    R_lb: float
+    stn: STN
+    kept: np.ndarray | None  # original ids of the reduced nodes (None: identity)
+
+    @classmethod
+    def identity(cls, stn: STN) -> _Reduced:
+        return cls(
+            stn.num_nodes, stn.arc_src, stn.arc_dst, stn.lb, stn.ub, stn.arc_kind,
+            stn.arc_length, stn.release, stn.deadline, stn.tpg.final_nodes(), 0.0, stn, None,
+        )  # fmt: skip
+
+    def expand(self, x: np.ndarray, R: float | None) -> np.ndarray:
+        if self.kept is None:
+            return np.asarray(x, dtype=float)
+        stn = self.stn
+        n = stn.num_nodes
+        t = np.full(n, np.nan)
+        t[self.kept] = x
+        gone = np.isnan(t)
+        if not gone.any():
+            return t
+        idx = np.arange(n)
+        prev_kept = np.maximum.accumulate(np.where(~gone, idx, -1))
+        next_kept = np.minimum.accumulate(np.where(~gone, idx, n)[::-1])[::-1]
+        # Piece u -> u+1 of every node (0 for last nodes): lower bound and weight.
+        piece = (stn.arc_kind == PIECE) & (stn.arc_dst == stn.arc_src + 1)
+        P_lb = np.zeros(n)
+        P_lb[stn.arc_src[piece]] = stn.lb[piece]
+        if R is not None:
+            P_len = np.zeros(n)
+            P_len[stn.arc_src[piece]] = stn.arc_length[piece]
+            W = np.maximum(P_len * R - P_lb, 0.0)
+        else:
+            W = P_lb.copy()
+        C_lb = np.concatenate(([0.0], np.cumsum(P_lb)))  # C[k] = sum of P over nodes < k
+        C_w = np.concatenate(([0.0], np.cumsum(W)))
+        w = np.flatnonzero(gone)
+        u, v = prev_kept[w], next_kept[w]
+        span_lb = C_lb[v] - C_lb[u]
+        span_w = C_w[v] - C_w[u]
+        extra = (t[v] - t[u]) - span_lb
+        frac = np.where(span_w > 0, (C_w[w] - C_w[u]) / np.where(span_w > 0, span_w, 1), 0.0)
+        t[w] = t[u] + (C_lb[w] - C_lb[u]) + np.maximum(extra, 0.0) * frac
+        return t
+
+
+def _compress(stn: STN) -> _Reduced:
+    n = stn.num_nodes
+    tpg = stn.tpg
+    indeg = np.bincount(stn.arc_dst, minlength=n)
+    outdeg = np.bincount(stn.arc_src, minlength=n)
+    finite_ub = np.zeros(n, dtype=bool)
+    fub = np.isfinite(stn.ub)
+    finite_ub[stn.arc_src[fub]] = True
+    finite_ub[stn.arc_dst[fub]] = True
+    removable = (
+        (indeg == 1) & (outdeg == 1) & (stn.release == 0) & ~np.isfinite(stn.deadline) & ~finite_ub
+    )
+    removable[tpg.start_nodes()] = False
+    removable[tpg.final_nodes()] = False
+    if not removable.any():
+        return _Reduced.identity(stn)
+    keep_mask = ~removable
+    kept = np.flatnonzero(keep_mask)
+    new_id = np.cumsum(keep_mask) - 1
+    both = keep_mask[stn.arc_src] & keep_mask[stn.arc_dst]
+    # New pieces: from a kept node whose successor was merged away to the next kept node.
+    u = kept[(kept + 1 < n)]
+    u = u[removable[u + 1]]
+    v = kept[np.searchsorted(kept, u + 1)]
+    piece = (stn.arc_kind == PIECE) & (stn.arc_dst == stn.arc_src + 1)
+    P_lb = np.zeros(n)
+    P_lb[stn.arc_src[piece]] = stn.lb[piece]
+    C = np.concatenate(([0.0], np.cumsum(P_lb)))
+    lb_new = C[v] - C[u]
+    len_new = tpg.node_s[v] - tpg.node_s[u]
+    touched = piece & (removable[stn.arc_src] | removable[stn.arc_dst])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = stn.lb[touched] / stn.arc_length[touched]
+    R_lb = float(np.max(ratio[np.isfinite(ratio)], initial=0.0))
+    return _Reduced(
+        n=len(kept),
+        src=np.concatenate([new_id[stn.arc_src[both]], new_id[u]]),
+        dst=np.concatenate([new_id[stn.arc_dst[both]], new_id[v]]),
+        lb=np.concatenate([stn.lb[both], lb_new]),
+        ub=np.concatenate([stn.ub[both], np.full(len(u), np.inf)]),
+        kind=np.concatenate([stn.arc_kind[both], np.full(len(u), PIECE, np.int8)]),
+        length=np.concatenate([stn.arc_length[both], len_new]),
+        release=stn.release[kept],
+        deadline=stn.deadline[kept],
+        finals=new_id[tpg.final_nodes()],
+        R_lb=R_lb,
+        stn=stn,
+        kept=kept,
+    )
+
+
+def _clean(times: np.ndarray, stn: STN) -> np.ndarray:
+    """Snap LP round-off: clip to the node bounds; tiny negatives become 0."""
+    t = np.clip(times, stn.release, stn.deadline)
+    t[np.abs(t) < 1e-12] = 0.0
+    return t

@@ -1,0 +1,159 @@
+"""MAPF-POST LPs against the graph method, and safety in a continuous-time replay."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hierplan_opt import Graph, Instance, Kinematics, Plan, validate
+from hierplan_opt.bench.post import prioritized_plan
+from hierplan_opt.schedule import (
+    build_stn,
+    build_tpg,
+    check_bounds,
+    postprocess,
+    replay,
+    solve_graph,
+    solve_lp,
+)
+from hierplan_opt.schedule.stn import PIECE
+
+
+def random_case(seed: int, *, kinds: bool = True) -> tuple[Instance, Plan] | None:
+    """A small random grid instance with mixed robots and a prioritized plan."""
+    rng = np.random.default_rng(seed)
+    W, H = (int(x) for x in rng.integers(4, 8, 2))
+    g = Graph.grid(W, H, blocked=rng.random((H, W)) < 0.15)
+    free = np.flatnonzero(g.passable)
+    k = int(rng.integers(2, min(7, len(free) // 2) + 1))
+    sel = rng.choice(free, 2 * k, replace=False)
+    kins = []
+    for _ in range(k):
+        if kinds and rng.random() < 0.4:
+            kins.append(
+                Kinematics(
+                    "pioneer",
+                    drive="differential",
+                    v_max=float(rng.choice([0.5, 1.0])),
+                    omega_max=float(rng.choice([1.0, 3.0])),
+                    a_max=None if rng.random() < 0.5 else 2.0,
+                )
+            )
+        else:
+            kins.append(Kinematics("youbot", v_max=float(rng.choice([0.5, 1.0, 2.0]))))
+    inst = Instance.mapf(
+        g,
+        [g.location(int(v)) for v in sel[:k]],
+        [g.location(int(v)) for v in sel[k:]],
+        kinematics=kins,
+    )
+    if any(g.dist(s, t) >= 1 << 30 for s, t in zip(inst.starts, inst.goals, strict=True)):
+        return None
+    plan = prioritized_plan(inst, max_time=60)
+    if plan is None:
+        return None
+    assert validate(inst, plan) == []
+    return inst, plan
+
+
+CASES = [c for c in (random_case(s) for s in range(12)) if c is not None][:6]
+
+
+def test_enough_cases() -> None:
+    assert len(CASES) >= 5
+
+
+@pytest.mark.parametrize("case", range(len(CASES)))
+@pytest.mark.parametrize("backend", ["pyomo", "highs"])
+def test_lp_makespan_equals_graph(case: int, backend: str) -> None:
+    inst, plan = CASES[case]
+    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    g = solve_graph(stn)
+    lp = solve_lp(stn, "makespan", backend=backend)
+    assert lp.makespan == pytest.approx(g.makespan, rel=1e-7, abs=1e-7)
+    assert check_bounds(stn, lp.times) == []
+    # Flowtime: the earliest schedule minimises every node, hence the sum too.
+    ft = solve_lp(stn, "flowtime", backend=backend)
+    finals = stn.tpg.final_nodes()
+    assert ft.objective_value == pytest.approx(g.earliest[finals].sum(), rel=1e-7, abs=1e-7)
+
+
+def test_pyomo_and_highs_agree_on_safety() -> None:
+    inst, plan = CASES[0]
+    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    a = solve_lp(stn, "safety", backend="pyomo")
+    b = solve_lp(stn, "safety", backend="highs")
+    r_pyomo, r_highs = a.R, b.R
+    assert r_pyomo == pytest.approx(r_highs, rel=1e-6)
+    assert a.makespan == pytest.approx(b.makespan, rel=1e-6)
+
+
+def _slowest_piece_speed(s) -> float:  # noqa: ANN001
+    stn = s.stn
+    p = (stn.arc_kind == PIECE) & (stn.arc_length > 0)
+    dur = s.times[stn.arc_dst[p]] - s.times[stn.arc_src[p]]
+    return float((stn.arc_length[p] / dur).min())
+
+
+@pytest.mark.parametrize("case", range(len(CASES)))
+def test_safety_distance_holds_in_replay(case: int) -> None:
+    inst, plan = CASES[case]
+    graph_s = postprocess(inst, plan, "makespan", delta=0.2)
+    safe_s = postprocess(inst, plan, "safety", method="lp", delta=0.2)
+    for s in (graph_s, safe_s):
+        assert check_bounds(s.stn, s.times) == []
+        rep = replay(s, all_pairs=True)
+        assert rep.min_distance >= s.safety_distance - 1e-9, (rep, s.safety_distance)
+        assert s.safety_distance > 0
+    # The safety LP maximises the slowest piece speed (1 / R*) ...
+    R = safe_s.stats["R"]
+    assert _slowest_piece_speed(safe_s) == pytest.approx(1 / R, rel=1e-6)
+    assert _slowest_piece_speed(safe_s) >= _slowest_piece_speed(graph_s) - 1e-9
+    # ... and then minimises the makespan, which cannot beat the earliest schedule.
+    assert safe_s.makespan >= graph_s.makespan - 1e-9
+
+
+def test_replay_sees_the_closest_approach() -> None:
+    # Two robots meet at the centre of the plus map (plain TPG, delta = 0). agent1's
+    # wait is merged, so it creeps from (1, 0) at t = 0 to (1, 1) at t = 2 (when agent0
+    # enters (2, 1)): it is at (1, t / 2). agent0 is at (t, 1) for t in [0, 2]. Their
+    # squared distance (t - 1)^2 + (1 - t / 2)^2 is minimal at t = 1.2: sqrt(0.2).
+    g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
+    v = g.vertex
+    inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 1)])
+    plan = Plan.from_paths([[v((0, 1)), v((1, 1)), v((2, 1))], [v((1, 0)), v((1, 0)), v((1, 1))]])
+    s = postprocess(inst, plan, delta=0)
+    rep = replay(s)
+    assert s.arrival_times("agent1").tolist() == [0.0, 2.0]
+    assert rep.min_distance == pytest.approx(math.sqrt(0.2))
+    assert rep.time == pytest.approx(1.2)
+    assert rep.agents == ("agent0", "agent1")
+
+
+def test_grid_pair_pruning_matches_all_pairs() -> None:
+    for inst, plan in CASES:
+        s = postprocess(inst, plan, delta=0.2)
+        full = replay(s, all_pairs=True)
+        pruned = replay(s, inst)
+        assert pruned.min_distance >= full.min_distance - 1e-12
+        assert min(pruned.min_distance, pruned.skipped_bound) == pytest.approx(
+            min(full.min_distance, 1.0)
+        ) or pruned.min_distance == pytest.approx(full.min_distance)
+
+
+def test_roadmap_safety_with_acute_angle() -> None:
+    # A roadmap with a 45-degree junction at C: the guarantee shrinks by sin(45 deg).
+    g = Graph.roadmap(
+        {"A": (0, 0), "B": (2, 0), "C": (4, 0), "D": (6, 0), "E": (2, 2)},
+        [("A", "B"), ("B", "C"), ("C", "D"), ("E", "C")],
+    )
+    inst = Instance.mapf(g, ["A", "E"], ["D", "B"])
+    plan = Plan.from_paths([[0, 1, 2, 3], [4, 4, 4, 4, 2, 1]])
+    assert validate(inst, plan) == []
+    for obj, method in (("makespan", "graph"), ("safety", "lp")):
+        s = postprocess(inst, plan, obj, method=method, delta=0.5)
+        assert s.stats["angle_factor"] == pytest.approx(math.sin(math.pi / 4))
+        rep = replay(s, inst)
+        assert rep.min_distance >= s.safety_distance - 1e-9
