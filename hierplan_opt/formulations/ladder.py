@@ -1,0 +1,217 @@
+"""Horizon search shared by the MIP and CP-SAT formulations.
+
+A *backend* solves one :class:`~hierplan_opt.formulations.time_expanded.TimeExpandedNetwork`
+(feasibility for makespan, minimum sum of costs for ``"soc"``); this module decides which
+networks to solve and turns the outcomes into one :class:`~hierplan_opt.core.result.Result`.
+
+* Makespan: horizons ``T = LB, LB + 1, ...``; the first feasible one is optimal because
+  every smaller one was proven infeasible (the MIP rejects many by its LP relaxation).
+  At each ``T`` a small network that keeps only vertices within a detour ``s`` of each
+  commodity's shortest paths is tried first (a plan in it has makespan ``<= T``); only
+  when it has no plan is the full network solved, which alone can prove ``T``
+  infeasible.
+* Sum of costs: per-commodity deadlines ``d_k + Δ`` for ``Δ = 0, 1, ...`` (``d_k`` the
+  distance lower bound of the commodity's agents). If the network at ``Δ`` is infeasible,
+  every plan costs at least ``LB + Δ + 1``. If its optimum ``C`` satisfies
+  ``C - LB <= Δ`` then ``C`` is optimal: in an optimal plan each agent's excess over its
+  distance is at most ``C* - LB <= Δ``, so that plan fits the network. Otherwise one more
+  solve at ``Δ = C - LB`` is optimal by the same argument. A known plan of cost ``U``
+  (``upper_bound_plan``) starts the search at ``Δ = U - LB``.
+
+A time-expanded model cannot prove that a MAPF instance has no plan at any horizon: the
+result is INFEASIBLE only when :func:`quick_infeasibility` proves it; otherwise the search
+stops at ``max_horizon`` with TIME_LIMIT and ``stats["stopped_by"] == "max_horizon"``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from hierplan_opt.core.feasibility import quick_infeasibility
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.timer import Deadline
+from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork, commodity_min_deadline
+
+log = logging.getLogger(__name__)
+
+#: Backend statistics added up over the solves of one search (others keep the last value).
+_SUMMED = {"model_time", "lp_time", "lp_rejected", "conflicts"}
+
+
+@dataclass
+class Outcome:
+    """What a backend reports for one network.
+
+    ``status`` is "optimal", "feasible" (stopped with an incumbent), "infeasible",
+    "unknown" (stopped without a decision) or "error" (``stats["error"]`` says why).
+    ``objective`` includes the constant of the sum-of-costs objective; ``bound`` is the
+    backend's proven bound on it.
+    """
+
+    status: str
+    values: np.ndarray | None = None
+    objective: float | None = None
+    bound: float | None = None
+    stats: dict = field(default_factory=dict)
+
+
+class Backend(Protocol):
+    """Solves one network for ``objective`` within ``time_limit`` seconds."""
+
+    name: str
+
+    def __call__(
+        self,
+        net: TimeExpandedNetwork,
+        objective: str,
+        time_limit: float | None,
+        hint: Plan | None,
+        seed: int,
+    ) -> Outcome: ...
+
+
+def default_max_horizon(instance: Instance) -> int:
+    """A horizon cap used when none is given: LB + free vertices + agents."""
+    return instance.makespan_lower_bound() + instance.graph.num_vertices + instance.num_agents
+
+
+class _BackendError(Exception):
+    pass
+
+
+def solve_with(
+    backend: Backend,
+    instance: Instance,
+    **kwargs: Any,
+) -> Result:
+    """Run the horizon search with ``backend`` (see the module docstring).
+
+    Keyword arguments: ``objective``, ``time_limit``, ``seed``, ``max_horizon``,
+    ``upper_bound_plan`` (a known plan: the sum-of-costs search starts at its slack),
+    ``build`` (the network builder).
+    """
+    try:
+        return _search(backend, instance, **kwargs)
+    except _BackendError as exc:
+        return Result(Status.ERROR, None, stats={"error": str(exc)})
+
+
+def _search(
+    backend: Backend,
+    instance: Instance,
+    *,
+    objective: str,
+    time_limit: float | None,
+    seed: int = 0,
+    max_horizon: int | None = None,
+    upper_bound_plan: Plan | None = None,
+    build: Callable[..., TimeExpandedNetwork] = TimeExpandedNetwork.build,
+) -> Result:
+    deadline = Deadline(time_limit)
+    reason = quick_infeasibility(instance)
+    if reason is not None:
+        return Result(Status.INFEASIBLE, None, stats={"reason": reason})
+    cap = default_max_horizon(instance) if max_horizon is None else max_horizon
+    stats: dict = {"solves": 0, "build_time": 0.0, "solve_time": 0.0, "horizons": []}
+
+    def run(net: TimeExpandedNetwork, hint: Plan | None) -> Outcome:
+        if net.num_arcs == 0:  # everyone is at a goal at t = 0: nothing to decide
+            return Outcome("optimal", np.zeros(0), float(net.soc_constant()), 0.0)
+        stats["solves"] += 1
+        t0 = time.perf_counter()
+        remaining = deadline.remaining() if time_limit is not None else None
+        out = backend(net, objective, remaining, hint, seed)
+        stats["solve_time"] += time.perf_counter() - t0
+        stats.update(net.stats(objective))
+        stats["horizons"].append((net.horizon, out.status))
+        for key, value in out.stats.items():
+            if key in _SUMMED and key in stats:
+                stats[key] += value  # totals over all solves
+            else:
+                stats[key] = value  # the last solve's value
+        log.info("%s: horizon %d, %d arcs: %s", backend.name, net.horizon, net.num_arcs, out.status)
+        if out.status == "error":
+            raise _BackendError(out.stats.get("error", "solver error"))
+        return out
+
+    def make(horizon: int, **kwargs) -> TimeExpandedNetwork:
+        t0 = time.perf_counter()
+        net = build(instance, horizon, **kwargs)
+        stats["build_time"] += time.perf_counter() - t0
+        return net
+
+    def limit(lower_bound: float, why: str) -> Result:
+        stats["stopped_by"] = why
+        return Result(Status.TIME_LIMIT, None, lower_bound=lower_bound, stats=stats)
+
+    if objective == "makespan":
+        horizon = instance.makespan_lower_bound()
+        base = commodity_min_deadline(instance)
+        while True:
+            if horizon > cap:
+                return limit(horizon, "max_horizon")
+            if deadline.expired():
+                return limit(horizon, "time_limit")
+            # First a network where each commodity may detour little from its shortest
+            # paths (small, fast); any plan in it has makespan <= horizon. Only if it has
+            # none does the full network decide the horizon.
+            slack = 2 + horizon // 10
+            detours = [b + slack for b in base]
+            tries: list[dict] = [{"detours": detours}] if min(detours) < horizon else []
+            for kwargs in [*tries, {}]:
+                net = make(horizon, **kwargs)
+                out = Outcome("infeasible") if net.infeasible else run(net, None)
+                if out.status != "infeasible":
+                    break
+            if out.status == "infeasible":
+                horizon += 1
+                continue
+            if out.values is None:
+                return limit(horizon, "time_limit")
+            plan = net.plan(out.values)
+            return Result(Status.OPTIMAL, plan, plan.makespan, plan.makespan, stats=stats)
+
+    if objective != "soc":
+        raise ValueError(f"unknown objective {objective!r}")
+    lb = instance.soc_lower_bound()
+    base = commodity_min_deadline(instance)
+    hint = upper_bound_plan
+    delta = 0 if hint is None else max(0, hint.sum_of_costs - lb)
+    proven = lb  # every plan costs at least this
+    while True:
+        if max(base) + delta > cap:
+            return limit(proven, "max_horizon")
+        if deadline.expired():
+            return limit(proven, "time_limit")
+        net = make(max(base) + delta, deadlines=[b + delta for b in base])
+        out = Outcome("infeasible") if net.infeasible else run(net, hint)
+        stats["slack"] = delta
+        if out.status == "infeasible":
+            proven = max(proven, lb + delta + 1)
+            delta += 1 + delta // 4
+            continue
+        if out.values is None:
+            if out.bound is not None:
+                proven = max(proven, min(int(np.ceil(out.bound - 1e-6)), lb + delta + 1))
+            return limit(proven, "time_limit")
+        plan = net.plan(out.values)
+        cost = plan.sum_of_costs
+        if out.status == "optimal":
+            if cost - lb <= delta:
+                return Result(Status.OPTIMAL, plan, cost, cost, stats=stats)
+            delta = cost - lb
+            hint = plan
+            continue
+        # Stopped with an incumbent: the network's bound, or any plan outside it.
+        bound = lb if out.bound is None else int(np.ceil(out.bound - 1e-6))
+        proven = max(proven, min(bound, lb + delta + 1))
+        stats["stopped_by"] = "time_limit"
+        return Result(Status.FEASIBLE, plan, cost, min(proven, cost), stats=stats)
