@@ -51,6 +51,11 @@ def solve(
             f"solver {solver!r} does not solve {problem.upper()} instances "
             f"(it solves: {', '.join(sorted(p.upper() for p in info.problems))})"
         )
+    if info.one_team and len(instance.teams) > 1:
+        raise OptionError(
+            f"solver {solver!r} solves anonymous MAPF (one team); this instance has "
+            f"{len(instance.teams)} teams (use 'cbm')"
+        )
     if objective is None:
         objective = "soc" if problem == "mapf" and "soc" in info.objectives else "makespan"
     if objective not in OBJECTIVES:

@@ -22,7 +22,8 @@ class SolverInfo:
 
     ``problems`` ⊆ {"mapf", "tapf"}; ``objectives`` ⊆ {"soc", "makespan"};
     ``optimal`` says whether OPTIMAL results are proven optima; ``bounded`` whether
-    the solver's ``w`` option bounds suboptimality.
+    the solver's ``w`` option bounds suboptimality; ``one_team`` that TAPF instances
+    must have a single team (anonymous MAPF).
     """
 
     name: str
@@ -32,6 +33,7 @@ class SolverInfo:
     optimal: bool
     bounded: bool = False
     description: str = ""
+    one_team: bool = False
     _fn: list[Callable] = field(default_factory=list, compare=False, repr=False)
 
     def load(self) -> Callable:
@@ -64,6 +66,7 @@ def register(
     optimal: bool = False,
     bounded: bool = False,
     description: str = "",
+    one_team: bool = False,
 ) -> None:
     """Add a solver to the registry (later registrations of a name replace earlier ones).
 
@@ -75,7 +78,14 @@ def register(
     >>> _ = _REGISTRY.pop("mine")
     """
     _REGISTRY[name] = SolverInfo(
-        name, target, frozenset(problems), frozenset(objectives), optimal, bounded, description
+        name,
+        target,
+        frozenset(problems),
+        frozenset(objectives),
+        optimal,
+        bounded,
+        description,
+        one_team,
     )
 
 
@@ -172,4 +182,13 @@ _BUILTIN = [
     ),
 ]
 for _n, _t, _p, _o, _opt, _b, _d in _BUILTIN:
-    register(_n, _t, problems=_p, objectives=_o, optimal=_opt, bounded=_b, description=_d)
+    register(
+        _n,
+        _t,
+        problems=_p,
+        objectives=_o,
+        optimal=_opt,
+        bounded=_b,
+        description=_d,
+        one_team=_n == "flow",
+    )

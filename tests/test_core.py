@@ -278,3 +278,12 @@ def test_registry_lists_every_issue_solver() -> None:
     for name in ["cbs", "ecbs", "cbm", "flow", "mip", "cpsat"]:
         assert name in registry.names()
     assert registry.get("cbm").problems == {"mapf", "tapf"}
+
+
+def test_one_team_solver_refuses_several_teams() -> None:
+    g = Graph.grid(3, 3)
+    inst = Instance.tapf(g, [([(0, 0)], [(2, 2)]), ([(2, 0)], [(0, 2)])])
+    with pytest.raises(OptionError, match="solver 'flow' solves anonymous MAPF.*2 teams"):
+        hp.solve(inst, "flow")
+    with pytest.raises(OptionError, match="does not solve MAPF"):
+        hp.solve(Instance.mapf(g, [(0, 0)], [(2, 2)]), "flow")
