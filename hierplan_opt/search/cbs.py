@@ -1,0 +1,855 @@
+"""Conflict-based search (CBS) with the accelerations of CBSH2-RTC, optimal for SOC or makespan.
+
+High level: best-first search over a constraint tree (CT). Each CT node holds one
+path per agent, each optimal under that agent's constraints; a node without
+conflicts is a solution. A conflict is resolved by branching into children that each
+forbid one way of having it.
+
+Options (all on by default, each switchable off; none changes the optimal cost):
+
+* ``prioritize_conflicts``: classify conflicts with MDDs as cardinal (both children
+  cost more), semi-cardinal or non-cardinal, and split on the best class first
+  (Boyarski et al. 2015);
+* ``bypass``: when a child keeps the cost and has fewer conflicts, adopt its paths
+  instead of branching (Boyarski et al. 2015);
+* ``heuristic``: admissible high-level heuristic ``"wdg"`` (default), ``"dg"``,
+  ``"cg"`` or ``"none"`` (Felner et al. 2018; Li et al. 2019), computed lazily when a
+  node is selected;
+* ``disjoint_splitting``: one child gets a positive constraint (the agent *must* be
+  there), the other the negative one, so children share no solution (Li et al. 2019);
+* ``symmetry``: target reasoning -- when an agent crosses another agent's goal after
+  that agent has finished, branch on the finished agent's arrival time (length
+  constraints) instead of on a single vertex-time (Li et al. 2021).
+
+``objective="makespan"`` iterates a makespan bound ``M`` upwards from the instance's
+lower bound; for each ``M`` the same CBS runs with every path bounded by ``M`` until it
+finds a conflict-free node (then ``M`` is optimal) or exhausts the (finite) tree.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from heapq import heappop, heappush
+from typing import Any
+
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.feasibility import quick_infeasibility
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.timer import Deadline
+from hierplan_opt.search.astar import ConflictTable, space_time_astar
+from hierplan_opt.search.constraints import (
+    LEN_GT,
+    LEN_LE,
+    NEG_E,
+    NEG_V,
+    NO_BOUND,
+    POS_E,
+    POS_V,
+    AgentConstraints,
+    Constraint,
+    add_derived,
+    is_positive,
+    violates_derived,
+)
+from hierplan_opt.search.heuristics import dependent, min_vertex_cover
+from hierplan_opt.search.mdd import MDD, build_mdd, restrict
+from hierplan_opt.search.symmetry import Corridors, corridor_split, path_order_infeasibility
+
+log = logging.getLogger(__name__)
+
+HEURISTICS = ("wdg", "dg", "cg", "none")
+#: High-level nodes a two-agent WDG sub-search may expand before its bound is used.
+PAIR_NODE_LIMIT = 16
+#: Cached MDDs before the cache is emptied (bounds memory on long runs).
+MDD_CACHE_SIZE = 50_000
+
+# Conflict kinds: (t, kind, a, b, u, v)
+#   VERTEX: a and b both at v at t (u = -1)
+#   EDGE:   a moves u -> v and b moves v -> u, arriving at t
+#   TARGET: a is parked at its goal v (arrived before t), b is at v at t
+VERTEX, EDGE, TARGET = 0, 1, 2
+Conflict = tuple[int, int, int, int, int, int]
+
+
+class _Node:
+    __slots__ = (
+        "paths",
+        "costs",
+        "cons",
+        "g",
+        "f",
+        "hdone",
+        "conflicts",
+        "depth",
+        "seq",
+        "pairw",
+    )
+
+    def __init__(
+        self,
+        paths: list[tuple[int, ...]],
+        costs: list[int],
+        cons: list[AgentConstraints],
+        g: int,
+        conflicts: list[Conflict],
+        depth: int,
+    ) -> None:
+        self.paths = paths
+        self.costs = costs
+        self.cons = cons
+        self.g = g
+        self.f = g
+        self.hdone = False
+        self.conflicts = conflicts
+        self.depth = depth
+        self.seq = 0
+        # Pair weights known at this node or an ancestor: (a, b) -> (w, cost_a, cost_b).
+        # A descendant has more constraints, so a weight stays a valid lower bound on
+        # the pair's extra cost while both costs are unchanged.
+        self.pairw: dict[tuple[int, int], tuple[int, int, int]] = {}
+
+
+def find_conflicts(paths: list[tuple[int, ...]], n: int) -> list[Conflict]:
+    """Every vertex, swap and target conflict between the paths (parked agents included).
+
+    Example
+    -------
+    >>> find_conflicts([(0, 1, 2), (2, 1, 0)], n=3)
+    [(1, 0, 0, 1, -1, 1)]
+    >>> find_conflicts([(1,), (0, 1, 2)], n=3)
+    [(1, 2, 0, 1, -1, 1)]
+    """
+    # Every conflicting pair is reported (children keep their parent's conflicts among
+    # agents they did not replan, so a pair missing here would never be seen again).
+    occ: dict[int, list[int]] = {}
+    goal_at: dict[int, tuple[int, int]] = {}
+    for a, p in enumerate(paths):
+        goal_at[p[-1]] = (a, len(p) - 1)
+    out: list[Conflict] = []
+    for a, p in enumerate(paths):
+        prev = p[0]
+        for t, v in enumerate(p):
+            key = t * n + v
+            lst = occ.get(key)
+            if lst is None:
+                occ[key] = [a]
+            else:
+                for b in lst:
+                    out.append((t, VERTEX, b, a, -1, v))
+                lst.append(a)
+            ga = goal_at.get(v)
+            if ga is not None and ga[0] != a and t > ga[1]:
+                out.append((t, TARGET, ga[0], a, -1, v))
+            if t and prev != v:
+                # swap with an agent b that was at v at t-1 and is at prev at t
+                l1 = occ.get((t - 1) * n + v)
+                if l1 is not None:
+                    l2 = occ.get(t * n + prev)
+                    if l2 is not None:
+                        for b in l1:
+                            if b != a and b in l2:
+                                out.append((t, EDGE, b, a, v, prev))
+            prev = v
+    return out
+
+
+class OccupancyIndex:
+    """Which agents are where (vertex-time -> agents, goal -> parked agent), patchable.
+
+    Lets a child CT node find only the conflicts of its replanned agents instead of
+    re-scanning every path.
+
+    Example
+    -------
+    >>> idx = OccupancyIndex(3)
+    >>> paths = [(0, 1, 2), (2, 1, 0)]
+    >>> idx.sync(paths)
+    >>> idx.conflicts_of(1, paths, set())
+    [(1, 0, 0, 1, -1, 1)]
+    """
+
+    __slots__ = ("n", "occ", "ends", "paths", "horizon")
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.occ: dict[int, list[int]] = {}
+        self.ends: dict[int, tuple[int, int]] = {}
+        self.paths: list[tuple[int, ...]] = []
+        self.horizon = 0
+
+    def _add(self, a: int, p: tuple[int, ...]) -> None:
+        n = self.n
+        occ = self.occ
+        for t, v in enumerate(p):
+            k = t * n + v
+            lst = occ.get(k)
+            if lst is None:
+                occ[k] = [a]
+            else:
+                lst.append(a)
+        self.ends[p[-1]] = (a, len(p) - 1)
+
+    def _remove(self, a: int, p: tuple[int, ...]) -> None:
+        n = self.n
+        occ = self.occ
+        for t, v in enumerate(p):
+            k = t * n + v
+            lst = occ[k]
+            if len(lst) == 1:
+                del occ[k]
+            else:
+                lst.remove(a)
+        if self.ends.get(p[-1], (-1,))[0] == a:
+            del self.ends[p[-1]]
+
+    def sync(self, paths: list[tuple[int, ...]]) -> None:
+        """Make the index describe ``paths`` (patching only the paths that changed)."""
+        old = self.paths
+        if len(old) != len(paths):
+            self.occ = {}
+            self.ends = {}
+            for a, p in enumerate(paths):
+                self._add(a, p)
+            self.paths = list(paths)
+        else:
+            for a, p in enumerate(paths):
+                q = old[a]
+                if q is not p:
+                    self._remove(a, q)
+                    self._add(a, p)
+                    old[a] = p
+        self.horizon = max(len(p) for p in paths) - 1
+
+    def conflicts_of(self, r: int, paths: list[tuple[int, ...]], skip: set[int]) -> list[Conflict]:
+        """Conflicts between agent ``r`` and every agent not in ``skip`` (index synced)."""
+        n = self.n
+        occ = self.occ
+        ends = self.ends
+        p = paths[r]
+        out: list[Conflict] = []
+        prev = p[0]
+        for t, v in enumerate(p):
+            lst = occ.get(t * n + v)
+            if lst is not None and len(lst) > 1:
+                for b in lst:
+                    if b != r and b not in skip:
+                        out.append((t, VERTEX, b, r, -1, v))
+            e = ends.get(v)
+            if e is not None and e[0] != r and t > e[1] and e[0] not in skip:
+                out.append((t, TARGET, e[0], r, -1, v))
+            if t and prev != v:
+                l1 = occ.get((t - 1) * n + v)
+                if l1 is not None:
+                    l2 = occ.get(t * n + prev)
+                    if l2 is not None:
+                        for b in l1:
+                            if b != r and b not in skip and b in l2:
+                                out.append((t, EDGE, b, r, v, prev))
+            prev = v
+        g = p[-1]
+        for t in range(len(p), self.horizon + 1):
+            lst = occ.get(t * n + g)
+            if lst is not None:
+                for b in lst:
+                    if b != r and b not in skip:
+                        out.append((t, TARGET, r, b, -1, g))
+        return out
+
+
+class _CBS:
+    """One CBS search (also used for the two-agent sub-searches of WDG)."""
+
+    def __init__(
+        self,
+        instance_graph: Any,
+        starts: list[int],
+        goals: list[int],
+        root_cons: list[AgentConstraints],
+        deadline: Deadline,
+        *,
+        prioritize: bool,
+        bypass: bool,
+        heuristic: str,
+        disjoint: bool,
+        symmetry: bool,
+        greedy: bool = False,
+        node_limit: int | None = None,
+        stats: dict[str, Any] | None = None,
+        sub: bool = False,
+        mdd_cache: dict[int, MDD] | None = None,
+        corridors: Corridors | None = None,
+        init_paths: list[tuple[int, ...]] | None = None,
+    ) -> None:
+        g = instance_graph
+        self.graph = g
+        self.adj: list[list[int]] = g.adj
+        self.n = g.n
+        self.dist_of = g.dist_list
+        self.starts = starts
+        self.goals = goals
+        self.k = len(starts)
+        self.dists = [g.dist_list(x) for x in goals]
+        self.root_cons = root_cons
+        self.deadline = deadline
+        self.prioritize = prioritize
+        self.bypass = bypass
+        self.heuristic = heuristic
+        self.disjoint = disjoint
+        self.symmetry = symmetry
+        self.greedy = greedy
+        self.node_limit = node_limit
+        self.sub = sub
+        self.stats = (
+            stats
+            if stats is not None
+            else {
+                "high_level_expanded": 0,
+                "high_level_generated": 0,
+                "low_level_calls": 0,
+                "low_level_expanded": 0,
+                "bypasses": 0,
+                "mdds_built": 0,
+                "pair_searches": 0,
+                "conflicts_cardinal": 0,
+                "conflicts_semi": 0,
+                "conflicts_non": 0,
+                "target_splits": 0,
+                "corridor_splits": 0,
+            }
+        )
+        self.corridors = (corridors or Corridors(g)) if symmetry else None
+        self.init_paths = init_paths
+        self._occ = OccupancyIndex(g.n)
+        # MDDs keyed by the constraint object's version (unique per agent and set);
+        # shared with the two-agent sub-searches of WDG.
+        self.mdd_cache: dict[int, MDD] = mdd_cache if mdd_cache is not None else {}
+        self._cat: ConflictTable | None = None
+        self._cat_paths: list[tuple[int, ...]] | None = None
+        self.pair_cache: dict[tuple[int, int, int, int], int] = {}
+        self.lower_bound = 0
+        self.seq = 0
+
+    # ------------------------------------------------------------------ low level
+    def plan(
+        self, a: int, cons: AgentConstraints, paths: list[tuple[int, ...]]
+    ) -> tuple[int, ...] | None:
+        cat = self._table(paths, a)
+        path, exp = space_time_astar(
+            self.adj,
+            self.starts[a],
+            self.goals[a],
+            self.dists[a],
+            cons,
+            cat=cat,
+            dist_of=self.dist_of,
+        )
+        if cat is not None:
+            cat.add_path(paths[a])  # restore: the table again holds every path
+        st = self.stats
+        st["low_level_calls"] += 1
+        st["low_level_expanded"] += exp
+        return path
+
+    def _table(self, paths: list[tuple[int, ...]], a: int) -> ConflictTable | None:
+        """The conflict table of ``paths`` without agent ``a`` (kept up to date lazily).
+
+        One table is kept for the last path list seen and patched path by path, so
+        planning in a child costs O(changed paths), not O(all paths).
+        """
+        if self.k <= 1:
+            return None
+        cat = self._cat
+        old = self._cat_paths
+        if cat is None or old is None or len(old) != len(paths):
+            cat = ConflictTable(self.n)
+            for p in paths:
+                cat.add_path(p)
+            self._cat = cat
+            self._cat_paths = old = list(paths)
+        else:
+            for i, p in enumerate(paths):
+                if old[i] is not p:
+                    cat.remove_path(old[i])
+                    cat.add_path(p)
+                    old[i] = p
+        if a < len(paths):
+            cat.remove_path(paths[a])
+        return cat
+
+    def mdd(self, node: _Node, a: int) -> MDD:
+        c = node.cons[a]
+        key = c.ver
+        m = self.mdd_cache.get(key)
+        if m is not None and m.cost != node.costs[a]:
+            m = None
+        if m is None and c.parent is not None:
+            pm = self.mdd_cache.get(c.parent.ver)
+            if pm is not None and pm.cost == node.costs[a]:
+                m = restrict(pm, c.delta, c.derived)
+                if m is not None:
+                    self.mdd_cache[key] = m
+                    self.stats["mdds_restricted"] = self.stats.get("mdds_restricted", 0) + 1
+        if m is None:
+            m = build_mdd(
+                self.adj,
+                self.starts[a],
+                self.goals[a],
+                self.dists[a],
+                c,
+                node.costs[a],
+                self.dist_of,
+            )
+            if len(self.mdd_cache) > MDD_CACHE_SIZE:
+                self.mdd_cache.clear()
+            self.mdd_cache[key] = m
+            self.stats["mdds_built"] += 1
+        return m
+
+    # ------------------------------------------------------------------ root
+    def root(self) -> _Node | None:
+        paths: list[tuple[int, ...]] = []
+        if self.init_paths is not None:
+            # Paths already optimal under the root constraints (WDG sub-searches).
+            paths = list(self.init_paths)
+        for a in range(len(paths), self.k):
+            if self.deadline.expired():
+                return None
+            cat = ConflictTable.from_paths(paths, self.n) if self.k > 1 else None
+            p, exp = space_time_astar(
+                self.adj,
+                self.starts[a],
+                self.goals[a],
+                self.dists[a],
+                self.root_cons[a],
+                cat=cat,
+                dist_of=self.dist_of,
+            )
+            self.stats["low_level_calls"] += 1
+            self.stats["low_level_expanded"] += exp
+            if p is None:
+                return None
+            paths.append(p)
+        costs = [len(p) - 1 for p in paths]
+        return _Node(
+            paths, costs, list(self.root_cons), sum(costs), find_conflicts(paths, self.n), 0
+        )
+
+    # ------------------------------------------------------------------ conflicts
+    def classify(self, node: _Node, c: Conflict) -> int:
+        """0 cardinal, 1 semi-cardinal, 2 non-cardinal."""
+        t, kind, a, b, u, v = c
+        ma = self.mdd(node, a)
+        mb = self.mdd(node, b)
+        if kind == VERTEX:
+            ca = ma.single(t, v)
+            cb = mb.single(t, v)
+        elif kind == EDGE:
+            ca = ma.single(t - 1, u) and ma.single(t, v)
+            cb = mb.single(t - 1, v) and mb.single(t, u)
+        else:  # TARGET: a must arrive later than t, or b must avoid v from t on
+            ca = True
+            cb = mb.single(t, v)
+        return 2 - int(ca) - int(cb)
+
+    def choose(self, node: _Node) -> tuple[Conflict, int]:
+        confs = node.conflicts
+        if not self.prioritize:
+            c = min(confs)
+            return c, 2
+        best = None
+        best_key = None
+        for c in confs:
+            r = self.classify(node, c)
+            key = (r, c[1] != TARGET, c[0])
+            if best_key is None or key < best_key:
+                best_key = key
+                best = c
+                if r == 0 and c[1] == TARGET:
+                    break
+        assert best is not None and best_key is not None
+        return best, best_key[0]
+
+    def split(self, node: _Node, c: Conflict, rank: int) -> list[tuple[int, list[Constraint]]]:
+        """The children's new constraints: ``[(agent, [constraints]), ...]``."""
+        t, kind, a, b, u, v = c
+        if kind == TARGET and self.symmetry:
+            self.stats["target_splits"] += 1
+            return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
+        if self.corridors is not None and kind != TARGET:
+            res = corridor_split(
+                self.corridors, self.starts, node.paths, a, b, (v,) if kind == VERTEX else (u, v)
+            )
+            if res is not None:
+                self.stats["corridor_splits"] += 1
+                return res
+        if kind == EDGE:
+            if self.disjoint:
+                x = a
+                if self.prioritize and rank == 1:
+                    mb = self.mdd(node, b)
+                    if mb.single(t - 1, v) and mb.single(t, u):
+                        x = b
+                xu, xv = (u, v) if x == a else (v, u)
+                return [(x, [(POS_E, x, xu, xv, t)]), (x, [(NEG_E, x, xu, xv, t)])]
+            return [(a, [(NEG_E, a, u, v, t)]), (b, [(NEG_E, b, v, u, t)])]
+        # VERTEX (or TARGET without target reasoning)
+        if self.disjoint:
+            x = a
+            if self.prioritize and rank == 1 and kind == VERTEX and self.mdd(node, b).single(t, v):
+                x = b
+            return [(x, [(POS_V, x, v, -1, t)]), (x, [(NEG_V, x, v, -1, t)])]
+        return [(a, [(NEG_V, a, v, -1, t)]), (b, [(NEG_V, b, v, -1, t)])]
+
+    def child(self, node: _Node, agent: int, new: list[Constraint]) -> _Node | None:
+        n = self.n
+        cons = list(node.cons)
+        cons[agent] = cons[agent].add_many(new, n=n, goal=self.goals[agent])
+        paths = list(node.paths)
+        costs = list(node.costs)
+        replan: list[int] = []
+        if not cons[agent].allows_path(paths[agent], n):
+            replan.append(agent)
+        pos = [x for x in new if is_positive(x)]
+        if pos:
+            for y in range(self.k):
+                if y == agent:
+                    continue
+                old = cons[y]
+                cons[y] = add_derived(old, pos, n=n, goals=self.goals, goal=self.goals[y])
+                self._inherit_mdd(y, old, cons[y], pos, node.costs[y])
+                if any(violates_derived(x, paths[y], n, self.goals) for x in pos):
+                    replan.append(y)
+        for y in replan:
+            p = self.plan(y, cons[y], paths)
+            if p is None:
+                return None
+            paths[y] = p
+            costs[y] = len(p) - 1
+        g = sum(costs)
+        if replan:
+            gone = set(replan)
+            confs = [c for c in node.conflicts if c[2] not in gone and c[3] not in gone]
+            occ = self._occ
+            occ.sync(paths)
+            done: set[int] = set()
+            for y in replan:
+                confs += occ.conflicts_of(y, paths, done)
+                done.add(y)
+        else:
+            confs = list(node.conflicts)
+        ch = _Node(paths, costs, cons, g, confs, node.depth + 1)
+        ch.f = max(g, node.f) if not self.greedy else g
+        ch.pairw = node.pairw
+        return ch
+
+    def _inherit_mdd(
+        self, y: int, old: AgentConstraints, new: AgentConstraints, pos: list[Constraint], cost: int
+    ) -> None:
+        """Keep ``y``'s MDD when the derived constraints do not touch it."""
+        m = self.mdd_cache.get(old.ver)
+        if m is None or m.cost != cost:
+            return
+        for kind, ag, a, b, t in pos:
+            if kind == POS_V:
+                if m.has(t, a):
+                    return
+            elif kind == POS_E:
+                if m.has(t, b) or m.has(t - 1, a) or m.has(t - 1, b):
+                    return
+            elif kind == LEN_LE:
+                g = self.goals[ag]
+                if m.goal == g or any(g in lv for lv in m.levels[t:]):
+                    return
+        self.mdd_cache[new.ver] = m
+
+    # ------------------------------------------------------------------ heuristic
+    def compute_h(self, node: _Node) -> int | None:
+        """Admissible h of ``node``; None if a pair has no joint solution at all."""
+        if self.heuristic == "none" or not node.conflicts:
+            return 0
+        pairs: dict[tuple[int, int], list[Conflict]] = {}
+        for c in node.conflicts:
+            a, b = c[2], c[3]
+            key = (a, b) if a < b else (b, a)
+            pairs.setdefault(key, []).append(c)
+        weights: dict[tuple[int, int], int] = {}
+        if self.heuristic == "cg":
+            for key, cs in pairs.items():
+                if any(self.classify(node, c) == 0 for c in cs):
+                    weights[key] = 1
+            return min_vertex_cover(weights)
+        known = node.pairw
+        mine = dict(known)
+        costs = node.costs
+        for (a, b), cs in pairs.items():
+            if self.deadline.expired():
+                break  # the edges weighed so far still give a lower bound
+            old = known.get((a, b))
+            if old is not None and old[1] == costs[a] and old[2] == costs[b]:
+                w = old[0]
+            else:
+                ca, cb = node.cons[a], node.cons[b]
+                ck = (a, ca.ver, b, cb.ver)
+                w = self.pair_cache.get(ck)
+                if w is None:
+                    w = self._pair_weight(node, a, b, cs)
+                    self.pair_cache[ck] = w
+                if w < 0:
+                    return None
+                mine[(a, b)] = (w, costs[a], costs[b])
+            weights[(a, b)] = w
+        node.pairw = mine
+        return min_vertex_cover(weights)
+
+    def _pair_weight(self, node: _Node, a: int, b: int, cs: list[Conflict]) -> int:
+        # A cardinal conflict already proves the pair dependent.
+        if not (self.prioritize and any(self.classify(node, c) == 0 for c in cs)) and not dependent(
+            self.mdd(node, a), self.mdd(node, b)
+        ):
+            return 0
+        if self.heuristic == "dg":
+            return 1
+        # WDG: solve the two-agent problem under the pair's constraints.
+        self.stats["pair_searches"] += 1
+        sub = _CBS(
+            self.graph,
+            [self.starts[a], self.starts[b]],
+            [self.goals[a], self.goals[b]],
+            [node.cons[a], node.cons[b]],
+            self.deadline,
+            prioritize=True,
+            bypass=True,
+            heuristic="none",
+            disjoint=False,
+            symmetry=self.symmetry,
+            node_limit=PAIR_NODE_LIMIT,
+            sub=True,
+            mdd_cache=self.mdd_cache,
+            corridors=self.corridors,
+            init_paths=[node.paths[a], node.paths[b]],
+        )
+        res = sub.search()
+        base = node.costs[a] + node.costs[b]
+        self.stats["low_level_expanded"] += sub.stats["low_level_expanded"]
+        if res is None:
+            if sub.exhausted:
+                return -1
+            return max(1, sub.lower_bound - base)
+        return max(1, res.g - base)
+
+    # ------------------------------------------------------------------ search
+    def _key(self, node: _Node) -> tuple:
+        if self.greedy:
+            return (len(node.conflicts), node.g, node.seq)
+        return (node.f, len(node.conflicts), node.seq)
+
+    def search(self) -> _Node | None:
+        """Best-first CT search; the solution node, or None (see ``exhausted``)."""
+        self.exhausted = False
+        root = self.root()
+        if root is None:
+            self.exhausted = not self.deadline.expired()
+            return None
+        st = self.stats
+        openl: list[tuple] = []
+        self._push(openl, root)
+        expanded = 0
+        last_log = time.perf_counter()
+        while openl:
+            if self.deadline.expired() or (
+                self.node_limit is not None and expanded >= self.node_limit
+            ):
+                if not self.greedy:  # OPEN is ordered by f: its head is the bound
+                    self.lower_bound = max(self.lower_bound, openl[0][0])
+                return None
+            entry = heappop(openl)
+            node: _Node = entry[-1]
+            if not self.greedy:
+                self.lower_bound = max(self.lower_bound, node.f)
+            if not node.hdone and not self.greedy:
+                node.hdone = True
+                if node.conflicts:
+                    h = self.compute_h(node)
+                    if h is None:
+                        continue
+                    if node.g + h > node.f:
+                        node.f = node.g + h
+                        self._push(openl, node)
+                        continue
+            if not node.conflicts:
+                # Conflicts are tracked incrementally; confirm a solution with one scan.
+                node.conflicts = find_conflicts(node.paths, self.n)
+                if not node.conflicts:
+                    return node
+                log.warning("CBS: incremental conflict tracking missed a conflict")
+            expanded += 1
+            if not self.sub:
+                st["high_level_expanded"] += 1
+                now = time.perf_counter()
+                if now - last_log > 5.0:
+                    last_log = now
+                    log.info(
+                        "CBS: %d expanded, %d open, lower bound %s, %d conflicts",
+                        expanded,
+                        len(openl),
+                        self.lower_bound,
+                        len(node.conflicts),
+                    )
+            self._expand(node, openl)
+        self.exhausted = True
+        return None
+
+    def _push(self, openl: list[tuple], node: _Node) -> None:
+        self.seq += 1
+        node.seq = self.seq
+        heappush(openl, (*self._key(node), node))
+
+    def _expand(self, node: _Node, openl: list[tuple]) -> None:
+        st = self.stats
+        while True:
+            c, rank = self.choose(node)
+            if not self.sub:
+                st[("conflicts_cardinal", "conflicts_semi", "conflicts_non")[rank]] += 1
+            children: list[_Node] = []
+            adopted = False
+            for agent, new in self.split(node, c, rank):
+                ch = self.child(node, agent, new)
+                if ch is None:
+                    continue
+                if not self.sub:
+                    st["high_level_generated"] += 1
+                if (
+                    self.bypass
+                    and rank != 0
+                    and ch.g == node.g
+                    and len(ch.conflicts) < len(node.conflicts)
+                ):
+                    # Adopt the child's paths: they obey the node's constraints too.
+                    node.paths = ch.paths
+                    node.costs = ch.costs
+                    node.conflicts = ch.conflicts
+                    st["bypasses"] += 1
+                    adopted = True
+                    break
+                children.append(ch)
+            if adopted:
+                if not node.conflicts:
+                    self._push(openl, node)
+                    return
+                continue
+            for ch in children:
+                self._push(openl, ch)
+            return
+
+
+def solve(
+    instance: Instance,
+    *,
+    time_limit: float | None = None,
+    seed: int = 0,
+    objective: str = "soc",
+    prioritize_conflicts: bool = True,
+    bypass: bool = True,
+    heuristic: str = "wdg",
+    disjoint_splitting: bool = True,
+    symmetry: bool = True,
+    node_limit: int | None = None,
+) -> Result:
+    """Optimal MAPF by conflict-based search (sum of costs or makespan).
+
+    Parameters
+    ----------
+    instance
+        A MAPF instance (one goal per agent).
+    time_limit
+        Seconds; on expiry the result is TIME_LIMIT with the proven lower bound.
+    seed
+        Unused (the search is deterministic); accepted for the common signature.
+    objective
+        ``"soc"`` (sum of costs) or ``"makespan"``.
+    prioritize_conflicts, bypass, heuristic, disjoint_splitting, symmetry
+        The accelerations (see the module docstring); ``heuristic`` is one of
+        ``"wdg"``, ``"dg"``, ``"cg"``, ``"none"``.
+    node_limit
+        Stop after this many high-level expansions (TIME_LIMIT with the lower bound).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
+    >>> inst = Instance.mapf(g, [(0, 0), (1, 0)], [(4, 0), (3, 0)])
+    >>> r = solve(inst)
+    >>> r.status, r.cost
+    (<Status.OPTIMAL: 'OPTIMAL'>, 8)
+    """
+    for name, val in (
+        ("prioritize_conflicts", prioritize_conflicts),
+        ("bypass", bypass),
+        ("disjoint_splitting", disjoint_splitting),
+        ("symmetry", symmetry),
+    ):
+        if not isinstance(val, bool):
+            raise OptionError(f"cbs option {name} must be true or false, got {val!r}")
+    if heuristic not in HEURISTICS:
+        raise OptionError(
+            f"cbs option heuristic must be one of {list(HEURISTICS)}, got {heuristic!r}"
+        )
+    if objective not in ("soc", "makespan"):
+        raise OptionError(f"unknown objective {objective!r} (use 'soc' or 'makespan')")
+    if node_limit is not None and (
+        isinstance(node_limit, bool) or not isinstance(node_limit, int) or node_limit < 1
+    ):
+        raise OptionError(f"cbs option node_limit must be a positive integer, got {node_limit!r}")
+    if instance.is_tapf:
+        raise OptionError("cbs solves MAPF instances (one goal per agent); use cbm for teams")
+    deadline = Deadline(time_limit)
+    reason = quick_infeasibility(instance) or path_order_infeasibility(instance)
+    if reason is not None:
+        return Result(Status.INFEASIBLE, None, stats={"reason": reason})
+    g = instance.graph
+    starts = instance.starts
+    goals = instance.goals
+    g.precompute_distances(goals)
+    opts = dict(
+        prioritize=prioritize_conflicts,
+        bypass=bypass,
+        disjoint=disjoint_splitting,
+        symmetry=symmetry,
+        node_limit=node_limit,
+    )
+    if objective == "soc":
+        roots = [AgentConstraints.root(g.n, x) for x in goals]
+        cbs = _CBS(g, starts, goals, roots, deadline, heuristic=heuristic, **opts)  # type: ignore[arg-type]
+        node = cbs.search()
+        stats = dict(cbs.stats)
+        if node is None:
+            if cbs.exhausted:  # pragma: no cover - SOC CT never empties on a solvable tree
+                return Result(Status.INFEASIBLE, None, stats=stats)
+            lb = max(cbs.lower_bound, instance.soc_lower_bound())
+            return Result(Status.TIME_LIMIT, None, lower_bound=lb, stats=stats)
+        plan = Plan.from_paths(node.paths)
+        return Result(Status.OPTIMAL, plan, cost=plan.sum_of_costs, lower_bound=node.g, stats=stats)
+
+    # Makespan: iterate the bound M upwards; CBS bounded by M (greedy order) per M.
+    m = instance.makespan_lower_bound()
+    total: dict[str, Any] = {}
+    while True:
+        roots = [AgentConstraints.root(g.n, x, max_finish=m) for x in goals]
+        cbs = _CBS(g, starts, goals, roots, deadline, heuristic="none", greedy=True, **opts)  # type: ignore[arg-type]
+        node = cbs.search()
+        for key, val in cbs.stats.items():
+            total[key] = total.get(key, 0) + val
+        total["makespan_bound"] = m
+        if node is not None:
+            plan = Plan.from_paths(node.paths)
+            return Result(Status.OPTIMAL, plan, cost=plan.makespan, lower_bound=m, stats=total)
+        if not cbs.exhausted:
+            return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=total)
+        log.info("CBS makespan: no plan with makespan %d", m)
+        m += 1
+        if m > NO_BOUND:  # pragma: no cover
+            break
+    return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=total)  # pragma: no cover

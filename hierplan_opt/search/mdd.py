@@ -1,0 +1,247 @@
+"""Multi-valued decision diagrams (MDDs): all optimal paths of one agent at once.
+
+The MDD of an agent for cost ``c`` under its constraints has one level per timestep
+``0..c``; level ``t`` holds every vertex some cost-``c`` path (final arrival at ``c``)
+visits at ``t``, with the moves between levels. After ``c`` the agent is parked at its
+goal. A level of width 1 means every optimal path is there at that time: conflicts
+there are *cardinal* (Sharon et al. 2015; Boyarski et al. 2015).
+"""
+
+from __future__ import annotations
+
+from hierplan_opt.core.graph import UNREACHABLE
+from hierplan_opt.search.constraints import (
+    LEN_GT,
+    LEN_LE,
+    NEG_E,
+    NEG_RANGE,
+    NEG_V,
+    POS_E,
+    POS_V,
+    AgentConstraints,
+    Constraint,
+)
+
+
+class MDD:
+    """Levels ``0..cost`` of ``dict vertex -> children at the next level``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(2, 2)
+    >>> m = build_mdd(g.adj, 0, 3, g.dist_list(3), AgentConstraints(), 2)
+    >>> [sorted(lv) for lv in m.levels]
+    [[0], [1, 2], [3]]
+    """
+
+    __slots__ = ("levels", "cost", "goal")
+
+    def __init__(self, levels: list[dict[int, list[int]]], cost: int, goal: int) -> None:
+        self.levels = levels
+        self.cost = cost
+        self.goal = goal
+
+    def width(self, t: int) -> int:
+        return len(self.levels[t]) if t <= self.cost else 1
+
+    def single(self, t: int, v: int) -> bool:
+        """Whether every optimal path is at ``v`` at time ``t``."""
+        if t > self.cost:
+            return v == self.goal
+        lv = self.levels[t]
+        return len(lv) == 1 and v in lv
+
+    def has(self, t: int, v: int) -> bool:
+        if t >= self.cost:
+            return v == self.goal
+        return v in self.levels[t]
+
+    def children(self, t: int, v: int) -> list[int]:
+        if t >= self.cost:
+            return [self.goal]
+        return self.levels[t][v]
+
+
+def build_mdd(
+    adj: list[list[int]],
+    start: int,
+    goal: int,
+    dist: list[int],
+    cons: AgentConstraints,
+    cost: int,
+    dist_of: object = None,
+) -> MDD:
+    """The MDD of all paths with final arrival exactly at ``cost`` that obey ``cons``.
+
+    ``cost`` should be the optimal cost under ``cons`` (then the MDD is non-empty).
+    """
+    n = len(adj)
+    vc = cons.vertex
+    ec = cons.edge
+    ff = cons.forbid_from
+    lms = cons.landmarks
+    minf = cons.min_finish
+    order = sorted(lms.items()) if lms else []
+    if cost == 0:
+        return MDD([{start: []}], 0, goal)
+    fwd: list[dict[int, list[int]]] = [{start: []}]
+    for t in range(1, cost + 1):
+        cur: dict[int, list[int]] = {}
+        prev = fwd[t - 1]
+        need = lms.get(t) if lms else None
+        nl = None
+        if order:
+            for tl, vl in order:
+                if tl >= t:
+                    hb = tl + dist[vl] if vl != goal else -1
+                    nl = (tl, vl, dist_of(vl), hb)  # type: ignore[operator]
+                    break
+        base = t * n
+        last = t == cost
+        for v, kids in prev.items():
+            for u in (*adj[v], v):
+                if last and (u != goal or v == goal):
+                    continue
+                if need is not None and u != need:
+                    continue
+                if base + u in vc:
+                    continue
+                if u != v and ((base + v) * n + u) in ec:
+                    continue
+                if ff and u in ff and t >= ff[u]:
+                    continue
+                hu = dist[u]
+                if hu >= UNREACHABLE:
+                    continue
+                if nl is not None:
+                    tl, vl, dl, hb = nl
+                    if dl[u] > tl - t:
+                        continue
+                    if hb - t > hu:
+                        hu = hb - t
+                if minf - t > hu:
+                    hu = minf - t
+                if t + hu > cost:
+                    continue
+                kids.append(u)
+                if u not in cur:
+                    cur[u] = []
+        fwd.append(cur)
+    # Backward pass: keep only nodes that lead to the goal at level ``cost``.
+    levels: list[dict[int, list[int]]] = [{} for _ in range(cost + 1)]
+    if goal in fwd[cost]:
+        levels[cost][goal] = []
+    for t in range(cost - 1, -1, -1):
+        nxt = levels[t + 1]
+        lv = levels[t]
+        for v, kids in fwd[t].items():
+            keep = [u for u in kids if u in nxt]
+            if keep:
+                lv[v] = keep
+    return MDD(levels, cost, goal)
+
+
+def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]]) -> MDD | None:
+    """The MDD of the same cost under extra constraints, or None if that cost is gone.
+
+    The paths of the new MDD are exactly the old MDD's paths that obey the extra
+    constraints (all of them are conditions on single vertices, moves or the finish
+    time), so deleting the offending nodes and moves and pruning what no longer lies
+    on a start-to-goal path gives the same result as :func:`build_mdd`, faster.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(2, 2)
+    >>> m = build_mdd(g.adj, 0, 3, g.dist_list(3), AgentConstraints(), 2)
+    >>> [sorted(lv) for lv in restrict(m, [(NEG_V, 0, 1, -1, 1)], []).levels]
+    [[0], [2], [3]]
+    >>> restrict(m, [(NEG_V, 0, 3, -1, 5)], []) is None
+    True
+    """
+    cost = m.cost
+    goal = m.goal
+    levels = [{v: list(k) for v, k in lv.items()} for lv in m.levels]
+
+    def neg_v(v: int, t: int) -> bool:
+        if t > cost:
+            return v != goal
+        if t > 0:  # like the low level, time 0 (the start) is never constrained
+            levels[t].pop(v, None)
+        return True
+
+    def neg_e(u: int, v: int, t: int) -> None:
+        if 1 <= t <= cost:
+            kids = levels[t - 1].get(u)
+            if kids is not None and v in kids:
+                kids.remove(v)
+
+    def pos_v(v: int, t: int) -> bool:
+        if t > cost:
+            return v == goal
+        lv = levels[t]
+        levels[t] = {v: lv[v]} if v in lv else {}
+        return True
+
+    for kind, _, a, b, t in own:
+        ok = True
+        if kind == NEG_V:
+            ok = neg_v(a, t)
+        elif kind == NEG_E:
+            neg_e(a, b, t)
+        elif kind == NEG_RANGE:
+            for tt in range(b, t + 1):
+                ok = ok and neg_v(a, tt)
+        elif kind == POS_V:
+            ok = pos_v(a, t)
+        elif kind == POS_E:
+            if t > cost:
+                return None
+            ok = pos_v(a, t - 1) and pos_v(b, t)
+            kids = levels[t - 1].get(a)
+            if kids is not None:
+                levels[t - 1][a] = [x for x in kids if x == b]
+        elif kind == LEN_GT:
+            ok = cost > t
+        elif kind == LEN_LE:
+            ok = cost <= t
+        else:  # pragma: no cover
+            return None
+        if not ok:
+            return None
+    for (kind, _, a, b, t), other_goal in derived:
+        ok = True
+        if kind == POS_V:
+            ok = neg_v(a, t)
+        elif kind == POS_E:
+            ok = neg_v(b, t) and neg_v(a, t - 1)
+            neg_e(b, a, t)
+        elif kind == LEN_LE:
+            if other_goal == goal:
+                return None
+            for tt in range(t, cost + 1):
+                levels[tt].pop(other_goal, None)
+        if not ok:
+            return None
+    # Forward: keep what the start still reaches; backward: what still reaches the goal.
+    if not levels[0] or goal not in levels[cost]:
+        return None
+    for t in range(cost):
+        nxt = levels[t + 1]
+        reach: set[int] = set()
+        for kids in levels[t].values():
+            kids[:] = [x for x in kids if x in nxt]
+            reach.update(kids)
+        for v in [v for v in nxt if v not in reach]:
+            del nxt[v]
+    for t in range(cost - 1, -1, -1):
+        nxt = levels[t + 1]
+        lv = levels[t]
+        for v in [v for v, kids in lv.items() if not any(x in nxt for x in kids)]:
+            del lv[v]
+        for kids in lv.values():
+            kids[:] = [x for x in kids if x in nxt]
+    if not levels[0] or goal not in levels[cost]:
+        return None
+    return MDD(levels, cost, goal)

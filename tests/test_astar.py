@@ -1,0 +1,257 @@
+"""Space-time A*, constraints and MDDs: the low level of CBS."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.plan import path_cost
+from hierplan_opt.search.astar import ConflictTable, space_time_astar
+from hierplan_opt.search.constraints import (
+    LEN_GT,
+    LEN_LE,
+    NEG_E,
+    NEG_RANGE,
+    NEG_V,
+    POS_E,
+    POS_V,
+    AgentConstraints,
+    add_derived,
+    violates_derived,
+)
+from hierplan_opt.search.heuristics import dependent, min_vertex_cover
+from hierplan_opt.search.mdd import build_mdd
+from hierplan_opt.search.symmetry import Corridors, path_order_infeasibility
+
+
+def plan(g: Graph, s, t, cons: list | None = None, cat=None):
+    sv, tv = g.vertex(s), g.vertex(t)
+    c = AgentConstraints.root(g.n, tv).add_many(cons or [], n=g.n, goal=tv)
+    path, _ = space_time_astar(g.adj, sv, tv, g.dist_list(tv), c, cat=cat, dist_of=g.dist_list)
+    return path, c
+
+
+def brute_paths(g: Graph, s: int, horizon: int):
+    """Every walk of ``horizon`` steps from ``s`` (waits included)."""
+    walks = [(s,)]
+    for _ in range(horizon):
+        walks = [w + (u,) for w in walks for u in (*g.adj[w[-1]], w[-1])]
+    return walks
+
+
+def test_goal_constraint_later_than_arrival():
+    # The agent could arrive at t=2 but its goal is forbidden at t=3: it must arrive at 4.
+    g = Graph.grid(3, 1)
+    path, c = plan(g, (0, 0), (2, 0), [(NEG_V, 0, g.vertex((2, 0)), -1, 3)])
+    assert path_cost(path) == 4 == len(path) - 1
+    assert path[3] != g.vertex((2, 0))
+    assert c.allows_path(path, g.n)
+
+
+def test_vertex_and_edge_constraints():
+    g = Graph.grid(3, 1)
+    path, _ = plan(g, (0, 0), (2, 0), [(NEG_V, 0, 1, -1, 1)])
+    assert path == (0, 0, 1, 2)
+    path, _ = plan(g, (0, 0), (2, 0), [(NEG_E, 0, 0, 1, 1)])
+    assert path == (0, 0, 1, 2)
+
+
+def test_length_constraints():
+    g = Graph.grid(4, 1)
+    path, c = plan(g, (0, 0), (3, 0), [(LEN_GT, 0, -1, -1, 5)])
+    assert path_cost(path) == 6 and c.allows_path(path, g.n)
+    path, c = plan(g, (0, 0), (3, 0), [(LEN_LE, 0, -1, -1, 2)])
+    assert path is None
+    path, c = plan(g, (0, 0), (3, 0), [(LEN_LE, 0, -1, -1, 3)])
+    assert path == (0, 1, 2, 3)
+
+
+def test_positive_constraints_are_landmarks():
+    g = Graph.grid(3, 3)
+    path, c = plan(g, (0, 0), (2, 2), [(POS_V, 0, g.vertex((0, 2)), -1, 2)])
+    assert path[2] == g.vertex((0, 2)) and path_cost(path) == 4
+    path, c = plan(g, (0, 0), (2, 0), [(POS_E, 0, g.vertex((1, 1)), g.vertex((1, 0)), 3)])
+    assert path[2] == g.vertex((1, 1)) and path[3] == g.vertex((1, 0))
+    assert path_cost(path) == 4 and c.allows_path(path, g.n)
+    # A landmark on the goal after arrival is met by parking there.
+    path, c = plan(g, (0, 0), (1, 0), [(POS_V, 0, g.vertex((1, 0)), -1, 6)])
+    assert path == (0, 1)
+
+
+def test_derived_constraints_of_positive_ones():
+    g = Graph.grid(3, 1)
+    pos = (POS_E, 0, 0, 1, 2)
+    assert violates_derived(pos, (2, 1), g.n, [0, 0])  # at 1 at time 2 (parked)
+    assert violates_derived(pos, (2, 2, 1, 0), g.n, [0, 0])  # swap at 2
+    assert not violates_derived(pos, (2, 2, 2), g.n, [0, 0])
+    other = add_derived(AgentConstraints(), [pos], n=g.n, goals=[1, 0], goal=2)
+    assert (2 * g.n + 1) in other.vertex and (1 * g.n + 0) in other.vertex
+    le = add_derived(AgentConstraints(), [(LEN_LE, 0, -1, -1, 4)], n=3, goals=[1, 0], goal=2)
+    assert le.forbid_from == {1: 4}
+
+
+def test_time_collapse_terminates_without_path():
+    # Goal forbidden from t=2 on (another agent parks there): no path; must terminate.
+    g = Graph.grid(4, 1)
+    c = add_derived(AgentConstraints(), [(LEN_LE, 1, -1, -1, 2)], n=g.n, goals=[3, 3 - 0], goal=3)
+    path, _ = space_time_astar(g.adj, 0, 3, g.dist_list(3), c)
+    assert path is None
+    # Middle vertex forbidden forever from t=0: the goal is cut off.
+    c = add_derived(AgentConstraints(), [(LEN_LE, 1, -1, -1, 0)], n=g.n, goals=[3, 1], goal=3)
+    path, _ = space_time_astar(g.adj, 0, 3, g.dist_list(3), c)
+    assert path is None
+
+
+def test_range_constraint():
+    g = Graph.grid(3, 1)
+    path, _ = plan(g, (0, 0), (2, 0), [(NEG_RANGE, 0, 1, 0, 4)])
+    assert path == (0, 0, 0, 0, 0, 1, 2)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_astar_optimal_against_enumeration(seed):
+    import random
+
+    rng = random.Random(seed)
+    g = Graph.grid(3, 3, obstacles=[(1, 1)] if seed % 2 else [])
+    free = [v for v in range(g.n) if g.passable[v]]
+    s, t = rng.sample(free, 2)
+    cons = []
+    for _ in range(4):
+        cons.append((NEG_V, 0, rng.choice(free), -1, rng.randint(1, 5)))
+    c = AgentConstraints.root(g.n, t).add_many(cons, n=g.n, goal=t)
+    path, _ = space_time_astar(g.adj, s, t, g.dist_list(t), c)
+    horizon = 9
+    best = None
+    for w in brute_paths(g, s, horizon):
+        if w[-1] != t:
+            continue
+        trimmed = w[: path_cost(w) + 1]
+        if c.allows_path(trimmed, g.n):
+            cost = path_cost(w)
+            best = cost if best is None else min(best, cost)
+    assert path is not None and best is not None
+    assert path_cost(path) == best
+    assert c.allows_path(path, g.n)
+
+
+def test_conflict_table_breaks_ties():
+    g = Graph.grid(3, 2)
+    # Another agent sits on (1, 0) at t=1; prefer the equal-cost route through row 1.
+    other = (g.vertex((1, 0)),) * 3
+    cat = ConflictTable.from_paths([other], g.n)
+    path, _ = plan(g, (0, 0), (2, 1), cat=cat)
+    assert len(path) - 1 == 3 and g.vertex((1, 0)) not in path
+
+
+def test_conflict_table_add_remove_roundtrip():
+    cat = ConflictTable(10)
+    p = (1, 2, 3, 3)
+    cat.add_path(p)
+    cat.add_path((5, 4))
+    cat.remove_path(p)
+    assert cat.vtab == ConflictTable.from_paths([(5, 4)], 10).vtab
+    assert cat.parked == {4: 1}
+
+
+def test_mdd_levels_and_cardinality():
+    g = Graph.grid(3, 3)
+    s, t = g.vertex((0, 0)), g.vertex((2, 2))
+    m = build_mdd(g.adj, s, t, g.dist_list(t), AgentConstraints(), 4)
+    assert [len(lv) for lv in m.levels] == [1, 2, 3, 2, 1]
+    assert m.single(4, t) and m.single(9, t) and not m.single(2, g.vertex((1, 1)))
+    # Every cost-4 path lies in the MDD and every MDD edge lies on one.
+    walks = [w for w in brute_paths(g, s, 4) if w[-1] == t and path_cost(w) == 4]
+    for w in walks:
+        assert all(w[i + 1] in m.levels[i][w[i]] for i in range(4))
+    assert sum(len(kids) for lv in m.levels for kids in lv.values()) == len(
+        {(i, w[i], w[i + 1]) for w in walks for i in range(4)}
+    )
+
+
+def test_dependency_of_two_mdds():
+    g = Graph.grid(3, 3)
+    ma = build_mdd(g.adj, 0, 2, g.dist_list(2), AgentConstraints(), 2)
+    mb = build_mdd(g.adj, 6, 8, g.dist_list(8), AgentConstraints(), 2)
+    assert not dependent(ma, mb)
+    mc = build_mdd(g.adj, 2, 0, g.dist_list(0), AgentConstraints(), 2)
+    assert dependent(ma, mc)
+
+
+def test_min_vertex_cover_exact_small_graphs():
+    for n in range(2, 6):
+        edges = list(itertools.combinations(range(n), 2))
+        weights = {e: 1 + (e[0] + e[1]) % 3 for e in edges}
+        got = min_vertex_cover(weights)
+        best = min(
+            sum(x)
+            for x in itertools.product(range(4), repeat=n)
+            if all(x[i] + x[j] >= w for (i, j), w in weights.items())
+        )
+        assert got == best
+
+
+def test_corridor_detection():
+    g = Graph.grid(5, 3, obstacles=[(1, 0), (2, 0), (3, 0), (1, 2), (2, 2), (3, 2)])
+    cor = Corridors(g).corridor(g.vertex((1, 1)))
+    assert cor is not None and len(cor[0]) == 3
+    assert Corridors(g).corridor(g.vertex((0, 1))) is None
+
+
+def test_path_order_infeasibility():
+    from hierplan_opt.core.instance import Instance
+
+    g = Graph.grid(5, 1)
+    assert path_order_infeasibility(Instance.mapf(g, [(0, 0), (4, 0)], [(4, 0), (0, 0)]))
+    assert path_order_infeasibility(Instance.mapf(g, [(0, 0), (4, 0)], [(1, 0), (3, 0)])) is None
+    g2 = Graph.grid(3, 3)
+    assert path_order_infeasibility(Instance.mapf(g2, [(0, 0), (2, 2)], [(2, 2), (0, 0)])) is None
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_restricted_mdd_equals_rebuilt(seed):
+    import random
+
+    from hierplan_opt.search.mdd import restrict
+
+    rng = random.Random(seed)
+    g = Graph.grid(4, 3, obstacles=[(1, 1)] if seed % 3 == 0 else [])
+    free = [v for v in range(g.n) if g.passable[v]]
+    s, t = rng.sample(free, 2)
+    goals = [t, rng.choice([v for v in free if v != t])]
+    dist = g.dist_list(t)
+    base = AgentConstraints.root(g.n, t).add_many(
+        [(NEG_V, 0, rng.choice(free), -1, rng.randint(1, 4))], n=g.n, goal=t
+    )
+    p0, _ = space_time_astar(g.adj, s, t, dist, base, dist_of=g.dist_list)
+    m0 = build_mdd(g.adj, s, t, dist, base, len(p0) - 1, g.dist_list)
+    cost = m0.cost
+    for _ in range(6):
+        kind = rng.choice(["own_v", "own_e", "own_pos", "der_pos", "der_len", "range"])
+        v, u = rng.choice(free), rng.choice(free)
+        tt = rng.randint(1, cost + 1)
+        if kind == "own_v":
+            new = base.add((NEG_V, 0, v, -1, tt), n=g.n, goal=t)
+        elif kind == "own_e":
+            nb = rng.choice([*g.adj[v]] or [v])
+            new = base.add((NEG_E, 0, v, nb, tt), n=g.n, goal=t)
+        elif kind == "own_pos":
+            new = base.add((POS_V, 0, v, -1, tt), n=g.n, goal=t)
+        elif kind == "range":
+            new = base.add((NEG_RANGE, 0, v, 0, tt), n=g.n, goal=t)
+        elif kind == "der_pos":
+            new = add_derived(base, [(POS_V, 1, u, -1, tt)], n=g.n, goals=goals, goal=t)
+        else:
+            new = add_derived(base, [(LEN_LE, 1, -1, -1, tt)], n=g.n, goals=goals, goal=t)
+        p, _ = space_time_astar(g.adj, s, t, dist, new, dist_of=g.dist_list)
+        r = restrict(m0, new.delta, new.derived)
+        if p is None or len(p) - 1 != cost:
+            assert r is None
+            continue
+        rebuilt = build_mdd(g.adj, s, t, dist, new, cost, g.dist_list)
+        assert r is not None
+        assert [{k: sorted(x) for k, x in lv.items()} for lv in r.levels] == [
+            {k: sorted(x) for k, x in lv.items()} for lv in rebuilt.levels
+        ]

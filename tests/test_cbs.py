@@ -1,0 +1,432 @@
+"""CBS: golden micro-instances, an independent brute-force cross-check, option equivalence."""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import hierplan_opt
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.result import Status
+from hierplan_opt.core.validate import validate
+from hierplan_opt.search import cbs
+
+ROOT = Path(__file__).resolve().parent.parent
+MOVINGAI = ROOT / "instances" / "movingai"
+
+OPTION_SETS = [
+    {},
+    {"prioritize_conflicts": False},
+    {"bypass": False},
+    {"heuristic": "none"},
+    {"heuristic": "cg"},
+    {"heuristic": "dg"},
+    {"disjoint_splitting": False},
+    {"symmetry": False},
+    {
+        "prioritize_conflicts": False,
+        "bypass": False,
+        "heuristic": "none",
+        "disjoint_splitting": False,
+        "symmetry": False,
+    },
+]
+
+
+# ---------------------------------------------------------------- brute force
+def brute_force(inst: Instance, objective: str) -> int | None:
+    """Optimal cost by search over joint states (written independently of the solver).
+
+    SOC: Dijkstra over (positions, committed agents). An agent at its goal may commit
+    (stay there forever, for free); every step costs the number of uncommitted agents,
+    so an agent's total is the time it commits. Makespan: BFS over joint positions
+    until every agent is at its goal (they can stay there from then on).
+    """
+    g = inst.graph
+    starts = tuple(inst.starts)
+    goals = tuple(inst.goals)
+    k = len(starts)
+    moves = {v: [v, *g.adj[v]] for v in range(g.n) if g.passable[v]}
+
+    def joint_moves(pos: tuple[int, ...], free: tuple[bool, ...]):
+        options = [moves[p] if free[i] else [p] for i, p in enumerate(pos)]
+        for new in itertools.product(*options):
+            if len(set(new)) < k:
+                continue
+            if any(
+                new[i] == pos[j] and new[j] == pos[i] and i != j
+                for i in range(k)
+                for j in range(i + 1, k)
+            ):
+                continue
+            yield new
+
+    if objective == "makespan":
+        seen = {starts}
+        frontier = [starts]
+        t = 0
+        while frontier:
+            if goals in seen:
+                return t
+            nxt = []
+            for pos in frontier:
+                for new in joint_moves(pos, (True,) * k):
+                    if new not in seen:
+                        seen.add(new)
+                        nxt.append(new)
+            frontier = nxt
+            t += 1
+            if goals in seen:
+                return t
+        return None
+
+    start = (starts, (False,) * k)
+    best = {start: 0}
+    heap = [(0, start)]
+    while heap:
+        d, state = heapq.heappop(heap)
+        if best.get(state, 1 << 60) < d:
+            continue
+        pos, com = state
+        if all(com):
+            return d
+        # commit any agent at its goal (zero cost)
+        for i in range(k):
+            if not com[i] and pos[i] == goals[i]:
+                c2 = tuple(True if j == i else com[j] for j in range(k))
+                s2 = (pos, c2)
+                if d < best.get(s2, 1 << 60):
+                    best[s2] = d
+                    heapq.heappush(heap, (d, s2))
+        step = sum(1 for c in com if not c)
+        free = tuple(not c for c in com)
+        for new in joint_moves(pos, free):
+            s2 = (new, com)
+            if d + step < best.get(s2, 1 << 60):
+                best[s2] = d + step
+                heapq.heappush(heap, (d + step, s2))
+    return None
+
+
+def check(inst: Instance, objective: str = "soc", **options):
+    r = hierplan_opt.solve(inst, "cbs", time_limit=20, objective=objective, **options)
+    if r.plan is not None:
+        assert validate(inst, r.plan) == []
+    return r
+
+
+# ---------------------------------------------------------------- golden
+def corridor() -> Instance:
+    g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
+    return Instance.mapf(g, [(0, 0), (1, 0)], [(4, 0), (3, 0)])
+
+
+def pocket_swap() -> Instance:
+    g = Graph.grid(3, 2, obstacles=[(0, 1), (2, 1)])
+    return Instance.mapf(g, [(0, 0), (2, 0)], [(2, 0), (0, 0)])
+
+
+@pytest.mark.parametrize("options", OPTION_SETS)
+def test_lmrp_corridor_soc_8(options):
+    r = check(corridor(), **options)
+    assert r.status == Status.OPTIMAL
+    assert r.cost == 8 and r.lower_bound == 8
+
+
+@pytest.mark.parametrize("options", OPTION_SETS)
+def test_swap_through_side_pocket(options):
+    r = check(pocket_swap(), **options)
+    assert r.status == Status.OPTIMAL
+    assert r.cost == 7
+    assert brute_force(pocket_swap(), "soc") == 7
+    m = check(pocket_swap(), "makespan", **options)
+    assert m.status == Status.OPTIMAL and m.cost == 4 == brute_force(pocket_swap(), "makespan")
+
+
+def test_corridor_makespan():
+    r = check(corridor(), "makespan")
+    assert r.status == Status.OPTIMAL
+    assert r.cost == brute_force(corridor(), "makespan") == 4
+
+
+def test_agent_must_leave_goal_for_later_passer():
+    # Agent 0 sits on agent 1's only way through; it must step aside and come back.
+    g = Graph.grid(4, 2, obstacles=[(0, 1), (2, 1), (3, 1)])
+    inst = Instance.mapf(g, [(1, 0), (0, 0)], [(1, 0), (3, 0)])
+    r = check(inst)
+    assert r.status == Status.OPTIMAL
+    assert r.cost == brute_force(inst, "soc")
+
+
+# ---------------------------------------------------------------- brute-force cross-check
+def _small_cases():
+    cases = []
+    g33 = Graph.grid(3, 3)
+    cases.append(Instance.mapf(g33, [(0, 0), (2, 2)], [(2, 2), (0, 0)]))
+    cases.append(Instance.mapf(g33, [(0, 1), (2, 1), (1, 0)], [(2, 1), (0, 1), (1, 2)]))
+    g43 = Graph.grid(4, 3, obstacles=[(1, 1), (2, 1)])
+    cases.append(Instance.mapf(g43, [(0, 0), (3, 0), (0, 2)], [(3, 2), (0, 2), (3, 0)]))
+    cases.append(Instance.mapf(g43, [(0, 1), (3, 1)], [(3, 1), (0, 1)]))
+    return cases
+
+
+@pytest.mark.parametrize("idx", range(4))
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+def test_cbs_matches_brute_force(idx, objective):
+    inst = _small_cases()[idx]
+    expected = brute_force(inst, objective)
+    r = check(inst, objective)
+    assert r.status == Status.OPTIMAL
+    assert r.cost == expected
+
+
+@st.composite
+def small_instances(draw):
+    w = draw(st.integers(3, 4))
+    h = draw(st.integers(2, 4))
+    cells = [(x, y) for y in range(h) for x in range(w)]
+    blocked = draw(st.lists(st.sampled_from(cells), max_size=3, unique=True))
+    free = [c for c in cells if c not in blocked]
+    k = draw(st.integers(2, 3))
+    if len(free) < k + 1:
+        k = 2
+    starts = draw(st.lists(st.sampled_from(free), min_size=k, max_size=k, unique=True))
+    goals = draw(st.lists(st.sampled_from(free), min_size=k, max_size=k, unique=True))
+    g = Graph.grid(w, h, obstacles=blocked)
+    return Instance.mapf(g, starts, goals)
+
+
+@settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+@given(small_instances(), st.sampled_from(["soc", "makespan"]))
+def test_property_all_options_same_optimum(inst, objective):
+    _all_options_same_optimum(inst, objective)
+
+
+@pytest.mark.slow
+@settings(
+    max_examples=300,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
+)
+@given(small_instances(), st.sampled_from(["soc", "makespan"]))
+def test_property_all_options_same_optimum_long(inst, objective):
+    _all_options_same_optimum(inst, objective)
+
+
+def _all_options_same_optimum(inst, objective):
+    expected = brute_force(inst, objective)
+    if expected is None:
+        # No plan: CBS may only say INFEASIBLE or run out of time, never return a plan.
+        r = hierplan_opt.solve(inst, "cbs", time_limit=0.3, objective=objective)
+        assert r.status in (Status.INFEASIBLE, Status.TIME_LIMIT)
+        return
+    solved = 0
+    for options in OPTION_SETS:
+        r = hierplan_opt.solve(inst, "cbs", time_limit=3, objective=objective, **options)
+        if r.status == Status.TIME_LIMIT:
+            # Tightly packed tiny grids can need thousands of CT nodes: a time-out is
+            # acceptable, a bound above the optimum is not.
+            assert r.lower_bound is not None and r.lower_bound <= expected
+            continue
+        assert r.status == Status.OPTIMAL, (options, r)
+        assert r.cost == expected, (options, objective)
+        assert validate(inst, r.plan) == []
+        solved += 1
+    assert solved >= 1
+
+
+# ---------------------------------------------------------------- limits and infeasibility
+def test_time_limit_returns_lower_bound():
+    from hierplan_opt.io import load_instance
+
+    inst = load_instance(
+        MOVINGAI / "maze-32-32-2.map", scen=MOVINGAI / "maze-32-32-2-even-1.scen", agents=40
+    )
+    t0 = time.perf_counter()
+    r = hierplan_opt.solve(inst, "cbs", time_limit=0.5)
+    assert time.perf_counter() - t0 < 5.0
+    assert r.status == Status.TIME_LIMIT
+    assert r.plan is None
+    assert r.lower_bound is not None and r.lower_bound >= inst.soc_lower_bound()
+
+
+def test_unreachable_goal_infeasible():
+    g = Graph.grid(3, 3, obstacles=[(1, 0), (1, 1), (1, 2)])
+    inst = Instance.mapf(g, [(0, 0)], [(2, 2)])
+    assert hierplan_opt.solve(inst, "cbs").status == Status.INFEASIBLE
+
+
+def test_two_agents_one_goal_infeasible():
+    g = Graph.grid(3, 3)
+    inst = Instance.mapf(g, [(0, 0), (2, 2)], [(1, 1), (1, 1)])
+    assert hierplan_opt.solve(inst, "cbs").status == Status.INFEASIBLE
+
+
+def test_swap_in_corridor_infeasible():
+    # Agents on a path-shaped graph can never pass each other: proven at once.
+    g = Graph.grid(6, 1)
+    inst = Instance.mapf(g, [(1, 0), (4, 0)], [(4, 0), (1, 0)])
+    r = hierplan_opt.solve(inst, "cbs", time_limit=5.0)
+    assert r.status == Status.INFEASIBLE
+    assert "cannot pass" in r.stats["reason"]
+    for objective in ("soc", "makespan"):
+        assert hierplan_opt.solve(inst, "cbs", objective=objective).status == Status.INFEASIBLE
+
+
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+def test_unprovable_unsolvable_stops_at_time_limit(objective):
+    # A T-shaped tree with three agents on its leaves cannot rotate them; no cheap
+    # check proves it, so the time limit must stop the search.
+    g = Graph.grid(3, 2, obstacles=[(0, 1), (2, 1)])
+    inst = Instance.mapf(g, [(0, 0), (2, 0), (1, 1)], [(2, 0), (1, 1), (0, 0)])
+    assert brute_force(inst, objective) is None
+    t0 = time.perf_counter()
+    r = hierplan_opt.solve(inst, "cbs", time_limit=0.5, objective=objective)
+    assert time.perf_counter() - t0 < 3.0
+    assert r.status == Status.TIME_LIMIT and r.plan is None
+    assert r.lower_bound is not None
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"heuristic": "magic"},
+        {"bypass": "yes"},
+        {"node_limit": 0},
+        {"symmetry": 1},
+    ],
+)
+def test_bad_option_values_refused(options):
+    with pytest.raises(OptionError):
+        hierplan_opt.solve(corridor(), "cbs", **options)
+
+
+def test_unknown_option_refused():
+    with pytest.raises(OptionError, match="no option"):
+        hierplan_opt.solve(corridor(), "cbs", turbo=True)
+
+
+def test_node_limit_stops():
+    from hierplan_opt.io import load_instance
+
+    inst = load_instance(
+        MOVINGAI / "maze-32-32-2.map", scen=MOVINGAI / "maze-32-32-2-even-1.scen", agents=30
+    )
+    r = hierplan_opt.solve(inst, "cbs", node_limit=3, heuristic="none")
+    assert r.status == Status.TIME_LIMIT
+    assert r.lower_bound >= inst.soc_lower_bound()
+    assert r.stats["high_level_expanded"] <= 3
+
+
+# ---------------------------------------------------------------- MovingAI samples
+@pytest.mark.parametrize(
+    ("name", "scen", "k"),
+    [
+        ("empty-8-8", "empty-8-8-even-1", 8),
+        ("random-32-32-20", "random-32-32-20-random-1", 12),
+        ("room-32-32-4", "room-32-32-4-even-1", 6),
+    ],
+)
+def test_movingai_first_agents_equal_across_options(name, scen, k):
+    from hierplan_opt.io import load_instance
+
+    inst = load_instance(MOVINGAI / f"{name}.map", scen=MOVINGAI / f"{scen}.scen", agents=k)
+    costs = set()
+    for options in OPTION_SETS[:8]:
+        r = check(inst, **options)
+        assert r.status == Status.OPTIMAL, options
+        assert r.cost >= inst.soc_lower_bound()
+        costs.add(r.cost)
+    assert len(costs) == 1
+
+
+@pytest.mark.parametrize("k", [20, 30])
+def test_readme_instance(k):
+    from hierplan_opt.io import load_instance
+
+    inst = load_instance(
+        MOVINGAI / "random-32-32-20.map",
+        scen=MOVINGAI / "random-32-32-20-random-1.scen",
+        agents=k,
+    )
+    r = check(inst)
+    assert r.status == Status.OPTIMAL
+    assert r.cost == r.lower_bound >= inst.soc_lower_bound()
+
+
+def test_find_conflicts_kinds():
+    confs = cbs.find_conflicts([(0, 1, 2), (2, 1, 0)], n=3)
+    assert [c[1] for c in confs] == [cbs.VERTEX]
+    confs = cbs.find_conflicts([(0, 1), (1, 0)], n=2)
+    assert [c[1] for c in confs] == [cbs.EDGE]
+    confs = cbs.find_conflicts([(1,), (0, 1, 2)], n=3)
+    assert [c[1] for c in confs] == [cbs.TARGET]
+
+
+def test_incremental_conflicts_match_full_scan():
+    import random
+
+    rng = random.Random(7)
+    g = Graph.grid(4, 4)
+    n = g.n
+
+    def walk(start: int, goal_taken: set[int]) -> tuple[int, ...]:
+        p = [start]
+        for _ in range(rng.randint(0, 7)):
+            p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
+        while p[-1] in goal_taken:
+            p.append(rng.choice(g.adj[p[-1]]))
+        goal_taken.add(p[-1])
+        return tuple(p)
+
+    def pairs(confs):
+        return {(min(c[2], c[3]), max(c[2], c[3])) for c in confs}
+
+    def true_pairs(ps):
+        out = set()
+        horizon = max(len(p) for p in ps) + 1
+        at = [lambda t, p=p: p[min(t, len(p) - 1)] for p in ps]
+        for i, j in itertools.combinations(range(len(ps)), 2):
+            for t in range(horizon):
+                if at[i](t) == at[j](t) or (
+                    t and at[i](t) == at[j](t - 1) and at[j](t) == at[i](t - 1)
+                ):
+                    out.add((i, j))
+                    break
+        return out
+
+    idx = cbs.OccupancyIndex(n)
+    for _ in range(600):
+        k = rng.randint(2, 6)
+        starts = rng.sample(range(n), k)
+        taken: set[int] = set()
+        paths = [walk(s, taken) for s in starts]
+        idx.sync(paths)
+        changed = rng.sample(range(k), rng.randint(1, k))
+        new = list(paths)
+        taken = {p[-1] for i, p in enumerate(paths) if i not in changed}
+        for i in changed:
+            new[i] = walk(starts[i], taken)
+        old_confs = cbs.find_conflicts(paths, n)
+        kept = [c for c in old_confs if c[2] not in changed and c[3] not in changed]
+        idx.sync(new)
+        done: set[int] = set()
+        for i in changed:
+            kept += idx.conflicts_of(i, new, done)
+            done.add(i)
+        truth = true_pairs(new)
+        # Every conflicting pair must be reported, also when three agents meet.
+        assert pairs(kept) == truth
+        assert pairs(cbs.find_conflicts(new, n)) == truth
