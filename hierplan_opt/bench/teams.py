@@ -1,0 +1,241 @@
+"""``hierplan bench teams``: CBM and max-flow on warehouse-like TAPF instances.
+
+For every instance the table shows CBM's optimal TAPF makespan (time, lower bound,
+high-level nodes) next to the makespan of a *fixed* assignment: the Hungarian /
+bottleneck assignment by distance solved as MAPF, and (``--fixed``) the instance's
+own random goals solved as MAPF. Both fixed-assignment columns use CBM on the MAPF
+instance (one team per agent), which is makespan-optimal for that assignment, or
+whatever solver ``--mapf-solver`` names.
+
+Instances are generated: a warehouse grid with blocks of shelves separated by
+one-cell passageways (``--shelf-rows``, ``--shelf-cols``), robots starting in the
+left and right aisles and targets on cells next to shelves (pick-up locations).
+``--map`` uses a MovingAI map instead (random free cells).
+
+Example
+-------
+>>> main(["--quick", "--teams", "2", "--size", "2", "--mapf-solver", "cbm"])  # doctest: +ELLIPSIS
+teams benchmark: ...
+0
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import time
+
+import numpy as np
+
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.validate import validate
+
+
+def warehouse_grid(shelf_rows: int, shelf_cols: int, shelf_len: int = 5, aisle: int = 3) -> Graph:
+    """A warehouse-like grid: ``shelf_rows x shelf_cols`` shelf blocks (2 x shelf_len).
+
+    Blocks are separated by one-cell passageways; ``aisle`` free columns on the left
+    and right and one free row above and below.
+
+    Example
+    -------
+    >>> g = warehouse_grid(2, 2, shelf_len=3, aisle=2)
+    >>> g.shape, g.num_vertices
+    ((11, 7), 53)
+    """
+    w = 2 * aisle + shelf_cols * shelf_len + (shelf_cols - 1)
+    h = 2 + shelf_rows * 2 + (shelf_rows - 1)
+    blocked = np.zeros((h, w), dtype=bool)
+    for r in range(shelf_rows):
+        y = 1 + 3 * r
+        for c in range(shelf_cols):
+            x = aisle + c * (shelf_len + 1)
+            blocked[y : y + 2, x : x + shelf_len] = True
+    return Graph.grid(w, h, blocked=blocked)
+
+
+def warehouse_tapf(
+    graph: Graph, teams: int, size: int, seed: int, starts_at: str = "sides"
+) -> Instance:
+    """Targets are cells next to shelves; robots start in the side aisles (``"sides"``)
+    or on random free cells away from the targets (``"random"``).
+
+    Example
+    -------
+    >>> inst = warehouse_tapf(warehouse_grid(2, 2, 3, 2), 2, 2, seed=0)
+    >>> len(inst.teams), inst.num_agents
+    (2, 4)
+    """
+    rng = np.random.default_rng(seed)
+    w, h = graph.shape  # type: ignore[misc]
+    k = teams * size
+    free = np.flatnonzero(graph.passable)
+    xs = graph.coords[free, 0]
+    side = free[(xs < 3) | (xs >= w - 3)]
+    near_shelf = [
+        v
+        for v in free.tolist()
+        if any(not graph.passable[u] for u in _grid_nbrs(graph, v))
+        and 3 <= graph.coords[v, 0] < w - 3
+    ]
+    if len(near_shelf) < k:
+        raise ValueError(f"the grid is too small for {k} robots")
+    targets = rng.choice(np.array(near_shelf), k, replace=False).tolist()
+    pool = side if starts_at == "sides" else np.setdiff1d(free, targets)
+    if len(pool) < k:
+        raise ValueError(f"the grid has fewer than {k} start cells ({starts_at})")
+    starts = rng.choice(pool, k, replace=False).tolist()
+    spec = [
+        (
+            [graph.location(v) for v in starts[i * size : (i + 1) * size]],
+            [graph.location(v) for v in targets[i * size : (i + 1) * size]],
+        )
+        for i in range(teams)
+    ]
+    return Instance.tapf(graph, spec, name=f"warehouse-{teams}x{size}-s{seed}")
+
+
+def _grid_nbrs(graph: Graph, v: int) -> list[int]:
+    x, y = (int(c) for c in graph.coords[v][:2])
+    w, h = graph.shape[:2]  # type: ignore[index]
+    out = []
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        if 0 <= x + dx < w and 0 <= y + dy < h:
+            out.append(graph.vertex((x + dx, y + dy)))
+    return out
+
+
+def map_tapf(path: str, teams: int, size: int, seed: int) -> Instance:
+    """Random distinct starts and targets on a MovingAI map, grouped into teams."""
+    from hierplan_opt.io.movingai import load_map
+
+    g = load_map(path)
+    rng = np.random.default_rng(seed)
+    free = np.flatnonzero(g.passable)
+    k = teams * size
+    cells = [g.location(int(v)) for v in rng.choice(free, 2 * k, replace=False)]
+    spec = [
+        (cells[i * size : (i + 1) * size], cells[k + i * size : k + (i + 1) * size])
+        for i in range(teams)
+    ]
+    return Instance.tapf(g, spec, name=f"{path.rsplit('/', 1)[-1]}-{teams}x{size}-s{seed}")
+
+
+def _run(
+    inst: Instance, solver: str, limit: float, **options
+) -> tuple[str, object, object, float, dict]:
+    from hierplan_opt import solve
+
+    t0 = time.perf_counter()
+    r = solve(inst, solver, time_limit=limit, objective="makespan", **options)
+    dt = time.perf_counter() - t0
+    if r.plan is not None and validate(inst, r.plan):
+        return "INVALID", None, None, dt, r.stats
+    return str(r.status), r.cost, r.lower_bound, dt, r.stats
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark and print one table row per instance."""
+    p = argparse.ArgumentParser(prog="hierplan bench teams", description=__doc__.split("\n\n")[0])
+    p.add_argument("--quick", action="store_true", help="small preset (under a minute)")
+    p.add_argument("--teams", help="comma-separated numbers of teams (default 5,10,20; quick 2,4)")
+    p.add_argument("--size", type=int, help="robots per team (default 10, quick 3)")
+    p.add_argument("--seeds", type=int, help="instances per setting (default 1)")
+    p.add_argument("--shelf-rows", type=int, help="shelf block rows (default 10, quick 2)")
+    p.add_argument("--shelf-cols", type=int, help="shelf block columns (default 14, quick 3)")
+    p.add_argument("--shelf-len", type=int, help="cells per shelf block (default 4, quick 5)")
+    p.add_argument(
+        "--starts",
+        choices=["sides", "random"],
+        help="where robots start (default random, quick sides)",
+    )
+    p.add_argument("--map", help="MovingAI map instead of the generated warehouse")
+    p.add_argument("--time-limit", type=float, help="seconds per solve (default 60, quick 20)")
+    p.add_argument("--tie-break", default="auto", help="CBM tie_break option (default auto)")
+    p.add_argument(
+        "--mapf-solver", default="cbs", help="makespan MAPF solver for fixed assignments (cbs)"
+    )
+    p.add_argument("--fixed", action="store_true", help="also solve the random fixed goals")
+    p.add_argument(
+        "--flow", action="store_true", help="also run max-flow with all robots as one team"
+    )
+    args = p.parse_args(argv)
+    q = args.quick
+    team_counts = [int(x) for x in (args.teams or ("2,4" if q else "5,10,20")).split(",")]
+    size = args.size or (3 if q else 10)
+    seeds = args.seeds or 1
+    rows = args.shelf_rows or (2 if q else 10)
+    cols = args.shelf_cols or (3 if q else 14)
+    slen = args.shelf_len or (5 if q else 4)
+    starts_at = args.starts or ("sides" if q else "random")
+    limit = args.time_limit or (20.0 if q else 60.0)
+    logging.getLogger("hierplan_opt").setLevel(logging.WARNING)
+
+    header = (
+        f"{'instance':<28} {'cells':>6} {'K':>4} | {'cbm':>11} {'mk':>4} {'lb':>4} "
+        f"{'time':>7} {'nodes':>5} | {'hungarian':>11} {'mk':>4} {'time':>7}"
+    )
+    if args.fixed:
+        header += f" | {'fixed':>11} {'mk':>4} {'time':>7}"
+    if args.flow:
+        header += f" | {'flow(1 team)':>12} {'mk':>4} {'time':>7}"
+    print(  # noqa: T201
+        f"teams benchmark: teams {team_counts} x {size} robots, time limit {limit:g} s, "
+        f"fixed assignments solved by {args.mapf_solver} (makespan)"
+    )
+    print(header)  # noqa: T201
+    print("-" * len(header))  # noqa: T201
+    solved = total = 0
+    for teams in team_counts:
+        for seed in range(seeds):
+            if args.map:
+                inst = map_tapf(args.map, teams, size, seed)
+            else:
+                grid = warehouse_grid(rows, cols, slen)
+                inst = warehouse_tapf(grid, teams, size, seed, starts_at)
+            total += 1
+            print(_row(inst, args, limit), flush=True)  # noqa: T201
+            solved += _LAST["cbm"] == "OPTIMAL"
+    print(f"cbm solved {solved}/{total} optimally within {limit:g} s")  # noqa: T201
+    return 0
+
+
+_LAST: dict[str, str] = {}
+
+
+def _row(inst: Instance, args: argparse.Namespace, limit: float) -> str:
+    st, mk, lb, dt, stats = _run(inst, "cbm", limit, tie_break=args.tie_break)
+    _LAST["cbm"] = st
+    line = (
+        f"{inst.name:<28} {inst.graph.num_vertices:>6} {inst.num_agents:>4} | {st:>11} "
+        f"{_s(mk):>4} {_s(lb):>4} {dt:>7.2f} {stats.get('high_level_expanded', 0):>5} | "
+    )
+    hst, hmk, _, hdt, _ = _run(inst, "hungarian", limit, mapf_solver=args.mapf_solver)
+    line += f"{hst:>11} {_s(hmk):>4} {hdt:>7.2f}"
+    if args.fixed:
+        fixed = inst.with_goals([t for team in inst.teams for t in team.targets])
+        fst, fmk, _, fdt, _ = _run(fixed, args.mapf_solver, limit)
+        line += f" | {fst:>11} {_s(fmk):>4} {fdt:>7.2f}"
+    if args.flow:
+        g = inst.graph
+        one = Instance.tapf(
+            g,
+            [
+                (
+                    [g.location(s) for s in inst.starts],
+                    [g.location(t) for team in inst.teams for t in team.targets],
+                )
+            ],
+        )
+        ost, omk, _, odt, _ = _run(one, "flow", limit)
+        line += f" | {ost:>12} {_s(omk):>4} {odt:>7.2f}"
+    return line
+
+
+def _s(x: object) -> str:
+    return "-" if x is None else str(x)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,203 @@
+"""Target assignment by distance, then path finding with a MAPF solver (baseline).
+
+For every team the robots are assigned to targets by their BFS distances:
+
+* ``objective="soc"``: the assignment of minimum total distance (Hungarian method,
+  :func:`scipy.optimize.linear_sum_assignment`); its value is a lower bound on the
+  TAPF sum of costs;
+* ``objective="makespan"``: first the *bottleneck* value (the smallest d such that
+  every robot can get a target within d steps, found by bisection over bipartite
+  matchings), then the minimum total distance among assignments within d. The
+  largest bottleneck value over the teams is a lower bound on the TAPF makespan.
+
+The resulting MAPF instance (fixed goals) is solved by a MAPF solver (CBS by
+default). Assignment ignores interactions between robots, so the plan is not optimal
+for TAPF in general; the result is FEASIBLE unless its cost meets the lower bound.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.feasibility import quick_infeasibility
+from hierplan_opt.core.graph import UNREACHABLE, Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.timer import Deadline
+
+log = logging.getLogger(__name__)
+
+
+def distance_matrix(graph: Graph, starts: Sequence[int], targets: Sequence[int]) -> np.ndarray:
+    """``D[i, j]`` = timestep distance from ``starts[i]`` to ``targets[j]``.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 1)
+    >>> distance_matrix(g, [0, 1], [2]).tolist()
+    [[2], [1]]
+    """
+    rows = graph.precompute_distances(list(targets))
+    s = np.asarray(list(starts), dtype=np.int64)
+    return np.stack([np.asarray(r)[s] for r in rows], axis=1).astype(np.int64)
+
+
+def bottleneck_value(dist: np.ndarray) -> int:
+    """The smallest d such that a perfect matching uses only entries ``<= d``.
+
+    Returns :data:`~hierplan_opt.core.graph.UNREACHABLE` when no perfect matching
+    avoids unreachable pairs.
+
+    Example
+    -------
+    >>> bottleneck_value(np.array([[1, 5], [2, 9]]))
+    5
+    """
+    values = np.unique(dist[dist < UNREACHABLE])
+    k = dist.shape[0]
+
+    def perfect(d: int) -> bool:
+        m = maximum_bipartite_matching(csr_matrix(dist <= d), perm_type="column")
+        return bool((m >= 0).all()) and len(m) == k
+
+    if len(values) == 0 or not perfect(int(values[-1])):
+        return UNREACHABLE
+    lo, hi = 0, len(values) - 1  # values[hi] is feasible
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if perfect(int(values[mid])):
+            hi = mid
+        else:
+            lo = mid + 1
+    return int(values[hi])
+
+
+def assign(dist: np.ndarray, objective: str = "makespan") -> np.ndarray:
+    """Column (target) index for every row (robot).
+
+    ``"soc"`` minimises the total distance; ``"makespan"`` minimises the largest
+    distance, then the total among those assignments.
+
+    Example
+    -------
+    >>> assign(np.array([[0, 5], [5, 9]]), "soc").tolist()
+    [0, 1]
+    >>> assign(np.array([[0, 5], [5, 9]]), "makespan").tolist()
+    [1, 0]
+    """
+    cost = dist.astype(float)
+    big = float(dist.shape[0] * (int(dist[dist < UNREACHABLE].max(initial=0)) + 1) + 1)
+    cost[dist >= UNREACHABLE] = big * 1e3
+    if objective == "makespan":
+        b = bottleneck_value(dist)
+        if b < UNREACHABLE:
+            cost[dist > b] = big * 1e3
+    rows, cols = linear_sum_assignment(cost)
+    out = np.empty(dist.shape[0], dtype=np.int64)
+    out[rows] = cols
+    return out
+
+
+def team_makespan_bound(graph: Graph, starts: Sequence[int], targets: Sequence[int]) -> int:
+    """The bottleneck lower bound on one team's makespan (see :func:`bottleneck_value`).
+
+    Example
+    -------
+    >>> g = Graph.grid(5, 1)
+    >>> team_makespan_bound(g, [0, 1], [3, 4])
+    3
+    """
+    return bottleneck_value(distance_matrix(graph, starts, targets))
+
+
+def solve(
+    instance: Instance,
+    *,
+    time_limit: float | None = None,
+    seed: int = 0,
+    objective: str = "makespan",
+    mapf_solver: str = "cbs",
+    mapf_options: dict[str, Any] | None = None,
+) -> Result:
+    """Assign targets by distance (Hungarian / bottleneck), then solve the MAPF.
+
+    Parameters
+    ----------
+    mapf_solver
+        Registered MAPF solver for the fixed assignment (``"cbs"``, ``"ecbs"``,
+        ``"cbm"``, ...). Its own options go in ``mapf_options``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(4, 1)
+    >>> inst = Instance.tapf(g, [([(0, 0), (1, 0)], [(2, 0), (3, 0)])])
+    >>> r = solve(inst, mapf_solver="cbm")
+    >>> r.status.value, r.cost, r.lower_bound
+    ('OPTIMAL', 2, 2)
+    """
+    from hierplan_opt.api import solve as front_door
+
+    if objective not in ("soc", "makespan"):
+        raise OptionError(f"unknown objective {objective!r} (use 'soc' or 'makespan')")
+    if not instance.is_tapf:
+        raise OptionError("solver 'hungarian' needs a TAPF instance (teams with targets)")
+    deadline = Deadline(time_limit)
+    reason = quick_infeasibility(instance)
+    if reason is not None:
+        return Result(Status.INFEASIBLE, None, objective=objective, stats={"reason": reason})
+    g = instance.graph
+    goals = [0] * instance.num_agents
+    bound = 0
+    for team in instance.teams:
+        starts = [instance.agents[i].start for i in team.agents]
+        dist = distance_matrix(g, starts, team.targets)
+        cols = assign(dist, objective)
+        for i, c in zip(team.agents, cols.tolist(), strict=True):
+            goals[i] = team.targets[c]
+        chosen = dist[np.arange(len(cols)), cols]
+        if objective == "makespan":
+            bound = max(bound, int(chosen.max()))
+        else:
+            bound += int(chosen.sum())
+    mapf = instance.with_goals(goals)
+    remaining = deadline.remaining()
+    if remaining <= 0:
+        return Result(Status.TIME_LIMIT, None, lower_bound=bound, objective=objective)
+    inner = front_door(
+        mapf,
+        mapf_solver,
+        time_limit=None if time_limit is None else remaining,
+        seed=seed,
+        objective=objective,
+        **(mapf_options or {}),
+    )
+    stats = dict(inner.stats)
+    stats["mapf_solver"] = mapf_solver
+    stats["mapf_status"] = str(inner.status)
+    stats["assignment"] = {
+        a.name: _loc(g.location(goal)) for a, goal in zip(instance.agents, goals, strict=True)
+    }
+    if inner.plan is None:
+        if inner.status == Status.INFEASIBLE:
+            # The fixed assignment has no plan; another assignment might.
+            stats["error"] = "the MAPF instance of the chosen assignment has no plan"
+            return Result(Status.ERROR, None, lower_bound=bound, objective=objective, stats=stats)
+        return Result(inner.status, None, lower_bound=bound, objective=objective, stats=stats)
+    cost = inner.plan.cost(objective)
+    status = Status.OPTIMAL if cost <= bound else Status.FEASIBLE
+    return Result(
+        status, inner.plan, cost=cost, lower_bound=bound, objective=objective, stats=stats
+    )
+
+
+def _loc(loc: object) -> object:
+    return list(loc) if isinstance(loc, tuple) else loc
