@@ -31,6 +31,7 @@ OPTION_SETS = [
     {"heuristic": "dg"},
     {"disjoint_splitting": False},
     {"symmetry": False},
+    {"rectangle": False},
     {
         "prioritize_conflicts": False,
         "bypass": False,
@@ -306,6 +307,7 @@ def test_unprovable_unsolvable_stops_at_time_limit(objective):
         {"bypass": "yes"},
         {"node_limit": 0},
         {"symmetry": 1},
+        {"rectangle": "on"},
     ],
 )
 def test_bad_option_values_refused(options):
@@ -430,3 +432,156 @@ def test_incremental_conflicts_match_full_scan():
         # Every conflicting pair must be reported, also when three agents meet.
         assert pairs(kept) == truth
         assert pairs(cbs.find_conflicts(new, n)) == truth
+
+
+# ---------------------------------------------------------------- rectangle reasoning
+def _both_barriers_hit(g, entries, b1, b2) -> bool:
+    """Whether some conflict-free pair of walks through ``entries`` hits both barriers.
+
+    Joint BFS over (position 1, position 2, hit B1, hit B2) per timestep, written
+    independently of the solver; agent i must be at ``entries[i] = (v, t)``.
+    """
+    horizon = max(t for _, t in b1 + b2)
+    bar1, bar2 = set(b1), set(b2)
+    starts = []
+    for v, t in entries:
+        starts.append(v if t == 0 else None)
+    # Agent with a later entry: any start from which the entry is reachable in time.
+    layer = set()
+    opts = [[s] if s is not None else [u for u in range(g.n) if g.passable[u]] for s in starts]
+    for p1 in opts[0]:
+        for p2 in opts[1]:
+            if p1 != p2:
+                layer.add((p1, p2, (p1, 0) in bar1, (p2, 0) in bar2))
+    for t in range(horizon + 1):
+        ok = set()
+        for p1, p2, h1, h2 in layer:
+            if any(t == et and p != ev for p, (ev, et) in zip((p1, p2), entries, strict=True)):
+                continue
+            if h1 and h2:
+                return True
+            ok.add((p1, p2, h1, h2))
+        if t == horizon:
+            break
+        layer = set()
+        for p1, p2, h1, h2 in ok:
+            for q1 in (p1, *g.adj[p1]):
+                for q2 in (p2, *g.adj[p2]):
+                    if q1 == q2 or (q1 == p2 and q2 == p1):
+                        continue
+                    layer.add((q1, q2, h1 or (q1, t + 1) in bar1, h2 or (q2, t + 1) in bar2))
+    return False
+
+
+def test_rectangle_barriers_are_complete_against_joint_search():
+    """The two barriers never both hold for a conflict-free pair (the split's lemma)."""
+    import random
+
+    from hierplan_opt.search.symmetry import Rectangles, rectangle_barriers
+
+    rng = random.Random(11)
+    found = bogus_caught = 0
+    for _ in range(150):
+        w, h = rng.choice([(5, 5), (6, 4), (4, 6), (6, 6)])
+        cells = [(x, y) for y in range(h) for x in range(w)]
+        obs = rng.sample(cells, rng.choice([0, 0, 2, 4]))
+        g = Graph.grid(w, h, obstacles=obs)
+        free = [g.vertex(c) for c in cells if c not in obs]
+        rect = Rectangles(g)
+        for _ in range(300):  # draw until the lemma applies (rejection sampling)
+            va, vb, ga, gb = rng.sample(free, 4)
+            ta = tb = 0
+            if rng.random() < 0.4:  # a later entry (a landmark of a positive constraint)
+                ta = rng.randint(1, 3)
+                if rng.random() < 0.5:
+                    tb = rng.randint(1, 3)
+            if rectangle_barriers(rect, (va, ta), (vb, tb), ga, gb):
+                break
+        for a_first, b1, b2 in rectangle_barriers(rect, (va, ta), (vb, tb), ga, gb):
+            found += 1
+            entries = [(va, ta), (vb, tb)] if a_first else [(vb, tb), (va, ta)]
+            assert not _both_barriers_hit(g, entries, b1, b2), (w, h, obs, entries, b1, b2)
+            # The check can fail: a barrier one step late is not a valid split.
+            late = [(u, t + 1) for u, t in b1]
+            bogus_caught += _both_barriers_hit(g, entries, late, b2)
+    assert found >= 100
+    assert bogus_caught >= 1
+
+
+def test_rectangle_conflict_fewer_nodes_same_cost():
+    # A crosses the rectangle west -> east, B south -> north: every optimal pair of
+    # paths conflicts inside [2, 6] x [2, 6]; barriers resolve it in one split.
+    g = Graph.grid(10, 10)
+    inst = Instance.mapf(g, [(0, 2), (2, 0)], [(9, 6), (6, 9)])
+    on = check(inst)
+    off = check(inst, rectangle=False)
+    assert on.status == off.status == Status.OPTIMAL
+    assert on.cost == off.cost == 27
+    assert on.stats["rectangle_splits"] >= 1 and off.stats["rectangle_splits"] == 0
+    assert on.stats["high_level_expanded"] < off.stats["high_level_expanded"]
+
+
+def test_rectangle_off_on_3d_grid():
+    g3 = Graph.grid(4, 4, 2)
+    inst = Instance.mapf(g3, [(0, 1, 0), (1, 0, 0)], [(3, 2, 0), (2, 3, 0)])
+    r = check(inst)
+    assert r.status == Status.OPTIMAL and r.stats["rectangle_splits"] == 0
+
+
+def _rect_instance(rng, w, h, k):
+    """A random instance with a planted rectangle pair (same anti-diagonal, goals ahead)."""
+    cells = [(x, y) for y in range(h) for x in range(w)]
+    while True:
+        obs = rng.sample(cells, rng.choice([0, 0, 1, 2]))
+        free = [c for c in cells if c not in obs]
+        x1, y1 = rng.randrange(0, w - 1), rng.randrange(1, h)
+        d = rng.randrange(1, min(w - x1, y1 + 1))
+        s1, s2 = (x1, y1), (x1 + d, y1 - d)
+        g1 = (rng.randrange(s2[0], w), rng.randrange(y1, h))
+        g2 = (rng.randrange(s2[0], w), rng.randrange(y1, h))
+        fx, fy = rng.random() < 0.5, rng.random() < 0.5
+
+        def tr(c, fx=fx, fy=fy):
+            return (w - 1 - c[0] if fx else c[0], h - 1 - c[1] if fy else c[1])
+
+        starts, goals = [tr(s1), tr(s2)], [tr(g1), tr(g2)]
+        if len(set(goals)) < 2 or any(c not in free for c in starts + goals):
+            continue
+        rest_s = [c for c in free if c not in starts]
+        rest_g = [c for c in free if c not in goals]
+        starts += rng.sample(rest_s, k - 2)
+        goals += rng.sample(rest_g, k - 2)
+        return Instance.mapf(Graph.grid(w, h, obstacles=obs), starts, goals)
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_rectangle_matches_brute_force_on_open_grids(seed):
+    import random
+
+    rng = random.Random(100 + seed)
+    splits = 0
+    for _ in range(7):
+        w, h = rng.choice([(5, 5), (6, 4), (5, 4)])
+        inst = _rect_instance(rng, w, h, rng.choice([2, 2, 3]))
+        for objective in ("soc", "makespan"):
+            expected = brute_force(inst, objective)
+            for options in ({}, {"rectangle": False}, {"heuristic": "none", "bypass": False}):
+                r = check(inst, objective, **options)
+                assert r.status == Status.OPTIMAL, (options, objective)
+                assert r.cost == expected, (options, objective)
+                splits += r.stats.get("rectangle_splits", 0)
+    assert splits >= 1
+
+
+@pytest.mark.slow
+def test_rectangle_fuzz_against_no_rectangle_long():
+    import random
+
+    rng = random.Random(5)
+    for _ in range(200):
+        w, h = rng.choice([(7, 7), (8, 6), (8, 8)])
+        inst = _rect_instance(rng, w, h, rng.choice([3, 4, 5, 6]))
+        on = check(inst)
+        off = check(inst, rectangle=False, symmetry=False)
+        assert on.status == off.status == Status.OPTIMAL
+        assert on.cost == off.cost

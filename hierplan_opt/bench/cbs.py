@@ -7,7 +7,8 @@ Example
 -------
 ``hierplan bench cbs --quick`` (a few seconds) or ``hierplan bench cbs`` (the issue's
 targets, 60 s each), ``hierplan bench cbs --instance room-32-32-4-even-1:20
---time-limit 30 --option symmetry=false``.
+--time-limit 30 --option symmetry=false``; ``--rectangle-ablation`` adds a run
+without rectangle reasoning per instance (column ``rect``: rectangle splits).
 """
 
 from __future__ import annotations
@@ -80,6 +81,11 @@ def main(argv: list[str] | None = None) -> int:
         "--option", action="append", default=[], metavar="NAME=VALUE", help="a cbs option"
     )
     p.add_argument(
+        "--rectangle-ablation",
+        action="store_true",
+        help="also run each instance with rectangle reasoning switched off",
+    )
+    p.add_argument(
         "--ablation",
         action="store_true",
         help="also run each instance with each acceleration switched off",
@@ -101,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
     tl = min(args.time_limit, 10.0) if args.quick else args.time_limit
     base = dict(_parse_option(o) for o in args.option)
     variants: list[tuple[str, dict]] = [("default" if not base else "custom", base)]
+    if args.rectangle_ablation and not args.ablation:
+        variants.append(("-rect", {**base, "rectangle": False}))
     if args.ablation:
         for name, off in (
             ("-prio", {"prioritize_conflicts": False}),
@@ -109,12 +117,13 @@ def main(argv: list[str] | None = None) -> int:
             ("h=none", {"heuristic": "none"}),
             ("-disjoint", {"disjoint_splitting": False}),
             ("-symmetry", {"symmetry": False}),
+            ("-rect", {"rectangle": False}),
         ):
             variants.append((name, {**base, **off}))
 
     head = (
         f"{'instance':32} {'k':>4} {'options':10} {'status':10} {'time':>7} {'cost':>6} "
-        f"{'LB':>6} {'cost/LB':>7} {'HL exp':>7} {'HL gen':>7} {'LL exp':>9}"
+        f"{'LB':>6} {'cost/LB':>7} {'HL exp':>7} {'HL gen':>7} {'LL exp':>9} {'rect':>5}"
     )
     print(head)  # noqa: T201
     print("-" * len(head))  # noqa: T201
@@ -132,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
             print(  # noqa: T201
                 f"{stem:32} {k:>4} {label:10} {str(r.status):10} {dt:7.2f} {cost:>6} {lb:>6} "
                 f"{ratio:>7} {st.get('high_level_expanded', 0):>7} "
-                f"{st.get('high_level_generated', 0):>7} {st.get('low_level_expanded', 0):>9}",
+                f"{st.get('high_level_generated', 0):>7} {st.get('low_level_expanded', 0):>9} "
+                f"{st.get('rectangle_splits', 0):>5}",
                 flush=True,
             )
     return 0

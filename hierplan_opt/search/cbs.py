@@ -19,7 +19,10 @@ Options (all on by default, each switchable off; none changes the optimal cost):
   there), the other the negative one, so children share no solution (Li et al. 2019);
 * ``symmetry``: target reasoning -- when an agent crosses another agent's goal after
   that agent has finished, branch on the finished agent's arrival time (length
-  constraints) instead of on a single vertex-time (Li et al. 2021).
+  constraints) instead of on a single vertex-time (Li et al. 2021); corridor reasoning;
+  and, with ``rectangle`` (also on by default, 4-connected 2D grids only), rectangle
+  reasoning -- a cardinal or semi-cardinal vertex conflict of two agents crossing a
+  rectangle is split with two barrier constraints (Li et al., AAAI 2019).
 
 ``objective="makespan"`` iterates a makespan bound ``M`` upwards from the instance's
 lower bound; for each ``M`` the same CBS runs with every path bounded by ``M`` until it
@@ -56,7 +59,13 @@ from hierplan_opt.search.constraints import (
 )
 from hierplan_opt.search.heuristics import dependent, min_vertex_cover
 from hierplan_opt.search.mdd import MDD, build_mdd, restrict
-from hierplan_opt.search.symmetry import Corridors, corridor_split, path_order_infeasibility
+from hierplan_opt.search.symmetry import (
+    Corridors,
+    Rectangles,
+    corridor_split,
+    path_order_infeasibility,
+    rectangle_split,
+)
 
 log = logging.getLogger(__name__)
 
@@ -275,12 +284,14 @@ class _CBS:
         heuristic: str,
         disjoint: bool,
         symmetry: bool,
+        rectangle: bool = False,
         greedy: bool = False,
         node_limit: int | None = None,
         stats: dict[str, Any] | None = None,
         sub: bool = False,
         mdd_cache: dict[int, MDD] | None = None,
         corridors: Corridors | None = None,
+        rectangles: Rectangles | None = None,
         init_paths: list[tuple[int, ...]] | None = None,
     ) -> None:
         g = instance_graph
@@ -318,9 +329,13 @@ class _CBS:
                 "conflicts_non": 0,
                 "target_splits": 0,
                 "corridor_splits": 0,
+                "rectangle_splits": 0,
             }
         )
         self.corridors = (corridors or Corridors(g)) if symmetry else None
+        self.rectangles = (rectangles or Rectangles(g)) if symmetry and rectangle else None
+        if self.rectangles is not None and not self.rectangles.enabled:
+            self.rectangles = None
         self.init_paths = init_paths
         self._occ = OccupancyIndex(g.n)
         # MDDs keyed by the constraint object's version (unique per agent and set);
@@ -485,6 +500,13 @@ class _CBS:
             if res is not None:
                 self.stats["corridor_splits"] += 1
                 return res
+        if self.rectangles is not None and kind == VERTEX and rank <= 1:
+            res = rectangle_split(
+                self.rectangles, self.starts, self.goals, node.cons, node.paths, a, b, v, t
+            )
+            if res is not None:
+                self.stats["rectangle_splits"] = self.stats.get("rectangle_splits", 0) + 1
+                return res
         if kind == EDGE:
             if self.disjoint:
                 x = a
@@ -625,10 +647,12 @@ class _CBS:
             heuristic="none",
             disjoint=False,
             symmetry=self.symmetry,
+            rectangle=self.rectangles is not None,
             node_limit=PAIR_NODE_LIMIT,
             sub=True,
             mdd_cache=self.mdd_cache,
             corridors=self.corridors,
+            rectangles=self.rectangles,
             init_paths=[node.paths[a], node.paths[b]],
         )
         res = sub.search()
@@ -756,6 +780,7 @@ def solve(
     heuristic: str = "wdg",
     disjoint_splitting: bool = True,
     symmetry: bool = True,
+    rectangle: bool = True,
     node_limit: int | None = None,
 ) -> Result:
     """Optimal MAPF by conflict-based search (sum of costs or makespan).
@@ -770,9 +795,11 @@ def solve(
         Unused (the search is deterministic); accepted for the common signature.
     objective
         ``"soc"`` (sum of costs) or ``"makespan"``.
-    prioritize_conflicts, bypass, heuristic, disjoint_splitting, symmetry
+    prioritize_conflicts, bypass, heuristic, disjoint_splitting, symmetry, rectangle
         The accelerations (see the module docstring); ``heuristic`` is one of
-        ``"wdg"``, ``"dg"``, ``"cg"``, ``"none"``.
+        ``"wdg"``, ``"dg"``, ``"cg"``, ``"none"``. ``symmetry=False`` switches off all
+        symmetry reasoning (target, corridor, rectangle); ``rectangle=False`` only the
+        rectangle part (which also needs ``prioritize_conflicts``).
     node_limit
         Stop after this many high-level expansions (TIME_LIMIT with the lower bound).
 
@@ -790,6 +817,7 @@ def solve(
         ("bypass", bypass),
         ("disjoint_splitting", disjoint_splitting),
         ("symmetry", symmetry),
+        ("rectangle", rectangle),
     ):
         if not isinstance(val, bool):
             raise OptionError(f"cbs option {name} must be true or false, got {val!r}")
@@ -818,6 +846,7 @@ def solve(
         bypass=bypass,
         disjoint=disjoint_splitting,
         symmetry=symmetry,
+        rectangle=rectangle,
         node_limit=node_limit,
     )
     if objective == "soc":

@@ -31,7 +31,7 @@ from collections import deque
 
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.search.constraints import NEG_RANGE, Constraint
+from hierplan_opt.search.constraints import NEG_RANGE, NEG_V, AgentConstraints, Constraint
 
 
 class Corridors:
@@ -156,6 +156,156 @@ def corridor_split(
                 (y, [(NEG_RANGE, y, el, 1, ty)]),
             ]
         return None
+    return None
+
+
+class Rectangles:
+    """Coordinates of a 4-connected 2D grid for rectangle reasoning (disabled elsewhere).
+
+    ``enabled`` is True only when the graph is a grid with one layer whose every edge
+    joins cells one unit apart in x or y, and vertex ids are ``x + W * y``.
+
+    Example
+    -------
+    >>> Rectangles(Graph.grid(4, 3)).enabled, Rectangles(Graph.grid(2, 2, 2)).enabled
+    (True, False)
+    """
+
+    def __init__(self, graph: Graph) -> None:
+        self.graph = graph
+        self.enabled = False
+        self.width = 0
+        self.xs: list[int] = []
+        self.ys: list[int] = []
+        shape = graph.shape
+        if graph.kind != "grid" or shape is None or not 2 <= len(shape) <= 3:
+            return
+        if len(shape) == 3 and shape[2] != 1:
+            return
+        w = int(shape[0])
+        xs = [int(x) for x in graph.coords[:, 0]]
+        ys = [int(y) for y in graph.coords[:, 1]]
+        for v in range(graph.n):
+            if xs[v] + w * ys[v] != v:
+                return
+            for u in graph.adj[v]:
+                if abs(xs[u] - xs[v]) + abs(ys[u] - ys[v]) != 1:
+                    return
+        self.width, self.xs, self.ys = w, xs, ys
+        self.enabled = True
+
+
+def _entries(start: int, cons: AgentConstraints, t: int) -> list[tuple[int, int]]:
+    """Vertex-times at or before ``t`` that every path under ``cons`` passes, latest first."""
+    out = [(v, tl) for tl, v in cons.landmarks.items() if 0 < tl <= t]
+    out.sort(key=lambda e: -e[1])
+    out.append((start, 0))
+    return out
+
+
+def _at(path: tuple[int, ...], t: int) -> int:
+    return path[t] if t < len(path) else path[-1]
+
+
+Barrier = list[tuple[int, int]]
+
+
+def rectangle_barriers(
+    rect: Rectangles,
+    entry_a: tuple[int, int],
+    entry_b: tuple[int, int],
+    goal_a: int,
+    goal_b: int,
+    v: int | None = None,
+) -> list[tuple[bool, Barrier, Barrier]]:
+    """Every barrier pair of the lemma for entries ``(vertex, time)`` of agents a and b.
+
+    Returns ``(a_is_first, B_1, B_2)`` per frame in which the lemma applies (and, if
+    ``v`` is given, the rectangle contains ``v``); ``B_i`` lists ``(vertex, time)``.
+    Every pair of conflict-free paths through the entries avoids ``B_1`` with the
+    first agent or ``B_2`` with the second.
+
+    Example
+    -------
+    >>> g = Graph.grid(6, 6)
+    >>> r = Rectangles(g)
+    >>> first, b1, b2 = rectangle_barriers(r, (g.vertex((0, 2)), 0), (g.vertex((2, 0)), 0),
+    ...                                    g.vertex((5, 4)), g.vertex((4, 5)))[0]
+    >>> first, [(g.location(u), t) for u, t in b1], [(g.location(u), t) for u, t in b2]
+    (True, [((4, 2), 4), ((4, 3), 5), ((4, 4), 6)], [((2, 4), 4), ((3, 4), 5), ((4, 4), 6)])
+    """
+    out: list[tuple[bool, Barrier, Barrier]] = []
+    if not rect.enabled:
+        return out
+    xs, ys, w = rect.xs, rect.ys, rect.width
+    ea, ta = entry_a
+    eb, tb = entry_b
+    if ea == eb:
+        return out
+    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        xa, ya, xb, yb = sx * xs[ea], sy * ys[ea], sx * xs[eb], sy * ys[eb]
+        gxa, gya = sx * xs[goal_a], sy * ys[goal_a]
+        gxb, gyb = sx * xs[goal_b], sy * ys[goal_b]
+        if gxa < xa or gya < ya or gxb < xb or gyb < yb:
+            continue  # a goal behind its entry: not this frame
+        if ta - xa - ya != tb - xb - yb:
+            continue  # different diagonal offsets: the agents may pass one another
+        if xa <= xb and ya >= yb:
+            a_first = True
+            x1, y1, t1, x2, y2, t2 = xa, ya, ta, xb, yb, tb
+        elif xb <= xa and yb >= ya:
+            a_first = False
+            x1, y1, t1, x2, y2, t2 = xb, yb, tb, xa, ya, ta
+        else:
+            continue
+        big_x = min(gxa, gxb)
+        big_y = min(gya, gyb)
+        if big_x < x2 or big_y < y1:
+            continue
+        if v is not None:
+            cx, cy = sx * xs[v], sy * ys[v]
+            if not (x2 <= cx <= big_x and y1 <= cy <= big_y):
+                continue  # the conflict is not inside the rectangle
+        b1 = [(sx * big_x + w * sy * y, t1 + big_x - x1 + y - y1) for y in range(y1, big_y + 1)]
+        b2 = [(sx * x + w * sy * big_y, t2 + x - x2 + big_y - y2) for x in range(x2, big_x + 1)]
+        out.append((a_first, b1, b2))
+    return out
+
+
+def rectangle_split(
+    rect: Rectangles,
+    starts: list[int],
+    goals: list[int],
+    cons: list[AgentConstraints],
+    paths: list[tuple[int, ...]],
+    a: int,
+    b: int,
+    v: int,
+    t: int,
+) -> list[tuple[int, list[Constraint]]] | None:
+    """Barrier-constraint children for a vertex conflict of ``a``, ``b`` at ``(v, t)``, or None.
+
+    Used only when both current paths break their barrier (both children replan).
+    """
+    if not rect.enabled:
+        return None
+    for entry_a in _entries(starts[a], cons[a], t):
+        for entry_b in _entries(starts[b], cons[b], t):
+            for a_first, b1, b2 in rectangle_barriers(
+                rect, entry_a, entry_b, goals[a], goals[b], v
+            ):
+                i1, i2 = (a, b) if a_first else (b, a)
+                if any(tt <= 0 for _, tt in b1) or any(tt <= 0 for _, tt in b2):
+                    continue  # time 0 is never constrained by the low level
+                p1, p2 = paths[i1], paths[i2]
+                if not any(_at(p1, tt) == u for u, tt in b1):
+                    continue
+                if not any(_at(p2, tt) == u for u, tt in b2):
+                    continue
+                return [
+                    (i1, [(NEG_V, i1, u, -1, tt) for u, tt in b1]),
+                    (i2, [(NEG_V, i2, u, -1, tt) for u, tt in b2]),
+                ]
     return None
 
 
