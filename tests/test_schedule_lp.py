@@ -157,3 +157,98 @@ def test_roadmap_safety_with_acute_angle() -> None:
         assert s.stats["angle_factor"] == pytest.approx(math.sin(math.pi / 4))
         rep = replay(s, inst)
         assert rep.min_distance >= s.safety_distance - 1e-9
+
+
+@pytest.mark.parametrize("case", range(len(CASES)))
+def test_reduced_lp_equals_full_lp(case: int) -> None:
+    # The exact projection (makespan, flowtime) and the merged chains (safety) give
+    # the same optimum as the LP with one variable per STN node, and the eliminated
+    # nodes' recovered times meet every bound.
+    inst, plan = CASES[case]
+    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    for objective in ("makespan", "flowtime", "safety"):
+        full = solve_lp(stn, objective, backend="highs", reduction="none")
+        for reduction in ("auto", "chains"):
+            red = solve_lp(stn, objective, backend="highs", reduction=reduction)
+            assert red.objective_value == pytest.approx(full.objective_value, rel=1e-7, abs=1e-7)
+            assert check_bounds(stn, red.times) == []
+            if objective == "safety":
+                r_red, r_full = red.R, full.R
+                assert r_red == pytest.approx(r_full, rel=1e-7)
+
+
+def test_safety_marker_elimination_is_used_and_exact() -> None:
+    from hierplan_opt.schedule.solve_lp import _compress, _eliminate_markers, _Markers
+
+    hits = 0
+    for inst, plan in CASES:
+        stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+        chains = _compress(stn)
+        net = _eliminate_markers(chains)
+        if isinstance(net, _Markers):
+            hits += 1
+            assert net.n < chains.n and len(net.gen[0]) == chains.n - net.n
+        a = solve_lp(stn, "safety", backend="highs")  # chains + markers
+        b = solve_lp(stn, "safety", backend="highs", reduction="chains")
+        r_a, r_b = a.R, b.R
+        assert r_a == pytest.approx(r_b, rel=1e-9)
+        assert a.makespan == pytest.approx(b.makespan, rel=1e-9)
+        assert check_bounds(stn, a.times) == []
+        p = (stn.arc_kind == PIECE) & (stn.arc_length > 0)
+        dur = a.times[stn.arc_dst[p]] - a.times[stn.arc_src[p]]
+        assert (dur <= stn.arc_length[p] * r_a * (1 + 1e-7) + 1e-9).all()  # speed >= 1/R
+    assert hits >= 3
+
+
+def test_projection_shrinks_the_lp_and_keeps_deadlines() -> None:
+    from hierplan_opt.schedule.solve_lp import _eliminate
+
+    inst, plan = CASES[1]
+    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    net = _eliminate(stn)
+    assert net.n < stn.num_nodes and len(net.src) < stn.num_arcs
+    # A deadline on a robot's final node: protected, the bound stays in the LP.
+    g = solve_graph(stn)
+    finals = stn.tpg.final_nodes()
+    j = int(np.argmax(g.earliest[finals]))
+    tight = build_stn(inst, build_tpg(inst, plan, 0.2), deadlines={j: g.makespan})
+    lp = solve_lp(tight, "flowtime", backend="highs")
+    assert lp.times[finals[j]] <= g.makespan + 1e-9
+    assert check_bounds(tight, lp.times) == []
+    assert lp.objective_value == pytest.approx(g.earliest[finals].sum(), rel=1e-7)
+
+
+def dense_case(seed: int) -> tuple[Instance, Plan] | None:
+    """12 robots on an 8 x 8 grid: followers and crossings make the eliminated
+    precedence rows of the safety LP bind."""
+    rng = np.random.default_rng(seed)
+    g = Graph.grid(8, 8, blocked=rng.random((8, 8)) < 0.1)
+    free = np.flatnonzero(g.passable)
+    sel = rng.choice(free, 24, replace=False)
+    kins = [Kinematics("r", v_max=float(rng.choice([0.5, 1.0, 2.0]))) for _ in range(12)]
+    inst = Instance.mapf(
+        g,
+        [g.location(int(v)) for v in sel[:12]],
+        [g.location(int(v)) for v in sel[12:]],
+        kinematics=kins,
+    )
+    if any(g.dist(s, t) >= 1 << 30 for s, t in zip(inst.starts, inst.goals, strict=True)):
+        return None
+    plan = prioritized_plan(inst, max_time=80)
+    return None if plan is None else (inst, plan)
+
+
+DENSE = [c for c in (dense_case(s) for s in range(8, 16)) if c is not None][:5]
+
+
+@pytest.mark.parametrize("case", range(len(DENSE)))
+def test_safety_reductions_agree_on_dense_plans(case: int) -> None:
+    inst, plan = DENSE[case]
+    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    full = solve_lp(stn, "safety", backend="highs", reduction="none")
+    for reduction in ("chains", "auto"):
+        red = solve_lp(stn, "safety", backend="highs", reduction=reduction)
+        r_red, r_full = red.R, full.R
+        assert r_red == pytest.approx(r_full, rel=1e-7)
+        assert red.makespan == pytest.approx(full.makespan, rel=1e-7)
+        assert check_bounds(stn, red.times) == []
