@@ -100,16 +100,29 @@ def parse_map(text: str, name: str = "<map>") -> Graph:
         row = row.rstrip()
         if len(row) != width:
             raise ctx.error(f"row {y} has {len(row)} cells, expected width {width}", lineno)
-        for x, ch in enumerate(row):
-            if ch in BLOCKED:
-                blocked[y, x] = True
-            elif ch not in FREE:
-                raise ctx.error(
-                    f"unknown map character {ch!r} at x={x} in row {y} "
-                    "(free: '.' 'G' 'S'; blocked: '@' 'O' 'T' 'W')",
-                    lineno,
-                )
+        blocked[y] = blocked_cells(row, y, ctx, lineno)
     return Graph.grid(width, height, blocked=blocked)
+
+
+def blocked_cells(row: str, y: int, ctx: Ctx, line: int | None) -> np.ndarray:
+    """Which cells of map row ``y`` are blocked; unknown characters are refused.
+
+    Example
+    -------
+    >>> blocked_cells(".@T.", 0, Ctx("m.map"), 5).tolist()
+    [False, True, True, False]
+    """
+    out = np.zeros(len(row), dtype=bool)
+    for x, ch in enumerate(row):
+        if ch in BLOCKED:
+            out[x] = True
+        elif ch not in FREE:
+            raise ctx.error(
+                f"unknown map character {ch!r} at x={x} in row {y} "
+                "(free: '.' 'G' 'S'; blocked: '@' 'O' 'T' 'W')",
+                line,
+            )
+    return out
 
 
 def load_scen(

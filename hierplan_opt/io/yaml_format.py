@@ -25,7 +25,7 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, DRIVES, Agent, Instance, Kinematics, Team
 from hierplan_opt.io._common import Unique, loc_text, location, wrap
 from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
-from hierplan_opt.io.movingai import BLOCKED, FREE, load_map
+from hierplan_opt.io.movingai import blocked_cells, load_map
 
 FORMAT_TAG = "hierplan/1"
 TOP_KEYS = ("format", "name", "graph", "robot_types", "agents", "teams", "highways")
@@ -172,15 +172,7 @@ def _grid(ctx: Ctx, g: LDict, path: Path) -> Graph:
             line = ctx.line_of(rows, y)
             if len(row) != width:
                 raise ctx.error(f"row {y} has {len(row)} cells, but row 0 has {width}", line)
-            for x, ch in enumerate(row):
-                if ch in BLOCKED:
-                    blocked[y, x] = True
-                elif ch not in FREE:
-                    raise ctx.error(
-                        f"unknown map character {ch!r} at x={x} in row {y} "
-                        "(free: '.' 'G' 'S'; blocked: '@' 'O' 'T' 'W')",
-                        line,
-                    )
+            blocked[y] = blocked_cells(row, y, ctx, line)
         return Graph.grid(width, len(texts), blocked=blocked, cell_size=cell)
     mline = ctx.line_of(g, "map")
     ref = ctx.string(g["map"], "map", mline)
