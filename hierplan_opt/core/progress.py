@@ -1,0 +1,214 @@
+"""Progress of long work: a Rich bar on a terminal, a periodic status line elsewhere.
+
+One small class for every long loop of the toolkit (sweeps, Monte Carlo runs, a CBS
+search, a horizon ladder, an LP solve). The caller says how far it got and which
+figures to show (``solved=12``, ``lb=431``, ``best=440``); :class:`Progress` decides how
+to show them:
+
+* on a terminal, a Rich progress bar (bar, ``done/total``, the figures, elapsed time,
+  ETA), drawn on stderr;
+* otherwise (a log file, CI), one ``INFO`` log line on the ``hierplan_opt.progress``
+  logger every ``interval`` seconds and one at the end, so ``hierplan -q`` hides them;
+* with ``enabled=False``, nothing at all (the figures are still kept).
+
+Rich is imported only when a bar is drawn.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import time
+from types import TracebackType
+from typing import Any, TextIO
+
+log = logging.getLogger("hierplan_opt.progress")
+
+
+def format_duration(seconds: float) -> str:
+    """``H:MM:SS`` (or ``M:SS`` under an hour); ``-`` when unknown.
+
+    Example
+    -------
+    >>> format_duration(75.4), format_duration(3725), format_duration(math.inf)
+    ('1:15', '1:02:05', '-')
+    """
+    if not math.isfinite(seconds) or seconds < 0:
+        return "-"
+    s = int(round(seconds))
+    h, rest = divmod(s, 3600)
+    m, s = divmod(rest, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def _figure(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    return str(value)
+
+
+class Progress:
+    """How far a long piece of work is, shown as a bar or as periodic status lines.
+
+    Parameters
+    ----------
+    description
+        What is running (``"sweep cbs"``, ``"CBS"``); starts every status line.
+    total
+        Number of steps when known (runs of a sweep); ``None`` for open-ended work
+        (a search), which then shows a count and the figures without a bar or ETA.
+    unit
+        Name of one step in the status line (``"runs"``, ``"nodes"``).
+    enabled
+        ``False`` shows nothing; ``None`` (default) shows a bar when ``stream`` is a
+        terminal and status lines otherwise.
+    interval
+        Seconds between two status lines on a non-terminal.
+    stream
+        Where a bar is drawn (default ``sys.stderr``).
+
+    Example
+    -------
+    >>> with Progress("demo", total=4, unit="runs", enabled=False) as p:
+    ...     for solved in (True, False, True, True):
+    ...         p.advance(solved=p.fields.get("solved", 0) + solved)
+    >>> p.completed, p.fields["solved"]
+    (4, 3)
+    >>> p.status_line().split(",")[0]
+    'demo: 4/4 runs'
+    """
+
+    def __init__(
+        self,
+        description: str,
+        total: int | None = None,
+        *,
+        unit: str = "",
+        enabled: bool | None = None,
+        interval: float = 10.0,
+        stream: TextIO | None = None,
+    ) -> None:
+        self.description = description
+        self.total = total
+        self.unit = unit
+        self.interval = interval
+        self.completed = 0
+        self.fields: dict[str, Any] = {}
+        self._stream = stream if stream is not None else sys.stderr
+        if enabled is None:
+            isatty = getattr(self._stream, "isatty", None)
+            self.mode = "bar" if callable(isatty) and isatty() else "lines"
+        else:
+            self.mode = "lines" if enabled else "off"
+        self._start = time.perf_counter()
+        self._last_line = self._start
+        self._bar: Any = None
+        self._task: Any = None
+
+    # ------------------------------------------------------------------ context
+    def __enter__(self) -> Progress:
+        self._start = self._last_line = time.perf_counter()
+        if self.mode == "bar":
+            self._start_bar()
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the bar, or write the final status line."""
+        if self._bar is not None:
+            self._refresh_bar()
+            self._bar.stop()
+            self._bar = None
+        elif self.mode == "lines":
+            log.info("%s", self.status_line())
+            self.mode = "off"  # one final line only
+
+    # ------------------------------------------------------------------ updates
+    def advance(self, n: int = 1, **fields: Any) -> None:
+        """``n`` more steps are done; ``fields`` replace the shown figures."""
+        self.update(completed=self.completed + n, **fields)
+
+    def update(
+        self, *, completed: int | None = None, total: int | None = None, **fields: Any
+    ) -> None:
+        """Set the step count, the total or some figures (``lb=431``, ``best=440``)."""
+        if completed is not None:
+            self.completed = completed
+        if total is not None:
+            self.total = total
+        self.fields.update(fields)
+        if self._bar is not None:
+            self._refresh_bar()
+        elif self.mode == "lines":
+            now = time.perf_counter()
+            if now - self._last_line >= self.interval:
+                self._last_line = now
+                log.info("%s", self.status_line())
+
+    # ------------------------------------------------------------------ figures
+    @property
+    def elapsed(self) -> float:
+        """Seconds since the work started."""
+        return time.perf_counter() - self._start
+
+    @property
+    def eta(self) -> float:
+        """Estimated seconds to go (``inf`` when unknown): elapsed / done * left."""
+        if self.total is None or self.completed <= 0:
+            return math.inf
+        return self.elapsed / self.completed * max(0, self.total - self.completed)
+
+    def _figures(self) -> str:
+        return ", ".join(f"{k} {_figure(v)}" for k, v in self.fields.items())
+
+    def status_line(self) -> str:
+        """``"sweep: 12/40 runs, solved 9, 0:31 elapsed, ETA 1:40"``."""
+        count = f"{self.completed}" if self.total is None else f"{self.completed}/{self.total}"
+        parts = [f"{self.description}: {count}{' ' + self.unit if self.unit else ''}"]
+        if self.fields:
+            parts.append(self._figures())
+        parts.append(f"{format_duration(self.elapsed)} elapsed")
+        if self.total is not None:
+            parts.append(f"ETA {format_duration(self.eta)}")
+        return ", ".join(parts)
+
+    # ------------------------------------------------------------------ Rich
+    def _start_bar(self) -> None:
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+        from rich.progress import Progress as RichProgress
+
+        columns: list[Any] = [TextColumn("[bold]{task.description}")]
+        if self.total is not None:
+            columns += [BarColumn(), MofNCompleteColumn()]
+        else:
+            columns += [TextColumn("{task.completed} " + self.unit)]
+        columns += [TextColumn("{task.fields[figures]}"), TimeElapsedColumn()]
+        if self.total is not None:
+            columns += [TextColumn("ETA"), TimeRemainingColumn()]
+        self._bar = RichProgress(
+            *columns, console=Console(file=self._stream), transient=False, refresh_per_second=4
+        )
+        self._bar.start()
+        self._task = self._bar.add_task(
+            self.description, total=self.total, completed=self.completed, figures=""
+        )
+
+    def _refresh_bar(self) -> None:
+        self._bar.update(
+            self._task, completed=self.completed, total=self.total, figures=self._figures()
+        )

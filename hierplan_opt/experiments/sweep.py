@@ -1,0 +1,439 @@
+"""``sweep(spec)``: every solver x instance x agent count x seed, one process per run.
+
+The runs of a spec are planned in order of growing K, the ones whose key is already in
+the database are re-used, and the rest are handed to a backend: a pool of threads on
+this machine that each wait on one run's process (``workers`` at a time), or a Dask
+cluster (``dask="local"`` starts a ``LocalCluster``; ``dask="tcp://HOST:PORT"`` joins a
+running scheduler). Either way each run is :func:`~hierplan_opt.experiments.runner.run_task`
+(a fresh process with a time and a memory limit) and its row comes back to this process,
+which alone writes the SQLite file, one committed row per finished run.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import datetime
+import hashlib
+import json
+import logging
+import time
+from collections import Counter
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.progress import Progress
+from hierplan_opt.experiments import store
+from hierplan_opt.experiments.runner import run_task
+from hierplan_opt.experiments.spec import (
+    InstanceSpec,
+    SolverSpec,
+    SweepSpec,
+    load_spec,
+    parse_spec,
+)
+
+log = logging.getLogger(__name__)
+
+SOLVED = ("OPTIMAL", "FEASIBLE", "INFEASIBLE")  # a definite answer
+SKIPPED = "SKIPPED"  # not run: a smaller K of the same chain failed (stop_on_failure)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One planned run of a sweep."""
+
+    solver: SolverSpec
+    instance: InstanceSpec
+    agents: int | None
+    seed: int
+    time_limit: float
+    memory_limit_mb: float | None
+    instance_hash: str
+    key: str = field(default="", compare=False)
+
+    @property
+    def chain(self) -> tuple[str, str, int]:
+        """Runs that differ only in K (``stop_on_failure`` skips along a chain)."""
+        return (self.solver.label, self.instance.name, self.seed)
+
+    def task(self, payload: dict[str, Any]) -> dict[str, Any]:
+        """The JSON task a worker process executes."""
+        return {
+            "key": self.key,
+            "solver": self.solver.name,
+            "target": self.solver.target,
+            "problems": list(self.solver.problems),
+            "options": self.solver.options,
+            "objective": self.solver.objective,
+            "time_limit": self.time_limit,
+            "memory_limit_mb": self.memory_limit_mb,
+            "seed": self.seed,
+            "agents": self.agents,
+            "instance": payload,
+        }
+
+    def row(self, sweep_name: str, outcome: Mapping[str, Any]) -> dict[str, Any]:
+        """The ``runs`` row of this run with the outcome of its process."""
+        stats = outcome.get("stats") or {}
+        agents = outcome.get("agents") if self.agents is None else self.agents
+        return {
+            "key": self.key,
+            "sweep": sweep_name,
+            "solver": self.solver.name,
+            "label": self.solver.label,
+            "options": self.solver.options,
+            "objective": outcome.get("objective") or self.solver.objective,
+            "instance": self.instance.name,
+            "instance_hash": self.instance_hash,
+            "agents": agents,
+            "seed": self.seed,
+            "time_limit": self.time_limit,
+            "memory_limit_mb": self.memory_limit_mb,
+            "status": outcome["status"],
+            "cost": outcome.get("cost"),
+            "lower_bound": outcome.get("lower_bound"),
+            "runtime": outcome.get("runtime"),
+            "wall": outcome.get("wall"),
+            "peak_mb": outcome.get("peak_mb"),
+            "expanded": stats.get("high_level_expanded"),
+            "generated": stats.get("high_level_generated"),
+            "low_level_expanded": stats.get("low_level_expanded"),
+            "stats": stats,
+            "error": outcome.get("error"),
+            "versions": outcome.get("versions"),
+            "host": outcome.get("host"),
+            "finished_at": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        }
+
+
+def run_key(run: Run) -> str:
+    """A hash of everything that determines a run's outcome.
+
+    Example
+    -------
+    >>> from hierplan_opt.experiments.spec import InstanceSpec, SolverSpec
+    >>> s, i = SolverSpec("cbs", "cbs"), InstanceSpec("generator", "g", generator="x")
+    >>> a = run_key(Run(s, i, 4, 0, 10.0, None, "h"))
+    >>> a == run_key(Run(s, i, 4, 0, 10.0, None, "h")), a == run_key(Run(s, i, 5, 0, 10.0, None, "h"))
+    (True, False)
+    """
+    what = {
+        "solver": run.solver.name,
+        "target": run.solver.target,
+        "options": run.solver.options,
+        "objective": run.solver.objective,
+        "instance": run.instance_hash,
+        "agents": run.agents,
+        "seed": run.seed,
+        "time_limit": run.time_limit,
+        "memory_limit_mb": run.memory_limit_mb,
+    }
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
+
+
+def plan_runs(spec: SweepSpec) -> list[Run]:
+    """Every run of ``spec``, smallest K first (then instance, solver, seed order)."""
+    runs: list[tuple[tuple, Run]] = []
+    for ii, inst in enumerate(spec.instances):
+        digest = inst.digest()
+        for k in spec.agents_of(inst):
+            for si, solver in enumerate(spec.solvers):
+                for seed in spec.seeds:
+                    tl = solver.time_limit if solver.time_limit is not None else spec.time_limit
+                    r = Run(solver, inst, k, seed, tl, spec.memory_limit_mb, digest)
+                    r = Run(**{**r.__dict__, "key": run_key(r)})
+                    order = (float("inf") if k is None else k, ii, si, seed)
+                    runs.append((order, r))
+    runs.sort(key=lambda t: t[0])
+    return [r for _, r in runs]
+
+
+def check_instances(spec: SweepSpec) -> None:
+    """Load each file instance once with its largest K, so that bad files and agent
+    counts beyond a scenario are refused before the first run."""
+    from hierplan_opt.io import load_instance
+
+    for inst in spec.instances:
+        if inst.kind == "generator":
+            if None in spec.agents_of(inst):
+                raise InputError(
+                    f"instance {inst.name!r}: a generator needs agent counts ('agents: [..]')"
+                )
+            continue
+        ks = spec.agents_of(inst)
+        k = None if None in ks else max(k for k in ks if k is not None)
+        if inst.kind == "movingai":
+            load_instance(inst.files[0], scen=inst.files[1], agents=k)
+        else:
+            load_instance(inst.files[0], agents=k)
+
+
+# ---------------------------------------------------------------- backends
+class _Local:
+    """Threads on this machine, each waiting on one run's process."""
+
+    def __init__(self, workers: int) -> None:
+        self.pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="sweep")
+
+    def submit(self, task: dict[str, Any]) -> Any:
+        return self.pool.submit(run_task, task)
+
+    def as_completed(self, futures: Iterable[Any]) -> Iterable[Any]:
+        return cf.as_completed(list(futures))
+
+    def cancel(self, future: Any) -> bool:
+        return bool(future.cancel())
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _Dask:
+    """A Dask distributed cluster: a new ``LocalCluster`` or a running scheduler."""
+
+    def __init__(self, address: Any, workers: int) -> None:
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError(
+                "a Dask sweep needs the 'cluster' extra: pip install 'hierplan_opt[cluster]'"
+            ) from None
+        self.cluster = None
+        if isinstance(address, Client):
+            self.client, self.own_client = address, False
+            return
+        self.own_client = True
+        if address == "local":
+            self.cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=None,
+                silence_logs=logging.WARNING,
+            )
+            self.client = Client(self.cluster)
+        else:
+            if not str(address).startswith(("tcp://", "tls://", "inproc://", "ucx://")):
+                raise InputError(f"--dask-scheduler expects tcp://HOST:PORT, got {address!r}")
+            try:
+                self.client = Client(address, timeout=20)
+            except OSError as exc:
+                raise InputError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+
+    def submit(self, task: dict[str, Any]) -> Any:
+        return self.client.submit(run_task, task, key=f"hierplan-run-{task['key']}", pure=False)
+
+    def as_completed(self, futures: Iterable[Any]) -> Iterable[Any]:
+        from distributed import as_completed
+
+        return as_completed(list(futures))
+
+    def cancel(self, future: Any) -> bool:
+        if future.done():
+            return False
+        future.cancel()
+        return True
+
+    def close(self) -> None:
+        if self.own_client:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+# ---------------------------------------------------------------- the sweep
+@dataclass(frozen=True)
+class SweepSummary:
+    """What a sweep did: runs planned, re-used from the database, run now, skipped."""
+
+    name: str
+    db: Path
+    total: int
+    reused: int
+    ran: int
+    skipped: int
+    statuses: dict[str, int]
+    elapsed: float
+
+    def message(self) -> str:
+        """One summary line."""
+        counts = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
+        return (
+            f"sweep {self.name}: {self.total} runs ({self.reused} re-used, {self.ran} run, "
+            f"{self.skipped} skipped) in {self.elapsed:.1f} s; {counts or 'nothing run'}; "
+            f"database {self.db}"
+        )
+
+
+def resolve(spec: SweepSpec | Mapping[str, Any] | str | Path) -> SweepSpec:
+    """A spec from a :class:`SweepSpec`, a dict, a spec file, or a sweep database (the
+    latest sweep recorded in it, for ``--resume``)."""
+    if isinstance(spec, SweepSpec):
+        return spec
+    if isinstance(spec, Mapping):
+        return parse_spec(spec)
+    path = Path(spec)
+    if store.is_database(path):
+        return spec_from_db(path)
+    return load_spec(path)
+
+
+def spec_from_db(path: str | Path) -> SweepSpec:
+    """The spec of the latest sweep recorded in the database ``path`` (its results go
+    back to that database)."""
+    from hierplan_opt.io._yaml import read_yaml
+
+    con = store.open_existing(path)
+    try:
+        last = store.last_sweep(con)
+    finally:
+        con.close()
+    if last is None:
+        raise InputError(f"{path}: no sweep recorded in this database")
+    name, text, folder, _ = last
+    data = read_yaml(f"{path} (stored spec)", text)
+    spec = parse_spec(data, folder=folder, file=f"{path} (stored spec)", source=text,
+                      default_name=name)  # fmt: skip
+    return SweepSpec(**{**spec.__dict__, "db": Path(path)})
+
+
+def sweep(
+    spec: SweepSpec | Mapping[str, Any] | str | Path,
+    *,
+    db: str | Path | None = None,
+    workers: int | None = None,
+    dask: Any = None,
+    progress: bool | None = None,
+    on_row: Callable[[dict[str, Any]], None] | None = None,
+) -> SweepSummary:
+    """Run a sweep; every finished run is a row of table ``runs`` in the database.
+
+    Parameters
+    ----------
+    spec
+        A :class:`SweepSpec`, spec data (dict), a spec YAML file, or a sweep database
+        (continue its latest sweep).
+    db
+        Database file (default: the spec's ``db``).
+    workers
+        Runs at the same time (default: the spec's ``workers``); for ``dask="local"``
+        the number of Dask workers.
+    dask
+        ``None`` (processes on this machine), ``"local"`` (a new ``LocalCluster``), a
+        scheduler address ``"tcp://HOST:PORT"``, or a ``distributed.Client``.
+    progress
+        Show a progress bar (``None``: on a terminal; status lines otherwise).
+    on_row
+        Called with each new row (after it is committed).
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> d = tempfile.mkdtemp()
+    >>> s = sweep({"solvers": [{"name": "cbs"}],
+    ...            "instances": [{"generator": "random_grid",
+    ...                           "params": {"width": 6, "height": 6}}],
+    ...            "agents": [2], "time_limit": 10, "db": os.path.join(d, "r.sqlite")},
+    ...           progress=False)
+    >>> s.ran, s.statuses
+    (1, {'OPTIMAL': 1})
+    """
+    sp = resolve(spec)
+    if db is not None:
+        sp = SweepSpec(**{**sp.__dict__, "db": Path(db)})
+    n_workers = workers if workers is not None else sp.workers
+    check_instances(sp)
+    runs = plan_runs(sp)
+    con = store.connect(sp.db)
+    t0 = time.perf_counter()
+    try:
+        done = store.finished_keys(con)
+        todo = [r for r in runs if r.key not in done]
+        reused = len(runs) - len(todo)
+        if reused:
+            log.info("sweep %s: %d of %d runs already in %s", sp.name, reused, len(runs), sp.db)
+        sweep_id = store.start_sweep(con, sp.name, sp.source, str(sp.folder), len(runs))
+        statuses: Counter[str] = Counter()
+        skipped = _execute(sp, todo, con, n_workers, dask, progress, statuses, on_row)
+        store.finish_sweep(con, sweep_id)
+    finally:
+        con.close()
+    return SweepSummary(
+        sp.name,
+        sp.db,
+        len(runs),
+        reused,
+        sum(statuses.values()) - skipped,
+        skipped,
+        dict(statuses),
+        time.perf_counter() - t0,
+    )
+
+
+def _execute(
+    sp: SweepSpec,
+    todo: list[Run],
+    con: Any,
+    workers: int,
+    dask: Any,
+    progress: bool | None,
+    statuses: Counter[str],
+    on_row: Callable[[dict[str, Any]], None] | None,
+) -> int:
+    """Run ``todo`` on the chosen backend, recording rows as they finish; returns the
+    number of runs skipped by ``stop_on_failure``."""
+    if not todo:
+        return 0
+    backend: _Local | _Dask = _Dask(dask, workers) if dask is not None else _Local(workers)
+    payloads: dict[str, dict[str, Any]] = {}
+    futures: dict[Any, Run] = {}
+    skipped = 0
+    try:
+        for r in todo:
+            if r.instance.name not in payloads:
+                payloads[r.instance.name] = r.instance.payload()
+            futures[backend.submit(r.task(payloads[r.instance.name]))] = r
+        failed_at: dict[tuple[str, str, int], int] = {}
+        recorded: set[str] = set()
+
+        def record(r: Run, outcome: Mapping[str, Any]) -> None:
+            row = r.row(sp.name, outcome)
+            store.insert_run(con, row)
+            recorded.add(r.key)
+            statuses[row["status"]] += 1
+            if on_row is not None:
+                on_row(row)
+
+        with Progress(f"sweep {sp.name}", len(todo), unit="runs", enabled=progress) as bar:
+            for fut in backend.as_completed(futures):
+                r = futures[fut]
+                if r.key in recorded or fut.cancelled():
+                    continue
+                outcome = fut.result()
+                record(r, outcome)
+                if sp.stop_on_failure and outcome["status"] not in SOLVED:
+                    k = r.agents or 0
+                    failed_at[r.chain] = min(failed_at.get(r.chain, k), k)
+                    for f2, r2 in futures.items():
+                        if (
+                            r2.chain == r.chain
+                            and (r2.agents or 0) > k
+                            and r2.key not in recorded
+                            and backend.cancel(f2)
+                        ):
+                            why = f"not run: failed with {r.agents} agents ({outcome['status']})"
+                            record(r2, {"status": SKIPPED, "error": why})
+                            skipped += 1
+                            bar.advance()
+                solved = sum(statuses[s] for s in SOLVED)
+                bar.advance(solved=solved, failed=sum(statuses.values()) - solved - skipped)
+    finally:
+        backend.close()
+    return skipped
+
+
+__all__ = ["Run", "SweepSummary", "plan_runs", "resolve", "run_key", "sweep"]
