@@ -57,8 +57,9 @@ TOP_KEYS = (
 SOLVER_KEYS = ("name", "options", "label", "objective", "time_limit", "target", "problems")
 INSTANCE_KEYS = ("map", "scen", "yaml", "generator", "params", "name", "agents")
 OBJECTIVES = ("soc", "makespan")
-#: Below this an interpreter with numpy cannot even start, so a run could only fail.
-MIN_MEMORY_MB = 64
+#: The limit caps the address space, and importing numpy alone reserves ~300 MB of it
+#: (thread pools); below this a run could only fail.
+MIN_MEMORY_MB = 512
 
 
 @dataclass(frozen=True)
@@ -243,8 +244,8 @@ def _memory(ctx: Ctx, value: Any, line: int | None) -> float | None:
     mb = ctx.number(value, "memory_limit_mb", line, positive=True)
     if mb < MIN_MEMORY_MB:
         raise ctx.error(
-            f"memory_limit_mb must be at least {MIN_MEMORY_MB} (a Python process with "
-            f"numpy needs that much to start), got {value!r}",
+            f"memory_limit_mb must be at least {MIN_MEMORY_MB} (it caps the address space, "
+            f"and importing numpy alone reserves ~300 MB), got {value!r}",
             line,
         )
     return mb
