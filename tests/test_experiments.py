@@ -31,7 +31,7 @@ MOVINGAI = ROOT / "instances" / "movingai"
 
 # A solver of the test's own, loaded by the worker processes from PYTHONPATH: each
 # `mode` misbehaves in one way.
-PLUGIN = '''
+PLUGIN = """
 import os, time
 from hierplan_opt.core.result import Result, Status
 
@@ -53,7 +53,7 @@ def solve(instance, *, time_limit=None, seed=0, objective="soc", mode="ok", fail
         return Result(Status.TIME_LIMIT, None, lower_bound=1)
     from hierplan_opt.search.cbs import solve as cbs
     return cbs(instance, time_limit=time_limit, seed=seed, objective=objective)
-'''
+"""
 
 
 @pytest.fixture

@@ -19,9 +19,6 @@ from pathlib import Path
 
 from hierplan_opt.core.errors import InputError
 
-ROOT = Path(__file__).resolve().parents[2]
-DIRS = [ROOT / "instances" / "movingai", ROOT.parent / "shared" / "benchmarks" / "movingai"]
-
 #: (scenario stem, agents): the optimal-search targets of issue 3.
 TARGETS = [
     ("random-32-32-20-random-1", 20),
@@ -40,13 +37,9 @@ QUICK = [
 
 
 def _paths(stem: str) -> tuple[Path, Path]:
-    mapname = stem.rsplit("-", 2)[0]
-    for d in DIRS:
-        scen = d / f"{stem}.scen"
-        mp = d / f"{mapname}.map"
-        if scen.exists() and mp.exists():
-            return mp, scen
-    raise InputError(f"benchmark scenario {stem!r} not found in {', '.join(map(str, DIRS))}")
+    from hierplan_opt.experiments.data import movingai_files  # shipped with the package
+
+    return movingai_files(stem)
 
 
 def _parse_option(text: str) -> tuple[str, object]:

@@ -25,25 +25,17 @@ import hierplan_opt as hp
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.io.movingai import load_movingai
 
-_ROOT = Path(__file__).resolve().parents[2]
-_SHARED = _ROOT.parent / "shared" / "benchmarks" / "movingai"
-SEARCH_DIRS = (
-    _ROOT / "instances" / "movingai",
-    _SHARED / "maps",
-    _SHARED / "scen-even",
-    _SHARED / "scen-random",
-    _SHARED,
-)
 DEFAULT = ["random-32-32-20-random-1:100", "warehouse-10-20-10-2-1-even-1:200"]
 QUICK = ["random-32-32-20-random-1:50", "warehouse-10-20-10-2-1-even-1:50"]
 
 
 def _find(name: str) -> Path:
-    for d in SEARCH_DIRS:
-        p = d / name
-        if p.exists():
-            return p
-    raise InputError(f"{name} not found in {', '.join(str(d) for d in SEARCH_DIRS)}")
+    from hierplan_opt.experiments.data import instances_dir  # shipped with the package
+
+    p = instances_dir() / "movingai" / name
+    if p.exists():
+        return p
+    raise InputError(f"{name} not found in {p.parent} (set $HIERPLAN_INSTANCES)")
 
 
 def load(spec: str, agents: int | None) -> tuple[str, hp.Instance]:

@@ -19,19 +19,19 @@ import argparse
 import contextlib
 import time
 from collections.abc import Iterable, Iterator
-from pathlib import Path
 
 MAPS = {
     "random-32-32-20": "random-32-32-20-random-1.scen",
     "room-32-32-4": "room-32-32-4-even-1.scen",
 }
-ROOT = Path(__file__).resolve().parents[2] / "instances" / "movingai"
 
 
 def _load(map_name: str, k: int):
+    from hierplan_opt.experiments.data import instances_dir  # shipped with the package
     from hierplan_opt.io.movingai import load_map, load_scen
 
-    return load_scen(ROOT / MAPS[map_name], load_map(ROOT / f"{map_name}.map"), agents=k)
+    root = instances_dir() / "movingai"
+    return load_scen(root / MAPS[map_name], load_map(root / f"{map_name}.map"), agents=k)
 
 
 def size_table(maps: list[str], agents: list[int]) -> list[tuple]:

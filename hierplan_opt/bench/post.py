@@ -175,9 +175,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cache", metavar="DIR", help="keep plans in DIR and reuse them")
     args = ap.parse_args(argv)
 
-    root = Path(__file__).resolve().parents[2]
-    map_path = Path(args.map) if Path(args.map).exists() else root / args.map
-    scen_path = Path(args.scen) if Path(args.scen).exists() else root / args.scen
+    from hierplan_opt.experiments.data import instances_dir  # shipped with the package
+
+    def shipped(name: str) -> Path:  # DEFAULT_MAP / DEFAULT_SCEN start with "instances/"
+        return Path(name) if Path(name).exists() else instances_dir() / name.split("/", 1)[-1]
+
+    map_path, scen_path = shipped(args.map), shipped(args.scen)
     graph = load_map(str(map_path))
     counts = [int(x) for x in args.agents.split(",") if x]
     header = (

@@ -153,4 +153,3 @@ def _export(args: argparse.Namespace) -> int:
     n = export(args.paths[0], args.paths[1])
     print(f"wrote {n} runs to {args.paths[1]}")
     return OK
-

@@ -52,9 +52,7 @@ class Generator:
         return self.build(agents=agents, seed=seed, **full)
 
 
-def random_grid(
-    *, width: int, height: int, obstacles: float, agents: int, seed: int
-) -> Instance:
+def random_grid(*, width: int, height: int, obstacles: float, agents: int, seed: int) -> Instance:
     """A ``width x height`` grid with a fraction ``obstacles`` of blocked cells and
     random distinct starts and goals in its largest 4-connected free region.
 

@@ -399,7 +399,13 @@ def _instances(ctx: Ctx, value: Any, line: int | None, folder: Path) -> tuple[In
             except InputError as exc:
                 raise ctx.error(f"{what}.params: {exc}", d.lines.get("params", d.line)) from None
             out.append(
-                InstanceSpec("generator", name or default_label(gen, params), generator=gen, params=params, agents=agents)
+                InstanceSpec(
+                    "generator",
+                    name or default_label(gen, params),
+                    generator=gen,
+                    params=params,
+                    agents=agents,
+                )
             )
             continue
         if "params" in d:
