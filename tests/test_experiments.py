@@ -381,7 +381,7 @@ def test_report_figures_are_figures_without_pyplot(tmp_path: Path) -> None:
     steps = {ln.get_label(): ln for ln in cactus.axes[0].get_lines()}
     assert list(steps["cbs"].get_xdata()) == [1.0, 3.0, 5.0]
     paths = report.save_figures(tmp_path / "r.sqlite", tmp_path / "plots")
-    assert [p.read_bytes()[:4] for p in paths] == [b"\x89PNG"] * 2
+    assert [p.read_bytes()[:4] for p in paths] == [b"\x89PNG"] * 3
     assert matplotlib.get_backend() == backend
 
 
@@ -450,17 +450,17 @@ class _Tty(io.StringIO):
 
 
 def test_progress_status_lines_bar_and_off(caplog: pytest.LogCaptureFixture) -> None:
-    with caplog.at_level(logging.INFO, logger="hierplan_opt.progress"):
-        with Progress("work", total=3, unit="runs", enabled=True, interval=0.0) as p:
-            p.advance(solved=1)
-            p.update(lb=431.0)
+    log_info = caplog.at_level(logging.INFO, logger="hierplan_opt.progress")
+    with log_info, Progress("work", total=3, unit="runs", enabled=True, interval=0.0) as p:
+        p.advance(solved=1)
+        p.update(lb=431.0)
     lines = [r.getMessage() for r in caplog.records]
     assert lines[0].startswith("work: 1/3 runs, solved 1, 0:00 elapsed, ETA 0:00")
     assert lines[-1].startswith("work: 1/3 runs, solved 1, lb 431, ")
     caplog.clear()
-    with caplog.at_level(logging.INFO, logger="hierplan_opt.progress"):
-        with Progress("quiet", total=2, enabled=False) as p:
-            p.advance(2)
+    log_info = caplog.at_level(logging.INFO, logger="hierplan_opt.progress")
+    with log_info, Progress("quiet", total=2, enabled=False) as p:
+        p.advance(2)
     assert caplog.records == [] and p.completed == 2
     tty = _Tty()
     with Progress("bar", total=4, unit="runs", stream=tty) as p:

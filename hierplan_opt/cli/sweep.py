@@ -61,7 +61,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--dry-run", action="store_true", help="only count the runs to do")
     p.add_argument("--no-progress", action="store_true", help="no progress bar or status lines")
-    p.add_argument("--plots", metavar="DIR", help="report: write success_rate.png, cactus.png")
+    p.add_argument(
+        "--plots", metavar="DIR", help="report: write success_rate.png, runtime.png, cactus.png"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

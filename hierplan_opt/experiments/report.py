@@ -13,7 +13,8 @@ Tables (:func:`report` prints all three):
 
 Figures are matplotlib ``Figure`` objects built without pyplot (no backend is chosen
 or switched): :func:`success_rate_figure` (success-rate curves against the number of
-agents) and :func:`cactus_figure` (solved runs against runtime, one line per solver).
+agents), :func:`runtime_figure` (median runtime against the number of agents) and
+:func:`cactus_figure` (solved runs against runtime, one line per solver).
 """
 
 from __future__ import annotations
@@ -186,6 +187,41 @@ def success_rate_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure
     return fig
 
 
+def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
+    """Median runtime of the solved runs against the number of agents, one line per
+    solver (log scale), with the largest time limit dashed.
+
+    Example
+    -------
+    >>> import pandas as pd
+    >>> df = pd.DataFrame({"label": ["a", "a", "a"], "agents": [2, 2, 4],
+    ...                    "runtime": [1.0, 3.0, 5.0], "solved": [True, True, False],
+    ...                    "time_limit": [10.0] * 3})
+    >>> ax = runtime_figure(df).axes[0]
+    >>> list(ax.get_lines()[0].get_ydata())
+    [2.0]
+    """
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
+    ax = fig.add_subplot()
+    for label in _labels(df):
+        d = df[(df["label"] == label) & df["solved"]]
+        med = d.groupby("agents")["runtime"].median()
+        ax.plot(med.index.astype(float), med.to_numpy(dtype=float), "o-", label=label)
+    limit = float(df["time_limit"].max()) if len(df) else math.nan
+    if math.isfinite(limit):
+        ax.axhline(limit, color="grey", ls="--", lw=1, label="time limit")
+    ax.set_yscale("log")
+    ax.set_xlabel("agents")
+    ax.set_ylabel("median runtime of solved runs (s)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    if title:
+        ax.set_title(title)
+    return fig
+
+
 def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = True) -> Figure:
     """Cactus plot: for each solver, how many runs it solves within a given time.
 
@@ -220,13 +256,15 @@ def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = Tr
 
 
 def save_figures(db: str | Path, folder: str | Path) -> list[Path]:
-    """Write ``success_rate.png`` and ``cactus.png`` of a sweep database to ``folder``."""
+    """Write ``success_rate.png``, ``runtime.png`` and ``cactus.png`` of a sweep
+    database to ``folder``."""
     df = read_runs(db)
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for name, fig in (
         ("success_rate.png", success_rate_figure(df)),
+        ("runtime.png", runtime_figure(df)),
         ("cactus.png", cactus_figure(df)),
     ):
         p = out / name

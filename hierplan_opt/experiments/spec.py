@@ -21,9 +21,9 @@ A spec is a YAML file (or the same data as a dict)::
 
 Relative paths are resolved against the spec's folder; a path that starts with
 ``$instances`` is taken from the shipped benchmark instances
-(:func:`~hierplan_opt.experiments.data.instances_dir`);
-``scen`` (and ``yaml``) may be a glob pattern that names a set of files. Each solver and each instance may override
-``time_limit`` / ``agents`` / ``objective``. Everything is checked before the first run,
+(:func:`~hierplan_opt.experiments.data.instances_dir`); ``scen`` (and ``yaml``) may be a
+glob pattern that names a set of files. Each solver may override ``time_limit`` and
+``objective``, each instance ``agents``. Everything is checked before the first run,
 and a bad spec is refused with one line naming the file, the line and the problem.
 """
 

@@ -116,8 +116,8 @@ def run_key(run: Run) -> str:
     -------
     >>> from hierplan_opt.experiments.spec import InstanceSpec, SolverSpec
     >>> s, i = SolverSpec("cbs", "cbs"), InstanceSpec("generator", "g", generator="x")
-    >>> a = run_key(Run(s, i, 4, 0, 10.0, None, "h"))
-    >>> a == run_key(Run(s, i, 4, 0, 10.0, None, "h")), a == run_key(Run(s, i, 5, 0, 10.0, None, "h"))
+    >>> a, b = (run_key(Run(s, i, k, 0, 10.0, None, "h")) for k in (4, 5))
+    >>> a == run_key(Run(s, i, 4, 0, 10.0, None, "h")), a == b
     (True, False)
     """
     what = {
