@@ -50,7 +50,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 import hierplan_opt as hp
-from hierplan_opt.experiments import report, sweep
+from hierplan_opt.experiments import reports, sweep
 from hierplan_opt.io import load_instance
 from hierplan_opt.viz.plots import plot_plan
 
@@ -70,8 +70,8 @@ SMALL = os.environ.get("HIERPLAN_NOTEBOOK_SMALL") == "1"
 # instance and *K*.
 
 # %%
-runs = report.read_runs(SWEEP_DB)
-print(report.report(SWEEP_DB))
+runs = reports.read_runs(SWEEP_DB)
+print(reports.report(SWEEP_DB))
 
 # %%
 reach = (
@@ -85,13 +85,13 @@ print("Largest number of agents solved within the time limit")
 print(reach.to_string(na_rep="-"))
 
 # %%
-report.success_rate_figure(runs, title="Success rate (3 MovingAI instances, 20 s)")
+reports.success_rate_figure(runs, title="Success rate (3 MovingAI instances, 20 s)")
 
 # %%
-report.runtime_figure(runs, title="Runtime of the solved runs")
+reports.runtime_figure(runs, title="Runtime of the solved runs")
 
 # %%
-report.cactus_figure(runs, title="Cactus plot: runs solved within a time")
+reports.cactus_figure(runs, title="Cactus plot: runs solved within a time")
 
 # %% [markdown]
 # ## Checks
@@ -143,7 +143,7 @@ spec = {
 }
 summary = sweep(spec, progress=False)
 print(summary.message())
-tiny = report.read_runs(summary.db)
+tiny = reports.read_runs(summary.db)
 tiny[["label", "agents", "status", "cost", "lower_bound", "runtime", "wall", "peak_mb"]]
 
 # %%

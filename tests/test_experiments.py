@@ -22,9 +22,9 @@ import pytest
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
-from hierplan_opt.experiments import data, report, runner, store
+from hierplan_opt.experiments import data, reports, runner, store
 from hierplan_opt.experiments.spec import load_spec, parse_spec
-from hierplan_opt.experiments.sweep import plan_runs, sweep
+from hierplan_opt.experiments.sweeps import plan_runs, sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 MOVINGAI = ROOT / "instances" / "movingai"
@@ -222,7 +222,7 @@ def test_sweep_records_every_column_and_reuses_finished_runs(tmp_path: Path) -> 
 def test_crash_and_memory_blowup_are_recorded_and_the_sweep_goes_on(
     tmp_path: Path, plugin: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(runner, "GRACE", 1.0)  # kill the sleeper 1 s after its limit
+    monkeypatch.setattr(runner, "GRACE", 5.0)  # kill the sleeper 5 s after its limit
     modes = ["hog", "numpy_hog", "abort", "raise", "sleep", "ok"]
     spec = {
         "solvers": [
@@ -244,7 +244,7 @@ def test_crash_and_memory_blowup_are_recorded_and_the_sweep_goes_on(
     assert rows["raise"]["status"] == "ERROR"
     assert rows["raise"]["error"] == "RuntimeError: bug in the solver"
     assert rows["sleep"]["status"] == "TIME_LIMIT" and "hard limit" in rows["sleep"]["error"]
-    assert rows["sleep"]["wall"] < 10
+    assert 6 <= rows["sleep"]["wall"] < 20
     assert rows["ok"]["status"] == "OPTIMAL" and rows["ok"]["cost"] == 4
 
 
@@ -351,20 +351,20 @@ def _fake_db(path: Path) -> Path:
 
 
 def test_report_tables(tmp_path: Path) -> None:
-    df = report.read_runs(_fake_db(tmp_path / "r.sqlite"))
-    succ = report.success_table(df)
+    df = reports.read_runs(_fake_db(tmp_path / "r.sqlite"))
+    succ = reports.success_table(df)
     assert succ.loc["cbs", 10] == 1.0 and succ.loc["cbs", 20] == 0.5
     assert succ.loc["ecbs", 20] == 0.5
-    rt = report.runtime_table(df)
+    rt = reports.runtime_table(df)
     assert rt.loc["cbs", "solved"] == 3 and rt.loc["cbs", "median"] == 3.0
     assert rt.loc["cbs", "PAR2"] == pytest.approx((1 + 3 + 20 + 5) / 4)
     assert rt.loc["ecbs", "PAR2"] == pytest.approx((0.5 + 0.2 + 0.4 + 20) / 4)
-    cost = report.cost_table(df)
+    cost = reports.cost_table(df)
     assert cost.loc["cbs", "optimal"] == 3 and cost.loc["cbs", "cost/LB max"] == 1.0
     # ecbs on a/20: 198 over its own bound 170, over the best bound (cbs proved 180)
     assert cost.loc["ecbs", "cost/LB max"] == pytest.approx(198 / 170)
     assert cost.loc["ecbs", "cost/best LB max"] == pytest.approx(max(110 / 100, 99 / 90, 198 / 180))
-    text = report.report(tmp_path / "r.sqlite")
+    text = reports.report(tmp_path / "r.sqlite")
     assert "8 runs of 2 solvers on 2 instances" in text and "50%" in text and "PAR2" in text
 
 
@@ -372,15 +372,15 @@ def test_report_figures_are_figures_without_pyplot(tmp_path: Path) -> None:
     import matplotlib
 
     backend = matplotlib.get_backend()
-    df = report.read_runs(_fake_db(tmp_path / "r.sqlite"))
-    fig = report.success_rate_figure(df)
+    df = reports.read_runs(_fake_db(tmp_path / "r.sqlite"))
+    fig = reports.success_rate_figure(df)
     lines = fig.axes[0].get_lines()
     assert [ln.get_label() for ln in lines] == ["cbs", "ecbs"]
     assert list(lines[0].get_ydata()) == [100.0, 50.0]
-    cactus = report.cactus_figure(df)
+    cactus = reports.cactus_figure(df)
     steps = {ln.get_label(): ln for ln in cactus.axes[0].get_lines()}
     assert list(steps["cbs"].get_xdata()) == [1.0, 3.0, 5.0]
-    paths = report.save_figures(tmp_path / "r.sqlite", tmp_path / "plots")
+    paths = reports.save_figures(tmp_path / "r.sqlite", tmp_path / "plots")
     assert [p.read_bytes()[:4] for p in paths] == [b"\x89PNG"] * 3
     assert matplotlib.get_backend() == backend
 
@@ -391,19 +391,19 @@ def test_export_csv_and_parquet(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     import pandas as pd
 
     db = _fake_db(tmp_path / "r.sqlite")
-    assert report.export(db, tmp_path / "r.csv") == 8
+    assert reports.export(db, tmp_path / "r.csv") == 8
     with open(tmp_path / "r.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert [r["status"] for r in rows][:3] == ["OPTIMAL", "OPTIMAL", "TIME_LIMIT"]
     assert list(rows[0]) == list(store.NAMES)
-    assert report.export(db, tmp_path / "r.parquet") == 8
+    assert reports.export(db, tmp_path / "r.parquet") == 8
     back = pd.read_parquet(tmp_path / "r.parquet")
     assert list(back.columns) == list(store.NAMES) and back["cost"].sum() == 797
     with pytest.raises(InputError, match=r"r.txt: export writes .csv or .parquet"):
-        report.export(db, tmp_path / "r.txt")
-    monkeypatch.setattr(report.importlib.util, "find_spec", lambda name: None)
+        reports.export(db, tmp_path / "r.txt")
+    monkeypatch.setattr(reports.importlib.util, "find_spec", lambda name: None)
     with pytest.raises(InputError, match=r"pip install 'hierplan_opt\[parquet\]'"):
-        report.export(db, tmp_path / "s.parquet")
+        reports.export(db, tmp_path / "s.parquet")
     assert not (tmp_path / "s.parquet").exists()
 
 
@@ -423,7 +423,7 @@ def test_cli_report_export_and_canned(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("name", sorted(data.canned_specs()))
 def test_canned_specs_parse_and_find_their_instances(name: str) -> None:
-    from hierplan_opt.experiments.sweep import check_instances
+    from hierplan_opt.experiments.sweeps import check_instances
 
     spec = load_spec(data.canned_spec(name))
     check_instances(spec)

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from hierplan_opt.experiments import store
-from hierplan_opt.experiments.sweep import sweep
+from hierplan_opt.experiments.sweeps import sweep
 
 MOVINGAI = Path(__file__).resolve().parents[1] / "instances" / "movingai"
 #: Columns that depend on the run, not on where it ran.

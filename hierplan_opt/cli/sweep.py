@@ -92,7 +92,7 @@ def _sweep(args: argparse.Namespace) -> int:
     from hierplan_opt.experiments import store
     from hierplan_opt.experiments.data import canned_spec
     from hierplan_opt.experiments.spec import SweepSpec
-    from hierplan_opt.experiments.sweep import plan_runs, resolve, spec_from_db, sweep
+    from hierplan_opt.experiments.sweeps import plan_runs, resolve, spec_from_db, sweep
 
     sources = [x for x in (args.what, args.canned) if x]
     if len(sources) > 1:
@@ -136,7 +136,7 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from hierplan_opt.experiments.report import report, save_figures
+    from hierplan_opt.experiments.reports import report, save_figures
 
     if len(args.paths) != 1:
         raise InputError("usage: hierplan sweep report DB [--plots DIR]")
@@ -148,7 +148,7 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from hierplan_opt.experiments.report import export
+    from hierplan_opt.experiments.reports import export
 
     if len(args.paths) != 2:
         raise InputError("usage: hierplan sweep export DB OUT.csv|OUT.parquet")

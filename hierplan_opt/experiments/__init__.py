@@ -1,9 +1,10 @@
 """Experiments at scale: sweeps of solvers x instances x agents x seeds.
 
-- :func:`sweep` runs a spec (:mod:`~hierplan_opt.experiments.spec`), one process per
-  run with a time and a memory limit, on this machine or on a Dask cluster, and keeps
-  every run in an SQLite database (:mod:`~hierplan_opt.experiments.store`);
-- :mod:`~hierplan_opt.experiments.report` prints the field's standard tables and draws
+- :func:`sweep` (:mod:`~hierplan_opt.experiments.sweeps`) runs a spec
+  (:mod:`~hierplan_opt.experiments.spec`), one process per run with a time and a memory
+  limit, on this machine or on a Dask cluster, and keeps every run in an SQLite database
+  (:mod:`~hierplan_opt.experiments.store`);
+- :mod:`~hierplan_opt.experiments.reports` prints the field's standard tables and draws
   success-rate curves and cactus plots; :func:`export` writes CSV or Parquet;
 - :mod:`~hierplan_opt.experiments.data` locates the canned specs and the benchmark
   instances shipped with the package.
@@ -17,28 +18,22 @@ True
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+# All light: pandas, matplotlib and Dask are imported inside the functions that use them.
+from hierplan_opt.experiments.data import canned_spec, canned_specs, instances_dir
+from hierplan_opt.experiments.reports import export, read_runs, report
+from hierplan_opt.experiments.spec import SweepSpec, load_spec, parse_spec
+from hierplan_opt.experiments.sweeps import SweepSummary, sweep
 
-_LAZY = {
-    "sweep": "hierplan_opt.experiments.sweep",
-    "SweepSummary": "hierplan_opt.experiments.sweep",
-    "load_spec": "hierplan_opt.experiments.spec",
-    "parse_spec": "hierplan_opt.experiments.spec",
-    "SweepSpec": "hierplan_opt.experiments.spec",
-    "read_runs": "hierplan_opt.experiments.report",
-    "report": "hierplan_opt.experiments.report",
-    "export": "hierplan_opt.experiments.report",
-    "canned_specs": "hierplan_opt.experiments.data",
-    "canned_spec": "hierplan_opt.experiments.data",
-    "instances_dir": "hierplan_opt.experiments.data",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'hierplan_opt.experiments' has no attribute {name!r}")
-
-
-__all__ = list(_LAZY)
+__all__ = [
+    "SweepSpec",
+    "SweepSummary",
+    "canned_spec",
+    "canned_specs",
+    "export",
+    "instances_dir",
+    "load_spec",
+    "parse_spec",
+    "read_runs",
+    "report",
+    "sweep",
+]

@@ -70,7 +70,8 @@ def random_grid(*, width: int, height: int, obstacles: float, agents: int, seed:
         raise InputError(f"width and height must be positive, got {width}x{height}")
     rng = np.random.default_rng(seed)
     blocked = rng.random((height, width)) < obstacles
-    labels, count = ndimage.label(~blocked)
+    labelled: Any = ndimage.label(~blocked)  # (labels, number of regions)
+    labels, count = labelled
     if count == 0:
         raise InputError("the generated grid has no free cell")
     sizes = np.bincount(labels.ravel())[1:]

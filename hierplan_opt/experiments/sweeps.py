@@ -207,14 +207,15 @@ class _Dask:
             return
         self.own_client = True
         if address == "local":
-            self.cluster = LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=True,
-                host="127.0.0.1",
-                dashboard_address=None,
-                silence_logs=logging.WARNING,
-            )
+            options: dict[str, Any] = {
+                "n_workers": workers,
+                "threads_per_worker": 1,
+                "processes": True,
+                "host": "127.0.0.1",
+                "dashboard_address": None,  # no web dashboard
+                "silence_logs": logging.WARNING,
+            }
+            self.cluster = LocalCluster(**options)
             self.client = Client(self.cluster)
         else:
             if not str(address).startswith(("tcp://", "tls://", "inproc://", "ucx://")):

@@ -77,8 +77,8 @@ def runtime_table(df: pd.DataFrame) -> pd.DataFrame:
 
     out = []
     for label in _labels(df):
-        d = df[df["label"] == label]
-        s = d.loc[d["solved"], "runtime"].astype(float)
+        d: Any = df[df["label"] == label]
+        s: Any = d.loc[d["solved"], "runtime"].astype(float)
         par2 = d["runtime"].where(d["solved"], 2 * d["time_limit"]).astype(float).mean()
         out.append(
             {
@@ -100,15 +100,15 @@ def cost_table(df: pd.DataFrame) -> pd.DataFrame:
     """Cost over lower bounds of the solved runs per solver."""
     import pandas as pd
 
-    ok = df[df["status"].isin(("OPTIMAL", "FEASIBLE")) & df["cost"].notna()].copy()
+    ok: Any = df[df["status"].isin(("OPTIMAL", "FEASIBLE")) & df["cost"].notna()].copy()
     group = ["instance", "agents", "objective", "seed"]
-    best = df[df["lower_bound"].notna()].groupby(group)["lower_bound"].max()
+    best: Any = df[df["lower_bound"].notna()].groupby(group)["lower_bound"].max()
     ok = ok.join(best.rename("best_lb"), on=group)
     ok["own"] = ok["cost"] / ok["lower_bound"].where(ok["lower_bound"] > 0)
     ok["vs_best"] = ok["cost"] / ok["best_lb"].where(ok["best_lb"] > 0)
     out = []
     for label in _labels(df):
-        d = ok[ok["label"] == label]
+        d: Any = ok[ok["label"] == label]
         out.append(
             {
                 "solver": label,
@@ -157,6 +157,12 @@ def report(db: str | Path) -> str:
 
 
 # ---------------------------------------------------------------- figures
+def _time_limit(df: pd.DataFrame) -> float:
+    """The largest time limit of the runs (NaN without runs)."""
+    largest: Any = df["time_limit"].max() if len(df) else math.nan
+    return float(largest)
+
+
 def success_rate_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
     """Success rate against the number of agents, one curve per solver.
 
@@ -198,7 +204,7 @@ def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
     ...                    "runtime": [1.0, 3.0, 5.0], "solved": [True, True, False],
     ...                    "time_limit": [10.0] * 3})
     >>> ax = runtime_figure(df).axes[0]
-    >>> list(ax.get_lines()[0].get_ydata())
+    >>> ax.get_lines()[0].get_ydata().tolist()
     [2.0]
     """
     from matplotlib.figure import Figure
@@ -206,10 +212,10 @@ def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
     fig = Figure(figsize=(6.5, 4.0), layout="constrained")
     ax = fig.add_subplot()
     for label in _labels(df):
-        d = df[(df["label"] == label) & df["solved"]]
+        d: Any = df[(df["label"] == label) & df["solved"]]
         med = d.groupby("agents")["runtime"].median()
         ax.plot(med.index.astype(float), med.to_numpy(dtype=float), "o-", label=label)
-    limit = float(df["time_limit"].max()) if len(df) else math.nan
+    limit = _time_limit(df)
     if math.isfinite(limit):
         ax.axhline(limit, color="grey", ls="--", lw=1, label="time limit")
     ax.set_yscale("log")
@@ -241,7 +247,7 @@ def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = Tr
     for label in _labels(df):
         t = sorted(df.loc[(df["label"] == label) & df["solved"], "runtime"].astype(float))
         ax.step(t, range(1, len(t) + 1), where="post", label=label, marker=".")
-    limit = float(df["time_limit"].max()) if len(df) else math.nan
+    limit = _time_limit(df)
     if math.isfinite(limit):
         ax.axvline(limit, color="grey", ls="--", lw=1, label="time limit")
     ax.set_xlabel("runtime (s)")
