@@ -31,19 +31,18 @@
 # its heterogeneous robots.
 
 # %%
-from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 
 import hierplan_opt as hp
+from hierplan_opt.experiments import instances_dir
 from hierplan_opt.io import load_instance
 from hierplan_opt.viz.plots import format_table, plot_layers, plot_plan
 
-here = Path.cwd()
-ROOT = next(p for p in (here, *here.parents) if (p / "instances" / "movingai").is_dir())
-MOVINGAI = ROOT / "instances" / "movingai"
-PAPER = ROOT / "instances" / "paper"
+ROOT = instances_dir()  # the benchmark instances shipped with the package
+MOVINGAI = ROOT / "movingai"
+PAPER = ROOT / "paper"
 
 # %%
 fig3 = load_instance(PAPER / "figure3.yaml")

@@ -50,14 +50,13 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 
 import hierplan_opt as hp
-from hierplan_opt.experiments import reports, sweep
+from hierplan_opt.experiments import instances_dir, reports, sweep
 from hierplan_opt.io import load_instance
 from hierplan_opt.viz.plots import plot_plan
 
-here = Path.cwd()
-ROOT = next(p for p in (here, *here.parents) if (p / "instances" / "movingai").is_dir())
-MOVINGAI = ROOT / "instances" / "movingai"
-SWEEP_DB = ROOT / "notebooks" / "sweeps" / "solver_comparison.sqlite"
+ROOT = instances_dir()  # the benchmark instances shipped with the package
+MOVINGAI = ROOT / "movingai"
+SWEEP_DB = Path("sweeps") / "solver_comparison.sqlite"  # beside this notebook
 # CI executes the notebooks with HIERPLAN_NOTEBOOK_SMALL=1: smaller live examples
 SMALL = os.environ.get("HIERPLAN_NOTEBOOK_SMALL") == "1"
 
