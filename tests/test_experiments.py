@@ -141,9 +141,21 @@ def test_bad_agent_count_is_refused_before_any_run(tmp_path: Path) -> None:
     spec = parse_spec(
         {"solvers": [{"name": "cbs"}], "instances": [empty8([2, 5000])]}, folder=tmp_path
     )
-    with pytest.raises(InputError, match=r"empty-8-8-even-1.scen.*5000"):
+    with pytest.raises(InputError, match=r"<spec>: instance 'empty-8-8-even-1' with 5000 agents: "
+                       r".*empty-8-8-even-1.scen.*5000"):  # fmt: skip
         sweep(spec, db=tmp_path / "r.sqlite", progress=False)
     assert not (tmp_path / "r.sqlite").exists()
+    tapf = write_spec(
+        tmp_path,
+        f"solvers: [{{name: cbm}}]\ninstances: [{{yaml: {ROOT}/instances/paper/figure3.yaml}}]\n"
+        "agents: [10, 20, 30]\n",
+    )
+    message = (
+        r"spec.yaml: instance 'figure3' with 30 agents: .*only to MAPF instances .*"
+        r"\(use 'agents: all' on a TAPF instance\)$"
+    )
+    with pytest.raises(InputError, match=message):
+        sweep(tapf, progress=False)
 
 
 def test_cli_bad_spec_one_line_exit_2(tmp_path: Path) -> None:

@@ -123,6 +123,7 @@ class SweepSpec:
     objective: str | None = None
     source: str = ""  # the spec's text (stored with the sweep, so --resume needs only the DB)
     folder: Path = Path(".")
+    file: str = "<spec>"  # where the spec came from, for messages
 
     def agents_of(self, inst: InstanceSpec) -> tuple[int | None, ...]:
         """The agent counts run on ``inst`` (its own list, else the sweep's)."""
@@ -227,6 +228,7 @@ def parse_spec(
         objective=objective,
         source=source,
         folder=folder,
+        file=file,
     )
 
 

@@ -160,15 +160,22 @@ def check_instances(spec: SweepSpec) -> None:
         if inst.kind == "generator":
             if None in spec.agents_of(inst):
                 raise InputError(
-                    f"instance {inst.name!r}: a generator needs agent counts ('agents: [..]')"
+                    f"{spec.file}: instance {inst.name!r}: a generator needs agent counts "
+                    "('agents: [..]')"
                 )
             continue
         ks = spec.agents_of(inst)
         k = None if None in ks else max(k for k in ks if k is not None)
-        if inst.kind == "movingai":
-            load_instance(inst.files[0], scen=inst.files[1], agents=k)
-        else:
-            load_instance(inst.files[0], agents=k)
+        try:
+            if inst.kind == "movingai":
+                load_instance(inst.files[0], scen=inst.files[1], agents=k)
+            else:
+                load_instance(inst.files[0], agents=k)
+        except InputError as exc:
+            hint = " (use 'agents: all' on a TAPF instance)" if "teams" in str(exc) else ""
+            raise InputError(
+                f"{spec.file}: instance {inst.name!r} with {k or 'all'} agents: {exc}{hint}"
+            ) from None
 
 
 # ---------------------------------------------------------------- backends
@@ -357,7 +364,7 @@ def sweep(
         reused = len(runs) - len(todo)
         if reused:
             log.info("sweep %s: %d of %d runs already in %s", sp.name, reused, len(runs), sp.db)
-        sweep_id = store.start_sweep(con, sp.name, sp.source, str(sp.folder), len(runs))
+        sweep_id = store.start_sweep(con, sp.name, sp.source, str(sp.folder.resolve()), len(runs))
         statuses: Counter[str] = Counter()
         skipped = _execute(sp, todo, con, n_workers, dask, progress, statuses, on_row)
         store.finish_sweep(con, sweep_id)
