@@ -421,7 +421,10 @@ def _execute(
                 r = futures[fut]
                 if r.key in recorded or fut.cancelled():
                     continue
-                outcome = fut.result()
+                try:
+                    outcome = fut.result()
+                except Exception as exc:  # the backend lost the run (a Dask worker died, ...)
+                    outcome = {"status": "ERROR", "error": f"{type(exc).__name__}: {exc}"[:500]}
                 record(r, outcome)
                 if sp.stop_on_failure and outcome["status"] not in SOLVED:
                     k = r.agents or 0
