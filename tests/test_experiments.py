@@ -507,3 +507,22 @@ def test_worker_reports_json(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     out = json.loads((tmp_path / "out.json").read_text())
     assert out["status"] == "OPTIMAL" and out["agents"] == 3 and out["cost"] >= 3
+
+
+def test_a_run_lost_by_the_backend_is_an_error_row(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from hierplan_opt.experiments import sweeps
+
+    def fake(task: dict) -> dict:
+        if task["agents"] == 3:
+            raise RuntimeError("worker lost")
+        return {"status": "OPTIMAL", "cost": 1.0, "lower_bound": 1.0, "runtime": 0.1}
+
+    monkeypatch.setattr(sweeps, "run_task", fake)
+    spec = {"solvers": [{"name": "cbs"}], "instances": [empty8([2, 3, 4])],
+            "db": str(tmp_path / "r.sqlite")}  # fmt: skip
+    summary = sweep(spec, progress=False)
+    assert summary.statuses == {"OPTIMAL": 2, "ERROR": 1}
+    rows = {r["agents"]: r for r in store.rows(store.open_existing(tmp_path / "r.sqlite"))}
+    assert rows[3]["error"] == "RuntimeError: worker lost"
