@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from dataclasses import replace
 from pathlib import Path
 
 from hierplan_opt.cli.common import OK, positive_int
@@ -91,7 +92,6 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     from hierplan_opt.experiments import store
     from hierplan_opt.experiments.data import canned_spec
-    from hierplan_opt.experiments.spec import SweepSpec
     from hierplan_opt.experiments.sweeps import plan_runs, resolve, spec_from_db, sweep
 
     sources = [x for x in (args.what, args.canned) if x]
@@ -106,11 +106,11 @@ def _sweep(args: argparse.Namespace) -> int:
     elif args.canned:
         spec = resolve(canned_spec(args.canned))
         # a canned spec's database goes to the working directory, not into the package
-        spec = SweepSpec(**{**spec.__dict__, "db": Path(spec.db.name)})
+        spec = replace(spec, db=Path(spec.db.name))
     else:
         spec = resolve(args.what)
     if args.db:
-        spec = SweepSpec(**{**spec.__dict__, "db": Path(args.db)})
+        spec = replace(spec, db=Path(args.db))
     if args.resume:
         con = store.open_existing(spec.db)
         last = store.last_sweep(con)

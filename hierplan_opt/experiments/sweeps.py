@@ -19,7 +19,7 @@ import logging
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -144,7 +144,7 @@ def plan_runs(spec: SweepSpec) -> list[Run]:
                 for seed in spec.seeds:
                     tl = solver.time_limit if solver.time_limit is not None else spec.time_limit
                     r = Run(solver, inst, k, seed, tl, spec.memory_limit_mb, digest)
-                    r = Run(**{**r.__dict__, "key": run_key(r)})
+                    r = replace(r, key=run_key(r))
                     order = (float("inf") if k is None else k, ii, si, seed)
                     runs.append((order, r))
     runs.sort(key=lambda t: t[0])
@@ -306,7 +306,7 @@ def spec_from_db(path: str | Path) -> SweepSpec:
     data = read_yaml(f"{path} (stored spec)", text)
     spec = parse_spec(data, folder=folder, file=f"{path} (stored spec)", source=text,
                       default_name=name)  # fmt: skip
-    return SweepSpec(**{**spec.__dict__, "db": Path(path)})
+    return replace(spec, db=Path(path))
 
 
 def sweep(
@@ -352,7 +352,7 @@ def sweep(
     """
     sp = resolve(spec)
     if db is not None:
-        sp = SweepSpec(**{**sp.__dict__, "db": Path(db)})
+        sp = replace(sp, db=Path(db))
     n_workers = workers if workers is not None else sp.workers
     check_instances(sp)
     runs = plan_runs(sp)
