@@ -250,6 +250,9 @@ def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = Tr
     limit = _time_limit(df)
     if math.isfinite(limit):
         ax.axvline(limit, color="grey", ls="--", lw=1, label="time limit")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("runtime (s)")
     ax.set_ylabel("runs solved within that time")
     if logx:
