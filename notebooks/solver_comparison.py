@@ -43,6 +43,8 @@
 # the bounded solvers keep their bound.
 
 # %%
+# %matplotlib inline
+
 import os
 import tempfile
 from pathlib import Path
@@ -59,6 +61,7 @@ MOVINGAI = ROOT / "movingai"
 SWEEP_DB = Path("sweeps") / "solver_comparison.sqlite"  # beside this notebook
 # CI executes the notebooks with HIERPLAN_NOTEBOOK_SMALL=1: smaller live examples
 SMALL = os.environ.get("HIERPLAN_NOTEBOOK_SMALL") == "1"
+plt.rcParams["figure.dpi"] = 72  # small stored figures
 
 # %% [markdown]
 # ## The standard tables
@@ -131,6 +134,7 @@ print(f"{len(optimum)} (instance, K) pairs with a proven optimum; all solvers ag
 
 # %%
 spec = {
+    "name": "tiny",
     "solvers": [{"name": "cbs"}, {"name": "ecbs", "options": {"w": 1.5}}, {"name": "cpsat"}],
     "instances": [
         {"map": str(MOVINGAI / "empty-8-8.map"), "scen": str(MOVINGAI / "empty-8-8-even-1.scen")}

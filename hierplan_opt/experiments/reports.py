@@ -33,6 +33,8 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 SOLVED = ("OPTIMAL", "FEASIBLE", "INFEASIBLE")
+#: Marker per curve, so that curves lying on top of each other stay visible.
+MARKERS = "os^Dv<>PX*"
 
 
 def read_runs(db: str | Path) -> pd.DataFrame:
@@ -180,9 +182,10 @@ def success_rate_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure
     fig = Figure(figsize=(6.5, 4.0), layout="constrained")
     ax = fig.add_subplot()
     table = success_table(df)
-    for label, row in table.iterrows():
+    for i, (label, row) in enumerate(table.iterrows()):
         row = row.dropna()
-        ax.plot(row.index.astype(float), 100 * row.to_numpy(dtype=float), "o-", label=str(label))
+        y = 100 * row.to_numpy(dtype=float)
+        ax.plot(row.index.astype(float), y, marker=MARKERS[i % len(MARKERS)], label=str(label))
     ax.set_xlabel("agents")
     ax.set_ylabel("solved runs (%)")
     ax.set_ylim(-5, 105)
@@ -211,10 +214,11 @@ def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
 
     fig = Figure(figsize=(6.5, 4.0), layout="constrained")
     ax = fig.add_subplot()
-    for label in _labels(df):
+    for i, label in enumerate(_labels(df)):
         d: Any = df[(df["label"] == label) & df["solved"]]
         med = d.groupby("agents")["runtime"].median()
-        ax.plot(med.index.astype(float), med.to_numpy(dtype=float), "o-", label=label)
+        x, y = med.index.astype(float), med.to_numpy(dtype=float)
+        ax.plot(x, y, marker=MARKERS[i % len(MARKERS)], label=label)
     limit = _time_limit(df)
     if math.isfinite(limit):
         ax.axhline(limit, color="grey", ls="--", lw=1, label="time limit")
