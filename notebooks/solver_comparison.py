@@ -30,8 +30,8 @@
 # on the first *K* agents of three MovingAI scenarios (random-32-32-20, a warehouse and an
 # empty 32x32 grid), *K* from 5 to 400, 20 s per run, each run in its own process.
 # `stop_on_failure` skips the larger *K* of a solver on an instance once it failed (those
-# runs are recorded as SKIPPED and count as unsolved). To run the sweep again (about 15
-# minutes on 2 cores) and look at the result:
+# runs are recorded as SKIPPED and count as unsolved). To run the sweep again (8 minutes
+# with two runs at a time on 2 cores) and look at the result:
 #
 # ```bash
 # hierplan sweep notebooks/sweeps/solver_comparison.yaml --workers 2
