@@ -213,6 +213,8 @@ class _Dask:
             self.client, self.own_client = address, False
             return
         self.own_client = True
+        if logging.getLogger().getEffectiveLevel() > logging.DEBUG:  # -v shows Dask's chatter
+            logging.getLogger("distributed").setLevel(logging.WARNING)
         if address == "local":
             options: dict[str, Any] = {
                 "n_workers": workers,
