@@ -139,7 +139,7 @@ spec = {
     "instances": [
         {"map": str(MOVINGAI / "empty-8-8.map"), "scen": str(MOVINGAI / "empty-8-8-even-1.scen")}
     ],
-    "agents": [2, 4] if SMALL else [2, 4, 8, 12],
+    "agents": [3] if SMALL else [2, 4, 8, 12],
     "time_limit": 20,
     "workers": 2,
     "db": str(Path(tempfile.mkdtemp()) / "tiny.sqlite"),

@@ -25,7 +25,7 @@ def _spec(db: Path) -> dict:
             },
             {"generator": "random_grid", "params": {"width": 6, "height": 6, "obstacles": 0.1}},
         ],
-        "agents": [3, 5],
+        "agents": [4],
         "time_limit": 20,
         "db": str(db),
     }
@@ -51,7 +51,7 @@ def test_local_dask_cluster_gives_the_same_rows_as_local_processes(tmp_path: Pat
         assert address.startswith("tcp://127.0.0.1:")
         # the same path as `hierplan sweep SPEC --dask-scheduler tcp://HOST:PORT`
         on_dask = sweep(_spec(tmp_path / "dask.sqlite"), dask=address, progress=False)
-    assert local.ran == on_dask.ran == 8
+    assert local.ran == on_dask.ran == 4
     assert _rows(tmp_path / "local.sqlite") == _rows(tmp_path / "dask.sqlite")
     assert {r[SAME.index("status")] for r in _rows(tmp_path / "dask.sqlite")} <= {
         "OPTIMAL",

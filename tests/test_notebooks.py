@@ -87,7 +87,10 @@ def test_notebook_executes(
     client = NotebookClient(
         nb, km=km, timeout=600, resources={"metadata": {"path": str(NOTEBOOK_DIR)}}
     )
-    client.execute()  # raises CellExecutionError (with the cell and traceback) on failure
+    try:
+        client.execute()  # raises CellExecutionError (with the cell and traceback) on failure
+    finally:
+        km.shutdown_kernel(now=True)  # nbclient leaves a kernel manager it was given running
     code = [c for c in nb.cells if c.cell_type == "code"]
     assert code and all(c.execution_count for c in code)
 
@@ -98,4 +101,7 @@ def test_a_failing_cell_fails_the_run(kernel_specs: KernelSpecManager) -> None:
     nb = jupytext.reads("# %%\nx = 1\n\n# %%\nassert x == 2, 'claim broken'\n", fmt="py:percent")
     km = KernelManager(kernel_name=KERNEL, kernel_spec_manager=kernel_specs)
     with pytest.raises(CellExecutionError, match="claim broken"):
-        NotebookClient(nb, km=km, timeout=60).execute()
+        try:
+            NotebookClient(nb, km=km, timeout=60).execute()
+        finally:
+            km.shutdown_kernel(now=True)
