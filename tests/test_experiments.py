@@ -444,8 +444,8 @@ def test_canned_specs_parse_and_find_their_instances(name: str) -> None:
     from hierplan_opt.experiments.sweeps import check_instances
 
     spec = load_spec(data.canned_spec(name))
-    check_instances(spec)
-    assert plan_runs(spec) and data.canned_specs()[name]
+    runs = plan_runs(spec, check_instances(spec))
+    assert runs and data.canned_specs()[name]
     for inst in spec.instances:
         for f in inst.files:  # read from the package's data, never outside it
             assert f.resolve().is_relative_to(ROOT.resolve())
@@ -532,3 +532,25 @@ def test_a_run_lost_by_the_backend_is_an_error_row(
     assert summary.statuses == {"OPTIMAL": 2, "ERROR": 1}
     rows = {r["agents"]: r for r in store.rows(store.open_existing(tmp_path / "r.sqlite"))}
     assert rows[3]["error"] == "RuntimeError: worker lost"
+
+
+def test_solvers_are_paired_only_with_problems_they_solve(tmp_path: Path) -> None:
+    from hierplan_opt.experiments.sweeps import check_instances
+
+    spec = parse_spec(
+        {
+            "solvers": [{"name": "cbs"}, {"name": "cbm"}],
+            "instances": [
+                empty8([2]),
+                {"yaml": str(ROOT / "instances" / "paper" / "figure3.yaml"), "agents": "all"},
+                {"generator": "warehouse", "params": {"team_size": 2}, "agents": [4]},
+            ],
+        },
+        folder=tmp_path,
+    )
+    problems = check_instances(spec)
+    assert problems == {"empty-8-8-even-1": "mapf", "figure3": "tapf",
+                        "warehouse(team_size=2)": "tapf"}  # fmt: skip
+    pairs = {(r.solver.name, r.instance.name) for r in plan_runs(spec, problems)}
+    assert pairs == {("cbs", "empty-8-8-even-1"), ("cbm", "empty-8-8-even-1"),
+                     ("cbm", "figure3"), ("cbm", "warehouse(team_size=2)")}  # fmt: skip

@@ -92,7 +92,13 @@ def run(args: argparse.Namespace) -> int:
 def _sweep(args: argparse.Namespace) -> int:
     from hierplan_opt.experiments import store
     from hierplan_opt.experiments.data import canned_spec
-    from hierplan_opt.experiments.sweeps import plan_runs, resolve, spec_from_db, sweep
+    from hierplan_opt.experiments.sweeps import (
+        check_instances,
+        plan_runs,
+        resolve,
+        spec_from_db,
+        sweep,
+    )
 
     sources = [x for x in (args.what, args.canned) if x]
     if len(sources) > 1:
@@ -118,7 +124,7 @@ def _sweep(args: argparse.Namespace) -> int:
         if last is None:
             raise InputError(f"{spec.db}: no sweep recorded, nothing to resume")
     if args.dry_run:
-        runs = plan_runs(spec)
+        runs = plan_runs(spec, check_instances(spec))
         done = set()
         if spec.db.exists():
             con = store.open_existing(spec.db)

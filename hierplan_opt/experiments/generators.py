@@ -26,6 +26,7 @@ class Generator:
     params: dict[str, tuple[type, Any]]
     build: Callable[..., Instance]
     help: str = ""
+    problem: str = "mapf"  # what it generates: "mapf" or "tapf"
 
     def check(self, given: dict[str, Any]) -> None:
         """Refuse unknown parameters and values of the wrong type."""
@@ -144,6 +145,7 @@ GENERATORS: dict[str, Generator] = {
             },
             warehouse,
             "shelf blocks and aisles, teams of robots with targets by the shelves (TAPF)",
+            problem="tapf",
         ),
     )
 }

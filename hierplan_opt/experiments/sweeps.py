@@ -134,13 +134,20 @@ def run_key(run: Run) -> str:
     return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:24]
 
 
-def plan_runs(spec: SweepSpec) -> list[Run]:
-    """Every run of ``spec``, smallest K first (then instance, solver, seed order)."""
+def plan_runs(spec: SweepSpec, problems: Mapping[str, str] | None = None) -> list[Run]:
+    """Every run of ``spec``, smallest K first (then instance, solver, seed order).
+
+    ``problems`` (instance name -> ``"mapf"`` or ``"tapf"``, from
+    :func:`check_instances`) leaves out the pairs of a solver and an instance it does
+    not solve (a MAPF-only solver on a TAPF instance).
+    """
     runs: list[tuple[tuple, Run]] = []
     for ii, inst in enumerate(spec.instances):
         digest = inst.digest()
         for k in spec.agents_of(inst):
             for si, solver in enumerate(spec.solvers):
+                if problems is not None and problems[inst.name] not in solver.problems:
+                    continue
                 for seed in spec.seeds:
                     tl = solver.time_limit if solver.time_limit is not None else spec.time_limit
                     r = Run(solver, inst, k, seed, tl, spec.memory_limit_mb, digest)
@@ -151,11 +158,14 @@ def plan_runs(spec: SweepSpec) -> list[Run]:
     return [r for _, r in runs]
 
 
-def check_instances(spec: SweepSpec) -> None:
+def check_instances(spec: SweepSpec) -> dict[str, str]:
     """Load each file instance once with its largest K, so that bad files and agent
-    counts beyond a scenario are refused before the first run."""
+    counts beyond a scenario are refused before the first run; returns the problem
+    (``"mapf"`` / ``"tapf"``) of each instance."""
+    from hierplan_opt.experiments.generators import GENERATORS
     from hierplan_opt.io import load_instance
 
+    problems: dict[str, str] = {}
     for inst in spec.instances:
         if inst.kind == "generator":
             if None in spec.agents_of(inst):
@@ -163,19 +173,22 @@ def check_instances(spec: SweepSpec) -> None:
                     f"{spec.file}: instance {inst.name!r}: a generator needs agent counts "
                     "('agents: [..]')"
                 )
+            problems[inst.name] = GENERATORS[str(inst.generator)].problem
             continue
         ks = spec.agents_of(inst)
         k = None if None in ks else max(k for k in ks if k is not None)
         try:
             if inst.kind == "movingai":
-                load_instance(inst.files[0], scen=inst.files[1], agents=k)
+                loaded = load_instance(inst.files[0], scen=inst.files[1], agents=k)
             else:
-                load_instance(inst.files[0], agents=k)
+                loaded = load_instance(inst.files[0], agents=k)
         except InputError as exc:
             hint = " (use 'agents: all' on a TAPF instance)" if "teams" in str(exc) else ""
             raise InputError(
                 f"{spec.file}: instance {inst.name!r} with {k or 'all'} agents: {exc}{hint}"
             ) from None
+        problems[inst.name] = "tapf" if loaded.is_tapf else "mapf"
+    return problems
 
 
 # ---------------------------------------------------------------- backends
@@ -356,8 +369,12 @@ def sweep(
     if db is not None:
         sp = replace(sp, db=Path(db))
     n_workers = workers if workers is not None else sp.workers
-    check_instances(sp)
-    runs = plan_runs(sp)
+    problems = check_instances(sp)
+    runs = plan_runs(sp, problems)
+    left_out = len(plan_runs(sp)) - len(runs)
+    if left_out:
+        log.info("sweep %s: %d solver/instance pairs left out (problem not solved by the "
+                 "solver, e.g. TAPF for a MAPF solver)", sp.name, left_out)  # fmt: skip
     con = store.connect(sp.db)
     t0 = time.perf_counter()
     try:
@@ -449,4 +466,4 @@ def _execute(
     return skipped
 
 
-__all__ = ["Run", "SweepSummary", "plan_runs", "resolve", "run_key", "sweep"]
+__all__ = ["Run", "SweepSummary", "check_instances", "plan_runs", "resolve", "run_key", "sweep"]
