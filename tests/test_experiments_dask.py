@@ -45,7 +45,7 @@ def test_local_dask_cluster_gives_the_same_rows_as_local_processes(tmp_path: Pat
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",
-        dashboard_address=None,
+        dashboard_address="127.0.0.1:0",
     ) as cluster:
         address = cluster.scheduler_address
         assert address.startswith("tcp://127.0.0.1:")

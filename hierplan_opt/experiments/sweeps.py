@@ -234,7 +234,7 @@ class _Dask:
                 "threads_per_worker": 1,
                 "processes": True,
                 "host": "127.0.0.1",
-                "dashboard_address": None,  # no web dashboard
+                "dashboard_address": "127.0.0.1:0",  # its HTTP server: loopback, any free port
                 "silence_logs": logging.WARNING,
             }
             self.cluster = LocalCluster(**options)
