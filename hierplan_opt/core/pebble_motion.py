@@ -1,0 +1,581 @@
+"""Exact reachability of agent arrangements: pebble motion on graphs with rotations.
+
+The problem class is this project's MAPF: on an undirected graph every agent waits or
+moves along one edge per timestep, two agents never share a vertex, two agents never
+swap along an edge, and an agent may enter a vertex that is being left at the same
+timestep. So a timestep is a set of chains (each ending in an empty vertex) and of
+rotations along cycles of length >= 3. Which arrangements are reachable from which is
+decided here, per connected component, without search; `docs/feasibility.md` states the
+theorems and their proof sketches.
+
+The test gives every agent a *class*: the component of its "marked-pebble state" (where
+it stands, and how the empty vertices lie around it) in a small abstract graph whose
+edges are the moves that state can make when the other agents are interchangeable. A
+class never changes while agents move, and inside a class every permutation can be
+realised, except in two kinds of component that get their own invariant: a component
+that is one cycle (agents keep their cyclic order), and a component with no empty
+vertex (only rotations: agents off every cycle never move, a cycle keeps its cyclic
+order, and a cactus of odd cycles only allows even permutations).
+
+Coloured agents (teams, TAPF) are handled the same way: within a class every
+arrangement of the colours is reachable, so the counts of each colour per class must
+agree, and the two special invariants are checked on colour sequences.
+"""
+
+from __future__ import annotations
+
+import weakref
+from collections import Counter
+from collections.abc import Hashable, Sequence
+from dataclasses import dataclass
+
+from hierplan_opt.core.graph import Graph
+
+State = tuple  # ('H', ecc) | ('l', v) | ('c', v, holes_on_side_0) | ('j', v, 'rich' | branch)
+
+
+class _UnionFind:
+    def __init__(self) -> None:
+        self.parent: dict[Hashable, Hashable] = {}
+
+    def find(self, x: Hashable) -> Hashable:
+        p = self.parent
+        root = x
+        while True:
+            q = p.get(root, root)
+            if q == root:
+                break
+            root = q
+        while x != root:  # path compression
+            q = p[x]
+            p[x] = root
+            x = q
+        return root
+
+    def union(self, a: Hashable, b: Hashable) -> None:
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            self.parent[ra] = rb
+
+
+@dataclass(frozen=True)
+class Violation:
+    """Why a target arrangement is unreachable: ``kind`` and the vertices involved.
+
+    ``kind`` is ``"class"`` (a robot/colour cannot reach its goal's class; ``vertex`` is
+    its start, ``other`` its goal), ``"cyclic"`` (a ring's cyclic order; ``vertex`` is on
+    it), ``"parity"`` (a full cactus of odd cycles; ``vertex`` is in it) or ``"fixed"``
+    (a robot on a full component that no cycle passes through; ``vertex`` is its start).
+    ``index`` is the robot (or, for colour counts, a robot of the colour) concerned.
+    """
+
+    kind: str
+    vertex: int
+    other: int | None = None
+    index: int | None = None
+
+
+class PebbleStructure:
+    """Bridges, 2-edge-connected components and the bridge tree of an undirected graph.
+
+    Built once per graph (cached) in O(V + E).
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 3, obstacles=[(1, 1)])  # a ring of 8 cells
+    >>> s = PebbleStructure.of(g)
+    >>> s.is_cycle_component[s.comp[0]]
+    True
+    """
+
+    _cache: weakref.WeakKeyDictionary[Graph, PebbleStructure] = weakref.WeakKeyDictionary()
+
+    @classmethod
+    def of(cls, graph: Graph) -> PebbleStructure:
+        """The (cached) structure of ``graph``."""
+        s = cls._cache.get(graph)
+        if s is None:
+            s = cls(graph)
+            cls._cache[graph] = s
+        return s
+
+    def __init__(self, graph: Graph) -> None:
+        adj = graph.adj
+        n = graph.n
+        passable = graph.passable.tolist()
+        self.adj = adj
+        self.n = n
+        # Connected components.
+        comp = [-1] * n
+        comps: list[list[int]] = []
+        for s in range(n):
+            if not passable[s] or comp[s] >= 0:
+                continue
+            cid = len(comps)
+            comp[s] = cid
+            members = [s]
+            stack = [s]
+            while stack:
+                u = stack.pop()
+                for w in adj[u]:
+                    if comp[w] < 0:
+                        comp[w] = cid
+                        members.append(w)
+                        stack.append(w)
+            comps.append(members)
+        self.comp = comp
+        self.comps = comps
+        self.comp_size = [len(c) for c in comps]
+        self.comp_edges = [sum(len(adj[v]) for v in c) // 2 for c in comps]
+
+        # Bridges by an iterative low-link DFS (simple graphs: skip the parent vertex once).
+        disc = [-1] * n
+        low = [0] * n
+        is_bridge_to: list[set[int]] = [set() for _ in range(n)]
+        timer = 0
+        for root in (c[0] for c in comps):
+            disc[root] = low[root] = timer
+            timer += 1
+            stack2: list[tuple[int, int, int]] = [(root, -1, 0)]
+            while stack2:
+                u, parent, i = stack2[-1]
+                if i < len(adj[u]):
+                    stack2[-1] = (u, parent, i + 1)
+                    w = adj[u][i]
+                    if w == parent:
+                        continue
+                    if disc[w] < 0:
+                        disc[w] = low[w] = timer
+                        timer += 1
+                        stack2.append((w, u, 0))
+                    elif disc[w] < low[u]:
+                        low[u] = disc[w]
+                else:
+                    stack2.pop()
+                    if parent >= 0:
+                        if low[u] < low[parent]:
+                            low[parent] = low[u]
+                        if low[u] > disc[parent]:
+                            is_bridge_to[u].add(parent)
+                            is_bridge_to[parent].add(u)
+        self.bridge_nbrs = is_bridge_to
+
+        # 2-edge-connected components: connectivity without bridges.
+        ecc = [-1] * n
+        ecc_members: list[list[int]] = []
+        for s in range(n):
+            if not passable[s] or ecc[s] >= 0:
+                continue
+            eid = len(ecc_members)
+            ecc[s] = eid
+            members = [s]
+            stack = [s]
+            while stack:
+                u = stack.pop()
+                for w in adj[u]:
+                    if ecc[w] < 0 and w not in is_bridge_to[u]:
+                        ecc[w] = eid
+                        members.append(w)
+                        stack.append(w)
+            ecc_members.append(members)
+        self.ecc = ecc
+        self.ecc_members = ecc_members
+        self.big = [len(m) >= 3 for m in ecc_members]
+        self.ecc_is_cycle = [
+            len(m) >= 3 and all(len(adj[v]) - len(is_bridge_to[v]) == 2 for v in m)
+            for m in ecc_members
+        ]
+        self.is_cycle_component = [
+            len(ecc_members[ecc[c[0]]]) == len(c) and self.ecc_is_cycle[ecc[c[0]]] for c in comps
+        ]
+
+        # Bridge tree, rooted at each component's first 2ECC; subtree sizes in vertices.
+        m = len(ecc_members)
+        tparent = [-1] * m
+        order: list[int] = []
+        seen = [False] * m
+        for c in comps:
+            r = ecc[c[0]]
+            seen[r] = True
+            stack = [r]
+            while stack:
+                e = stack.pop()
+                order.append(e)
+                for v in ecc_members[e]:
+                    for w in is_bridge_to[v]:
+                        f = ecc[w]
+                        if not seen[f]:
+                            seen[f] = True
+                            tparent[f] = e
+                            stack.append(f)
+        self.tparent = tparent
+        self.order = order
+        sub = [len(mm) for mm in ecc_members]
+        for e in reversed(order):
+            if tparent[e] >= 0:
+                sub[tparent[e]] += sub[e]
+        self.sub_size = sub
+        self._abstract: dict[tuple[int, int], _UnionFind] = {}
+
+    # ------------------------------------------------------------------ sides of bridges
+    def side(self, a: int, b: int, sub: Sequence[int], total: int) -> int:
+        """Size (or hole count, given subtree ``sub`` values) of b's side of bridge a-b."""
+        eb = self.ecc[b]
+        if self.tparent[eb] == self.ecc[a]:
+            return sub[eb]
+        return total - sub[self.ecc[a]]
+
+    def subtree_holes(self, occupied: Sequence[bool]) -> list[int]:
+        """Empty vertices in each bridge-tree subtree for one arrangement."""
+        holes = [0] * len(self.ecc_members)
+        for e, mm in enumerate(self.ecc_members):
+            holes[e] = sum(1 for v in mm if not occupied[v])
+        tp = self.tparent
+        for e in reversed(self.order):
+            if tp[e] >= 0:
+                holes[tp[e]] += holes[e]
+        return holes
+
+    # ------------------------------------------------------------------ abstract graph
+    def abstract_classes(self, cid: int, h: int) -> _UnionFind:
+        """Components of the marked-pebble state graph of component ``cid`` with h holes."""
+        key = (cid, h)
+        uf = self._abstract.get(key)
+        if uf is None:
+            uf = self._build_abstract(cid, h)
+            self._abstract[key] = uf
+        return uf
+
+    def _arrive(self, b: int, t: int, m: int, h: int) -> State:
+        """State of a pebble that enters b from its neighbour index t, with m holes in
+        b's other branches (so h - m on the side it came from)."""
+        if self.big[self.ecc[b]]:
+            return ("H", self.ecc[b])
+        deg = len(self.adj[b])
+        if deg == 1:
+            return ("l", b)
+        if deg == 2:
+            return ("c", b, (h - m) if t == 0 else m)
+        return ("j", b, t) if m == 0 else ("j", b, "rich")
+
+    def _build_abstract(self, cid: int, h: int) -> _UnionFind:
+        uf = _UnionFind()
+        adj = self.adj
+        nc = self.comp_size[cid]
+        sub = self.sub_size
+        for a in self.comps[cid]:
+            nb = adj[a]
+            if self.big[self.ecc[a]]:
+                src: State = ("H", self.ecc[a])
+                for r in self.bridge_nbrs[a]:
+                    if self.big[self.ecc[r]]:
+                        uf.union(src, ("H", self.ecc[r]))
+                        continue
+                    size_r = self.side(a, r, sub, nc)
+                    t = adj[r].index(a)
+                    for k in range(max(0, h - (nc - size_r)), min(size_r - 1, h - 1) + 1):
+                        uf.union(src, self._arrive(r, t, k, h))
+                continue
+            sizes = [self.side(a, b, sub, nc) for b in nb]
+            if len(nb) == 1:
+                self._step(uf, ("l", a), a, 0, h, h)
+            elif len(nb) == 2:
+                for k0 in range(max(0, h - sizes[1]), min(sizes[0], h) + 1):
+                    s: State = ("c", a, k0)
+                    uf.find(s)
+                    if k0 >= 1:
+                        self._step(uf, s, a, 0, k0, h)
+                    if h - k0 >= 1:
+                        self._step(uf, s, a, 1, h - k0, h)
+            elif len(nb) >= 3:
+                rich: State = ("j", a, "rich")
+                for i, si in enumerate(sizes):
+                    if h >= 2:
+                        for k in range(max(1, h - (nc - 1 - si)), min(si, h - 1) + 1):
+                            self._step(uf, rich, a, i, k, h)
+                    if si >= h:
+                        self._step(uf, ("j", a, i), a, i, h, h)
+        return uf
+
+    def _step(self, uf: _UnionFind, src: State, a: int, i: int, k: int, h: int) -> None:
+        """Join ``src`` (pebble on a, k >= 1 holes beyond neighbour i) with the state
+        after it steps to that neighbour."""
+        b = self.adj[a][i]
+        uf.union(src, self._arrive(b, self.adj[b].index(a), k - 1, h))
+
+    # ------------------------------------------------------------------ per arrangement
+    def state(self, v: int, occupied: Sequence[bool], holes_sub: Sequence[int], h: int) -> State:
+        """Abstract state of the pebble on ``v`` in one arrangement."""
+        if self.big[self.ecc[v]]:
+            return ("H", self.ecc[v])
+        nb = self.adj[v]
+        if len(nb) <= 1:
+            return ("l", v)
+        total = h
+        side = [self.side(v, b, holes_sub, total) for b in nb]
+        if len(nb) == 2:
+            return ("c", v, side[0])
+        filled = [i for i, x in enumerate(side) if x > 0]
+        return ("j", v, filled[0]) if len(filled) == 1 else ("j", v, "rich")
+
+    def cycle_order(self, e: int) -> list[int]:
+        """The vertices of cycle-shaped 2ECC ``e`` in cyclic order."""
+        members = self.ecc_members[e]
+        start = members[0]
+        out = [start]
+        prev, cur = -1, start
+        while True:
+            nxt = [w for w in self.adj[cur] if self.ecc[w] == e and w != prev]
+            w = nxt[0]
+            if w == start:
+                return out
+            out.append(w)
+            prev, cur = cur, w
+
+    def odd_cactus(self, e: int) -> bool:
+        """Whether 2ECC ``e`` has only odd cycles (every block an odd cycle)."""
+        import networkx as nx
+
+        members = set(self.ecc_members[e])
+        g = nx.Graph()
+        for v in members:
+            for w in self.adj[v]:
+                if w in members and w not in self.bridge_nbrs[v]:
+                    g.add_edge(v, w)
+        for block in nx.biconnected_component_edges(g):
+            verts = {x for edge in block for x in edge}
+            if len(block) != len(verts) or len(verts) % 2 == 0:
+                return False
+        return True
+
+
+def _is_rotation(a: Sequence[Hashable], b: Sequence[Hashable]) -> bool:
+    """Whether sequence b is a cyclic rotation of sequence a (Knuth-Morris-Pratt)."""
+    if len(a) != len(b):
+        return False
+    if not a:
+        return True
+    pat = list(b)
+    fail = [0] * len(pat)
+    k = 0
+    for i in range(1, len(pat)):
+        while k and pat[i] != pat[k]:
+            k = fail[k - 1]
+        if pat[i] == pat[k]:
+            k += 1
+        fail[i] = k
+    k = 0
+    for x in list(a) + list(a)[:-1]:
+        while k and x != pat[k]:
+            k = fail[k - 1]
+        if x == pat[k]:
+            k += 1
+            if k == len(pat):
+                return True
+    return False
+
+
+def _parity(seq: Sequence[int]) -> int:
+    """Parity of the permutation that sorts ``seq`` (distinct items)."""
+    rank = {x: i for i, x in enumerate(sorted(seq))}
+    perm = [rank[x] for x in seq]
+    seen = [False] * len(perm)
+    parity = 0
+    for i in range(len(perm)):
+        if not seen[i]:
+            j, length = i, 0
+            while not seen[j]:
+                seen[j] = True
+                j = perm[j]
+                length += 1
+            parity ^= (length - 1) & 1
+    return parity
+
+
+def arrangement_violation(
+    graph: Graph,
+    starts: Sequence[int],
+    colours: Sequence[int],
+    targets: Sequence[int],
+    target_colours: Sequence[int],
+) -> Violation | None:
+    """Why no plan moves robots of ``colours`` from ``starts`` onto ``targets``, or None.
+
+    Robot i (on ``starts[i]``) may end on any target of its colour; every target is
+    taken. Labelled MAPF gives every robot its own colour. Exact on undirected graphs
+    for this project's move rules (see the module docstring); the caller checks that
+    every robot can reach a target of its colour in its component.
+
+    Example
+    -------
+    >>> g = Graph.grid(4, 1)  # a corridor: agents keep their order
+    >>> arrangement_violation(g, [0, 1], [0, 1], [3, 2], [0, 1]).kind
+    'class'
+    >>> arrangement_violation(g, [0, 1], [0, 1], [2, 3], [0, 1]) is None
+    True
+    """
+    s = PebbleStructure.of(graph)
+    n = graph.n
+    occ_s = [False] * n
+    occ_t = [False] * n
+    for v in starts:
+        occ_s[v] = True
+    for v in targets:
+        occ_t[v] = True
+    holes_s = s.subtree_holes(occ_s)
+    holes_t = s.subtree_holes(occ_t)
+    robots_in: dict[int, list[int]] = {}
+    for i, v in enumerate(starts):
+        robots_in.setdefault(s.comp[v], []).append(i)
+    targets_in: dict[int, list[int]] = {}
+    for j, v in enumerate(targets):
+        targets_in.setdefault(s.comp[v], []).append(j)
+    for cid in sorted(set(robots_in) | set(targets_in)):
+        robots = robots_in.get(cid, [])
+        tgts = targets_in.get(cid, [])
+        if len(robots) != len(tgts):
+            i = (robots or tgts)[0]
+            return Violation("class", starts[i] if robots else targets[i], None, i)
+        h = s.comp_size[cid] - len(robots)
+        if h == 0:
+            why = _full_component(s, cid, starts, colours, targets, target_colours, robots, tgts)
+            if why is not None:
+                return why
+            continue
+        uf = s.abstract_classes(cid, h)
+        have: dict[Hashable, Counter[int]] = {}
+        first: dict[tuple[Hashable, int], int] = {}
+        for i in robots:
+            key = uf.find(s.state(starts[i], occ_s, holes_s, h))
+            have.setdefault(key, Counter())[colours[i]] += 1
+            first.setdefault((key, colours[i]), i)
+        need: dict[Hashable, Counter[int]] = {}
+        for j in tgts:
+            key = uf.find(s.state(targets[j], occ_t, holes_t, h))
+            need.setdefault(key, Counter())[target_colours[j]] += 1
+        if have != need:
+            for key, cnt in have.items():
+                for col, c in cnt.items():
+                    if need.get(key, Counter())[col] < c:
+                        i = first[(key, col)]
+                        goal = next(
+                            (targets[j] for j in tgts if target_colours[j] == col), starts[i]
+                        )
+                        return Violation("class", starts[i], goal, i)
+            i = robots[0]  # pragma: no cover - equal totals make some count fall short
+            return Violation("class", starts[i], None, i)
+        if s.is_cycle_component[cid]:
+            order = s.cycle_order(s.ecc[s.comps[cid][0]])
+            why = _cyclic(order, starts, colours, targets, target_colours)
+            if why is not None:
+                return why
+    return None
+
+
+def _cyclic(
+    order: Sequence[int],
+    starts: Sequence[int],
+    colours: Sequence[int],
+    targets: Sequence[int],
+    target_colours: Sequence[int],
+) -> Violation | None:
+    at_s = {v: colours[i] for i, v in enumerate(starts)}
+    at_t = {v: target_colours[j] for j, v in enumerate(targets)}
+    seq_s = [at_s[v] for v in order if v in at_s]
+    seq_t = [at_t[v] for v in order if v in at_t]
+    if _is_rotation(seq_s, seq_t):
+        return None
+    return Violation("cyclic", order[0])
+
+
+def _full_component(
+    s: PebbleStructure,
+    cid: int,
+    starts: Sequence[int],
+    colours: Sequence[int],
+    targets: Sequence[int],
+    target_colours: Sequence[int],
+    robots: Sequence[int],
+    tgts: Sequence[int],
+) -> Violation | None:
+    """No empty vertex: only rotations along cycles, inside each 2ECC."""
+    at_s = {starts[i]: colours[i] for i in robots}
+    at_t = {targets[j]: target_colours[j] for j in tgts}
+    who = {starts[i]: i for i in robots}
+    for v in s.comps[cid]:
+        if not s.big[s.ecc[v]] and at_s[v] != at_t[v]:
+            return Violation("fixed", v, None, who[v])
+    done: set[int] = set()
+    for v in s.comps[cid]:
+        e = s.ecc[v]
+        if not s.big[e] or e in done:
+            continue
+        done.add(e)
+        members = s.ecc_members[e]
+        if Counter(at_s[x] for x in members) != Counter(at_t[x] for x in members):
+            x = next(x for x in members if at_s[x] not in {at_t[y] for y in members})
+            return Violation("class", x, None, who[x])
+        if s.ecc_is_cycle[e]:
+            order = s.cycle_order(e)
+            if not _is_rotation([at_s[x] for x in order], [at_t[x] for x in order]):
+                return Violation("cyclic", order[0])
+            continue
+        seq_s = [at_s[x] for x in members]
+        if len(set(seq_s)) == len(seq_s) and s.odd_cactus(e):
+            if _parity(seq_s) != _parity([at_t[x] for x in members]):
+                return Violation("parity", members[0])
+    return None
+
+
+def _min_rotation(seq: Sequence[int]) -> tuple[int, ...]:
+    if not seq:
+        return ()
+    return min(tuple(seq[i:]) + tuple(seq[:i]) for i in range(len(seq)))
+
+
+def arrangement_key(graph: Graph, positions: Sequence[int]) -> tuple:
+    """A key equal for two arrangements of labelled robots iff each reaches the other.
+
+    ``positions[i]`` is robot i's vertex. Quadratic in the worst case (cyclic keys);
+    meant for tests and small instances, :func:`arrangement_violation` is the fast test.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 1)
+    >>> arrangement_key(g, [0, 2]) == arrangement_key(g, [1, 2])
+    True
+    >>> arrangement_key(g, [0, 2]) == arrangement_key(g, [2, 0])
+    False
+    """
+    s = PebbleStructure.of(graph)
+    occ = [False] * graph.n
+    for v in positions:
+        occ[v] = True
+    holes = s.subtree_holes(occ)
+    at = {v: i for i, v in enumerate(positions)}
+    key: list[tuple] = []
+    for cid, members in enumerate(s.comps):
+        robots = [at[v] for v in members if v in at]
+        if not robots:
+            continue
+        h = len(members) - len(robots)
+        if h == 0:
+            for v in members:
+                if not s.big[s.ecc[v]]:
+                    key.append(("fixed", v, at[v]))
+            for e in sorted({s.ecc[v] for v in members if s.big[s.ecc[v]]}):
+                mem = s.ecc_members[e]
+                if s.ecc_is_cycle[e]:
+                    key.append(("ring", e, _min_rotation([at[x] for x in s.cycle_order(e)])))
+                else:
+                    labels = [at[x] for x in mem]
+                    par = _parity(labels) if s.odd_cactus(e) else None
+                    key.append(("room", e, frozenset(labels), par))
+            continue
+        uf = s.abstract_classes(cid, h)
+        for i in sorted(robots):
+            key.append(("class", i, uf.find(s.state(positions[i], occ, holes, h))))
+        if s.is_cycle_component[cid]:
+            order = s.cycle_order(s.ecc[members[0]])
+            key.append(("ring", cid, _min_rotation([at[v] for v in order if v in at])))
+    return tuple(key)
