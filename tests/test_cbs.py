@@ -286,12 +286,23 @@ def test_swap_in_corridor_infeasible():
         assert hierplan_opt.solve(inst, "cbs", objective=objective).status == Status.INFEASIBLE
 
 
-@pytest.mark.parametrize("objective", ["soc", "makespan"])
-def test_unprovable_unsolvable_stops_at_time_limit(objective):
-    # A T-shaped tree with three agents on its leaves cannot rotate them; no cheap
-    # check proves it, so the time limit must stop the search.
+def test_tree_rotation_proven_infeasible():
+    # A T-shaped tree with three agents on its leaves cannot rotate them: the exact
+    # pebble-motion test (core/pebble_motion.py) proves it at once.
     g = Graph.grid(3, 2, obstacles=[(0, 1), (2, 1)])
     inst = Instance.mapf(g, [(0, 0), (2, 0), (1, 1)], [(2, 0), (1, 1), (0, 0)])
+    assert brute_force(inst, "soc") is None
+    assert hierplan_opt.solve(inst, "cbs", time_limit=5.0).status == Status.INFEASIBLE
+
+
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+def test_unprovable_unsolvable_stops_at_time_limit(objective):
+    # A full one-way ring only rotates its agents; on directed roadmaps no check proves
+    # that a transposition is impossible, so the time limit must stop the search.
+    g = Graph.roadmap(
+        {"A": (0, 0), "B": (1, 0), "C": (0, 1)}, [("A", "B"), ("B", "C"), ("C", "A")], directed=True
+    )
+    inst = Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"])
     assert brute_force(inst, objective) is None
     t0 = time.perf_counter()
     r = hierplan_opt.solve(inst, "cbs", time_limit=0.5, objective=objective)

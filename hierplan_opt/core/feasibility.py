@@ -1,11 +1,17 @@
-"""Cheap checks that prove an instance has no plan.
+"""Checks that prove an instance has no plan, and a horizon that bounds every plan.
 
-Search solvers call :func:`quick_infeasibility` first, so they return INFEASIBLE at once
-instead of searching forever on instances these checks can decide.
+:func:`quick_infeasibility` is the front door's check, run once before any solver. On
+undirected graphs it is *exact* for MAPF and TAPF: it returns a reason exactly when no
+plan exists (:mod:`hierplan_opt.core.pebble_motion`, `docs/feasibility.md`). On directed
+roadmaps it runs only the necessary checks (reachability, shared goals, assignment).
+
+:func:`makespan_upper_bound` gives time-expanded formulations a finite horizon: a
+solvable instance always has a plan within it.
 """
 
 from __future__ import annotations
 
+import math
 from collections import Counter
 
 import numpy as np
@@ -13,13 +19,17 @@ from scipy.optimize import linear_sum_assignment
 
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.pebble_motion import PebbleStructure, Violation, arrangement_violation
 
 
 def quick_infeasibility(instance: Instance) -> str | None:
-    """A one-line reason why ``instance`` has no plan, or None if no check proves it.
+    """A one-line reason why ``instance`` has no plan, or None if it has one.
 
     Checks: a goal no agent path can reach; two agents with one goal; for teams, no
-    assignment of robots to targets in which every robot reaches its target.
+    assignment of robots to targets in which every robot reaches its target; then, on
+    undirected graphs, the exact pebble-motion test (agents that cannot pass each other,
+    rings that keep their cyclic order, full components that only rotate). None means
+    "a plan exists" on undirected graphs and "no check proves otherwise" on directed ones.
 
     Example
     -------
@@ -27,6 +37,9 @@ def quick_infeasibility(instance: Instance) -> str | None:
     >>> g = Graph.grid(3, 1, obstacles=[(1, 0)])
     >>> quick_infeasibility(Instance.mapf(g, [(0, 0)], [(2, 0)]))
     "agent 'agent0' cannot reach its goal [2, 0] from [0, 0]"
+    >>> corridor = Graph.grid(4, 1)
+    >>> quick_infeasibility(Instance.mapf(corridor, [(0, 0), (1, 0)], [(3, 0), (2, 0)]))
+    "agent 'agent0' cannot get from [0, 0] to its goal [3, 0]: it cannot pass the agents in its way (too few empty vertices to reorder them)"
     """
     g = instance.graph
 
@@ -44,16 +57,120 @@ def quick_infeasibility(instance: Instance) -> str | None:
             assert a.goal is not None
             if g.dist_to(a.goal)[a.start] >= UNREACHABLE:
                 return f"agent {a.name!r} cannot reach its goal {loc(a.goal)} from {loc(a.start)}"
-        return None
-    for team in instance.teams:
-        starts = [instance.agents[i].start for i in team.agents]
-        reach = np.array(
-            [[g.dist_to(t)[s] < UNREACHABLE for t in team.targets] for s in starts], dtype=bool
-        )
-        rows, cols = linear_sum_assignment(~reach)
-        if not reach[rows, cols].all():
-            return (
-                f"team {team.name!r}: no assignment lets every robot reach a target "
-                "(some targets are unreachable from enough starts)"
+    else:
+        for team in instance.teams:
+            starts = [instance.agents[i].start for i in team.agents]
+            reach = np.array(
+                [[g.dist_to(t)[s] < UNREACHABLE for t in team.targets] for s in starts],
+                dtype=bool,
             )
-    return None
+            rows, cols = linear_sum_assignment(~reach)
+            if not reach[rows, cols].all():
+                return (
+                    f"team {team.name!r}: no assignment lets every robot reach a target "
+                    "(some targets are unreachable from enough starts)"
+                )
+    if g.directed:
+        return None
+    why = _pebble_violation(instance)
+    return None if why is None else _describe(instance, why)
+
+
+def _colouring(instance: Instance) -> tuple[list[int], list[int], list[int], list[int]]:
+    """Starts, colours, targets and target colours (MAPF: one colour per agent)."""
+    starts = [a.start for a in instance.agents]
+    if not instance.is_tapf:
+        k = instance.num_agents
+        return starts, list(range(k)), [a.goal for a in instance.agents], list(range(k))  # type: ignore[misc]
+    colours = [a.team for a in instance.agents]
+    targets = [t for team in instance.teams for t in team.targets]
+    target_colours = [ti for ti, team in enumerate(instance.teams) for _ in team.targets]
+    return starts, colours, targets, target_colours  # type: ignore[return-value]
+
+
+def _pebble_violation(instance: Instance) -> Violation | None:
+    starts, colours, targets, target_colours = _colouring(instance)
+    return arrangement_violation(instance.graph, starts, colours, targets, target_colours)
+
+
+def _describe(instance: Instance, why: Violation) -> str:
+    g = instance.graph
+
+    def loc(v: int) -> str:
+        x = g.location(v)
+        return repr(x) if isinstance(x, str) else str(list(x))
+
+    agent = instance.agents[why.index] if why.index is not None else None
+    who = f"agent {agent.name!r}" if agent is not None else "an agent"
+    if agent is not None and instance.is_tapf and agent.team is not None:
+        who = f"robot {agent.name!r} of team {instance.teams[agent.team].name!r}"
+    if why.kind == "fixed":
+        return (
+            f"{who} at {loc(why.vertex)} can never move: its part of the map has no empty "
+            "vertex and no cycle passes through it, but its goal is elsewhere"
+        )
+    if why.kind == "cyclic":
+        return (
+            f"the agents on the ring through {loc(why.vertex)} keep their cyclic order "
+            "(a cycle without exits or empty vertices to reorder them), and the goals need another"
+        )
+    if why.kind == "parity":
+        return (
+            f"the agents filling the odd cycles through {loc(why.vertex)} can only be "
+            "permuted evenly (no empty vertex), and the goals need an odd permutation"
+        )
+    if instance.is_tapf:
+        return (
+            f"{who} at {loc(why.vertex)} cannot reach any target of its team: it cannot pass "
+            "the robots in its way (too few empty vertices to reorder them)"
+        )
+    goal = f" to its goal {loc(why.other)}" if why.other is not None else ""
+    return (
+        f"{who} cannot get from {loc(why.vertex)}{goal}: it cannot pass the agents in its "
+        "way (too few empty vertices to reorder them)"
+    )
+
+
+def makespan_upper_bound(instance: Instance) -> int:
+    """A horizon within which every *solvable* instance has a plan.
+
+    Always valid: the number of distinguishable joint configurations minus one (a
+    shortest plan never repeats a configuration). For one team (anonymous MAPF) on an
+    undirected graph, also the constructive bound sum over components of
+    ``|starts not targets| * (component size - 1)``: fill one missing target at a time by
+    moving the agents along a shortest path from it to the nearest surplus start, at most
+    ``size - 1`` single moves each. The smaller of the applicable bounds is returned.
+    A formulation that finds no plan with this makespan may answer INFEASIBLE.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(3, 1)
+    >>> makespan_upper_bound(Instance.mapf(g, [(0, 0), (1, 0)], [(1, 0), (2, 0)]))
+    5
+    >>> makespan_upper_bound(Instance.tapf(g, [([(0, 0), (1, 0)], [(1, 0), (2, 0)])]))
+    2
+    """
+    g = instance.graph
+    s = PebbleStructure.of(g)
+    colours = [a.team if instance.is_tapf else i for i, a in enumerate(instance.agents)]
+    by_comp: dict[int, Counter[int]] = {}
+    for a, c in zip(instance.agents, colours, strict=True):
+        # On directed roadmaps count the whole map: components of out-arcs are not closed.
+        cid = -1 if g.directed else s.comp[a.start]
+        by_comp.setdefault(cid, Counter())[c] += 1  # type: ignore[index]
+    configurations = 1
+    for cid, cnt in by_comp.items():
+        n = g.num_vertices if cid < 0 else s.comp_size[cid]
+        p = sum(cnt.values())
+        ways = math.perm(n, p)
+        for m in cnt.values():
+            ways //= math.factorial(m)
+        configurations *= ways
+    bound = configurations - 1
+    if instance.is_tapf and len(instance.teams) == 1 and not g.directed:
+        starts = {a.start for a in instance.agents}
+        targets = set(instance.teams[0].targets)
+        moves = sum(s.comp_size[s.comp[v]] - 1 for v in starts - targets)
+        bound = min(bound, moves)
+    return bound
