@@ -47,6 +47,16 @@ def quick_infeasibility(instance: Instance) -> str | None:
         x = g.location(v)
         return repr(x) if isinstance(x, str) else str(list(x))
 
+    if g.directed:
+
+        def reaches(s: int, t: int) -> bool:
+            return bool(g.dist_to(t)[s] < UNREACHABLE)
+    else:
+        comp = PebbleStructure.of(g).comp  # undirected: same component, no BFS per goal
+
+        def reaches(s: int, t: int) -> bool:
+            return comp[s] == comp[t]
+
     if not instance.is_tapf:
         counts = Counter(a.goal for a in instance.agents)
         for goal, c in counts.items():
@@ -55,15 +65,12 @@ def quick_infeasibility(instance: Instance) -> str | None:
                 return f"agents {', '.join(map(repr, who))} share the goal {loc(goal)}"  # type: ignore[arg-type]
         for a in instance.agents:
             assert a.goal is not None
-            if g.dist_to(a.goal)[a.start] >= UNREACHABLE:
+            if not reaches(a.start, a.goal):
                 return f"agent {a.name!r} cannot reach its goal {loc(a.goal)} from {loc(a.start)}"
     else:
         for team in instance.teams:
             starts = [instance.agents[i].start for i in team.agents]
-            reach = np.array(
-                [[g.dist_to(t)[s] < UNREACHABLE for t in team.targets] for s in starts],
-                dtype=bool,
-            )
+            reach = np.array([[reaches(s, t) for t in team.targets] for s in starts], dtype=bool)
             rows, cols = linear_sum_assignment(~reach)
             if not reach[rows, cols].all():
                 return (

@@ -100,122 +100,133 @@ class PebbleStructure:
         return s
 
     def __init__(self, graph: Graph) -> None:
+        import numpy as np
+        import scipy.sparse as sp
+        from scipy.sparse.csgraph import connected_components, depth_first_order
+
         adj = graph.adj
         n = graph.n
-        passable = graph.passable.tolist()
         self.adj = adj
         self.n = n
-        # Connected components.
-        comp = [-1] * n
-        comps: list[list[int]] = []
-        for s in range(n):
-            if not passable[s] or comp[s] >= 0:
-                continue
-            cid = len(comps)
-            comp[s] = cid
-            members = [s]
-            stack = [s]
-            while stack:
-                u = stack.pop()
-                for w in adj[u]:
-                    if comp[w] < 0:
-                        comp[w] = cid
-                        members.append(w)
-                        stack.append(w)
-            comps.append(members)
-        self.comp = comp
-        self.comps = comps
-        self.comp_size = [len(c) for c in comps]
-        self.comp_edges = [sum(len(adj[v]) for v in c) // 2 for c in comps]
+        indptr, indices = graph.indptr, graph.indices
+        passable = graph.passable
+        deg = np.diff(indptr)
+        rows = np.repeat(np.arange(n), deg)
+        mat = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
 
-        # Bridges by an iterative low-link DFS (simple graphs: skip the parent vertex once).
-        disc = [-1] * n
-        low = [0] * n
-        is_bridge_to: list[set[int]] = [set() for _ in range(n)]
-        timer = 0
-        for root in (c[0] for c in comps):
-            disc[root] = low[root] = timer
-            timer += 1
-            stack2: list[tuple[int, int, int]] = [(root, -1, 0)]
-            while stack2:
-                u, parent, i = stack2[-1]
-                if i < len(adj[u]):
-                    stack2[-1] = (u, parent, i + 1)
-                    w = adj[u][i]
-                    if w == parent:
-                        continue
-                    if disc[w] < 0:
-                        disc[w] = low[w] = timer
-                        timer += 1
-                        stack2.append((w, u, 0))
-                    elif disc[w] < low[u]:
-                        low[u] = disc[w]
-                else:
-                    stack2.pop()
-                    if parent >= 0:
-                        if low[u] < low[parent]:
-                            low[parent] = low[u]
-                        if low[u] > disc[parent]:
-                            is_bridge_to[u].add(parent)
-                            is_bridge_to[parent].add(u)
-        self.bridge_nbrs = is_bridge_to
+        # Connected components (blocked cells are isolated and get -1).
+        _, labels = connected_components(mat, directed=False)
+        comp = np.full(n, -1, dtype=np.int64)
+        free = np.flatnonzero(passable)
+        _, first, inv = np.unique(labels[free], return_index=True, return_inverse=True)
+        order_c = np.argsort(first, kind="stable")  # number components by first vertex
+        rank = np.empty_like(order_c)
+        rank[order_c] = np.arange(len(order_c))
+        comp[free] = rank[inv]
+        ncomp = len(order_c)
+        self.comp = comp.tolist()
+        self.comp_size = np.bincount(comp[free], minlength=ncomp).tolist()
+        members_sorted = free[np.argsort(comp[free], kind="stable")]
+        bounds = np.concatenate(([0], np.cumsum(self.comp_size)))
+        self.comps = [members_sorted[bounds[c] : bounds[c + 1]].tolist() for c in range(ncomp)]
 
-        # 2-edge-connected components: connectivity without bridges.
-        ecc = [-1] * n
-        ecc_members: list[list[int]] = []
-        for s in range(n):
-            if not passable[s] or ecc[s] >= 0:
-                continue
-            eid = len(ecc_members)
-            ecc[s] = eid
-            members = [s]
-            stack = [s]
-            while stack:
-                u = stack.pop()
-                for w in adj[u]:
-                    if ecc[w] < 0 and w not in is_bridge_to[u]:
-                        ecc[w] = eid
-                        members.append(w)
-                        stack.append(w)
-            ecc_members.append(members)
-        self.ecc = ecc
-        self.ecc_members = ecc_members
-        self.big = [len(m) >= 3 for m in ecc_members]
-        self.ecc_is_cycle = [
-            len(m) >= 3 and all(len(adj[v]) - len(is_bridge_to[v]) == 2 for v in m)
-            for m in ecc_members
-        ]
+        # Bridges: a DFS tree per component (C speed); low-link = the smallest preorder
+        # index reachable by one back edge from the subtree. Tree edge (parent, v) is a
+        # bridge iff no back edge leaves v's subtree upwards, i.e. low[v] == disc[v].
+        disc = np.zeros(n, dtype=np.int64)
+        parent = np.full(n, -1, dtype=np.int64)
+        preorder: list[np.ndarray] = []
+        offset = 0
+        for c in range(ncomp):
+            root = self.comps[c][0]
+            order, pred = depth_first_order(mat, root, directed=False, return_predecessors=True)
+            disc[order] = offset + np.arange(len(order))
+            parent[order] = pred[order]
+            parent[root] = -1
+            offset += len(order)
+            preorder.append(order)
+        nbr_disc = disc[indices].copy()
+        nbr_disc[indices == parent[rows]] = np.iinfo(np.int64).max
+        low = disc.copy()
+        has = deg > 0
+        if len(indices):
+            mins = np.minimum.reduceat(nbr_disc, indptr[:-1][has])
+            low[has] = np.minimum(low[has], mins)
+        low_l = low.tolist()
+        par_l = parent.tolist()
+        for order in preorder:
+            for v in order[::-1].tolist():
+                p = par_l[v]
+                if p >= 0 and low_l[v] < low_l[p]:
+                    low_l[p] = low_l[v]
+        low = np.array(low_l, dtype=np.int64)
+        is_br_child = (parent >= 0) & (low == disc)
+        bridge_nbrs: dict[int, set[int]] = {}
+        for v in np.flatnonzero(is_br_child).tolist():
+            p = par_l[v]
+            bridge_nbrs.setdefault(v, set()).add(p)
+            bridge_nbrs.setdefault(p, set()).add(v)
+        self._bridge_nbrs = bridge_nbrs
+
+        # 2-edge-connected components: components after deleting the bridges.
+        child_br = is_br_child[indices] & (parent[indices] == rows)
+        parent_br = is_br_child[rows] & (parent[rows] == indices)
+        keep = ~(child_br | parent_br)
+        mat2 = sp.csr_matrix(
+            (np.ones(int(keep.sum()), dtype=np.int8), (rows[keep], indices[keep])), shape=(n, n)
+        )
+        _, elabels = connected_components(mat2, directed=False)
+        ecc = np.full(n, -1, dtype=np.int64)
+        _, efirst, einv = np.unique(elabels[free], return_index=True, return_inverse=True)
+        ecc[free] = einv
+        m = len(efirst)
+        self.ecc = ecc.tolist()
+        esize = np.bincount(ecc[free], minlength=m)
+        emembers_sorted = free[np.argsort(ecc[free], kind="stable")]
+        ebounds = np.concatenate(([0], np.cumsum(esize)))
+        self.ecc_members = [emembers_sorted[ebounds[e] : ebounds[e + 1]].tolist() for e in range(m)]
+        self._ecc_array = ecc
+        self._free = free
+        self.big = (esize >= 3).tolist()
+        inner_deg = np.bincount(rows[keep], minlength=n)
+        not_two = np.bincount(ecc[free], weights=(inner_deg[free] != 2), minlength=m)
+        self.ecc_is_cycle = ((esize >= 3) & (not_two == 0)).tolist()
         self.is_cycle_component = [
-            len(ecc_members[ecc[c[0]]]) == len(c) and self.ecc_is_cycle[ecc[c[0]]] for c in comps
+            esize[self.ecc[c[0]]] == len(c) and self.ecc_is_cycle[self.ecc[c[0]]] for c in self.comps
         ]
 
         # Bridge tree, rooted at each component's first 2ECC; subtree sizes in vertices.
-        m = len(ecc_members)
         tparent = [-1] * m
-        order: list[int] = []
+        torder: list[int] = []
         seen = [False] * m
-        for c in comps:
-            r = ecc[c[0]]
+        ecc_l = self.ecc
+        tree_nbrs: dict[int, list[int]] = {}
+        for v, ws in bridge_nbrs.items():
+            tree_nbrs.setdefault(ecc_l[v], []).extend(ecc_l[w] for w in ws)
+        for c in self.comps:
+            r = ecc_l[c[0]]
             seen[r] = True
             stack = [r]
             while stack:
                 e = stack.pop()
-                order.append(e)
-                for v in ecc_members[e]:
-                    for w in is_bridge_to[v]:
-                        f = ecc[w]
-                        if not seen[f]:
-                            seen[f] = True
-                            tparent[f] = e
-                            stack.append(f)
+                torder.append(e)
+                for f in tree_nbrs.get(e, ()):
+                    if not seen[f]:
+                        seen[f] = True
+                        tparent[f] = e
+                        stack.append(f)
         self.tparent = tparent
-        self.order = order
-        sub = [len(mm) for mm in ecc_members]
-        for e in reversed(order):
+        self.order = torder
+        sub = esize.tolist()
+        for e in reversed(torder):
             if tparent[e] >= 0:
                 sub[tparent[e]] += sub[e]
         self.sub_size = sub
         self._abstract: dict[tuple[int, int], _UnionFind] = {}
+
+    def bridge_nbrs(self, v: int) -> set[int]:
+        """Neighbours of ``v`` across a bridge."""
+        return self._bridge_nbrs.get(v, set())
 
     # ------------------------------------------------------------------ sides of bridges
     def side(self, a: int, b: int, sub: Sequence[int], total: int) -> int:
@@ -227,14 +238,18 @@ class PebbleStructure:
 
     def subtree_holes(self, occupied: Sequence[bool]) -> list[int]:
         """Empty vertices in each bridge-tree subtree for one arrangement."""
-        holes = [0] * len(self.ecc_members)
-        for e, mm in enumerate(self.ecc_members):
-            holes[e] = sum(1 for v in mm if not occupied[v])
+        import numpy as np
+
+        empty = ~np.asarray(occupied, dtype=bool)[self._free]
+        holes = np.bincount(
+            self._ecc_array[self._free], weights=empty, minlength=len(self.ecc_members)
+        )
+        out = holes.astype(np.int64).tolist()
         tp = self.tparent
         for e in reversed(self.order):
             if tp[e] >= 0:
-                holes[tp[e]] += holes[e]
-        return holes
+                out[tp[e]] += out[e]
+        return out
 
     # ------------------------------------------------------------------ abstract graph
     def abstract_classes(self, cid: int, h: int) -> _UnionFind:
@@ -263,11 +278,12 @@ class PebbleStructure:
         adj = self.adj
         nc = self.comp_size[cid]
         sub = self.sub_size
-        for a in self.comps[cid]:
+        relevant = [a for a in self.comps[cid] if not self.big[self.ecc[a]] or a in self._bridge_nbrs]
+        for a in relevant:
             nb = adj[a]
             if self.big[self.ecc[a]]:
                 src: State = ("H", self.ecc[a])
-                for r in self.bridge_nbrs[a]:
+                for r in self.bridge_nbrs(a):
                     if self.big[self.ecc[r]]:
                         uf.union(src, ("H", self.ecc[r]))
                         continue
@@ -340,7 +356,7 @@ class PebbleStructure:
         g = nx.Graph()
         for v in members:
             for w in self.adj[v]:
-                if w in members and w not in self.bridge_nbrs[v]:
+                if w in members and w not in self.bridge_nbrs(v):
                     g.add_edge(v, w)
         for block in nx.biconnected_component_edges(g):
             verts = {x for edge in block for x in edge}
