@@ -238,7 +238,10 @@ def test_exact_on_named_shapes(name: str) -> None:
 
 # ------------------------------------------------------------------ teams (coloured agents)
 def coloured_feasible(
-    comp: dict[tuple[int, ...], int], start: tuple[int, ...], colours: list[int], targets: dict[int, int]
+    comp: dict[tuple[int, ...], int],
+    start: tuple[int, ...],
+    colours: list[int],
+    targets: dict[int, int],
 ) -> bool:
     """Brute force: some assignment of robots to targets of their colour is reachable."""
     k = len(start)
@@ -263,7 +266,9 @@ def test_teams_exact_against_brute_force(slow: bool) -> None:
                 goal = rng.sample(range(g.n), k)
                 targets = dict(zip(goal, colours, strict=True))
                 rng.shuffle(goal)
-                why = arrangement_violation(g, list(start), colours, goal, [targets[v] for v in goal])
+                why = arrangement_violation(
+                    g, list(start), colours, goal, [targets[v] for v in goal]
+                )
                 assert (why is None) == coloured_feasible(comp, start, colours, targets), (
                     name,
                     start,
@@ -281,7 +286,9 @@ def test_one_team_is_decided_by_counts_per_component() -> None:
 
 
 # ------------------------------------------------------------------ makespan upper bound
-def optimal_makespan(g: Graph, start: tuple[int, ...], goal_set: frozenset[int] | None, goal) -> int | None:
+def optimal_makespan(
+    g: Graph, start: tuple[int, ...], goal_set: frozenset[int] | None, goal
+) -> int | None:
     dist = distances_from(g.adj, start)
     if goal_set is None:
         return dist.get(goal)

@@ -192,7 +192,8 @@ class PebbleStructure:
         not_two = np.bincount(ecc[free], weights=(inner_deg[free] != 2), minlength=m)
         self.ecc_is_cycle = ((esize >= 3) & (not_two == 0)).tolist()
         self.is_cycle_component = [
-            esize[self.ecc[c[0]]] == len(c) and self.ecc_is_cycle[self.ecc[c[0]]] for c in self.comps
+            esize[self.ecc[c[0]]] == len(c) and self.ecc_is_cycle[self.ecc[c[0]]]
+            for c in self.comps
         ]
 
         # Bridge tree, rooted at each component's first 2ECC; subtree sizes in vertices.
@@ -278,7 +279,9 @@ class PebbleStructure:
         adj = self.adj
         nc = self.comp_size[cid]
         sub = self.sub_size
-        relevant = [a for a in self.comps[cid] if not self.big[self.ecc[a]] or a in self._bridge_nbrs]
+        relevant = [
+            a for a in self.comps[cid] if not self.big[self.ecc[a]] or a in self._bridge_nbrs
+        ]
         for a in relevant:
             nb = adj[a]
             if self.big[self.ecc[a]]:
@@ -537,9 +540,9 @@ def _full_component(
                 return Violation("cyclic", order[0])
             continue
         seq_s = [at_s[x] for x in members]
-        if len(set(seq_s)) == len(seq_s) and s.odd_cactus(e):
-            if _parity(seq_s) != _parity([at_t[x] for x in members]):
-                return Violation("parity", members[0])
+        distinct = len(set(seq_s)) == len(seq_s)
+        if distinct and s.odd_cactus(e) and _parity(seq_s) != _parity([at_t[x] for x in members]):
+            return Violation("parity", members[0])
     return None
 
 
