@@ -119,8 +119,8 @@ def _describe(instance: Instance, why: Violation) -> str:
         )
     if why.kind == "cyclic":
         return (
-            f"the agents on the ring through {loc(why.vertex)} keep their cyclic order "
-            "(a cycle without exits or empty vertices to reorder them), and the goals need another"
+            f"the agents on the cycle through {loc(why.vertex)} can only rotate along it "
+            "(they cannot pass each other there), and their goals need another cyclic order"
         )
     if why.kind == "parity":
         return (

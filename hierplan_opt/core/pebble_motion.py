@@ -75,6 +75,71 @@ class Violation:
     index: int | None = None
 
 
+def _samples(lo: int, hi: int, *special: int) -> list[int]:
+    """Values of [lo, hi] that meet every case of a state that depends on k only
+    through "k == special" tests: both ends, the special values, and a generic one."""
+    if lo > hi:
+        return []
+    out = {lo, hi, *(x for x in special if lo <= x <= hi)}
+    out.update(x for x in range(lo, min(hi, lo + len(special) + 2) + 1))
+    return sorted(out)
+
+
+@dataclass(frozen=True)
+class _Chain:
+    """A maximal path of degree-2 tree vertices, from end A to end B.
+
+    ``toward_a[i]`` is the neighbour of ``verts[i]`` on the A side; ``size_a[i]`` the
+    number of vertices on that side. A marked pebble inside keeps its *track* c, the
+    number of other pebbles on its A side, until it leaves the chain.
+    """
+
+    verts: list[int]
+    toward_a: list[int]
+    end_a: int
+    t_a: int
+    end_b: int
+    t_b: int
+    size_a: list[int]
+    n: int
+
+
+class _Classes:
+    """The classes of one component with h holes: union-find over non-chain states
+    plus, per chain, which end(s) each track can leave by."""
+
+    def __init__(
+        self,
+        structure: PebbleStructure,
+        uf: _UnionFind,
+        chains: list[_Chain],
+        exits: list[tuple[tuple[int, int, int], tuple[int, int, int]]],
+        p: int,
+        h: int,
+    ) -> None:
+        self.s, self.uf, self.chains, self.exits, self.p, self.h = (
+            structure,
+            uf,
+            chains,
+            exits,
+            p,
+            h,
+        )
+
+    def of(self, state: State) -> Hashable:
+        """The class of a state (a canonical representative)."""
+        if state[0] != "t":
+            return self.uf.find(state)
+        _, k, c = state
+        ch = self.chains[k]
+        (alo, ahi, _), (blo, bhi, _) = self.exits[k]
+        if alo <= c <= ahi:
+            return self.uf.find(self.s._exit_state(ch, 0, c, self.p, self.h))
+        if blo <= c <= bhi:
+            return self.uf.find(self.s._exit_state(ch, -1, c, self.p, self.h))
+        return state  # a track that can leave neither way: agents there never reorder
+
+
 class PebbleStructure:
     """Bridges, 2-edge-connected components and the bridge tree of an undirected graph.
 
@@ -128,7 +193,8 @@ class PebbleStructure:
         self.comp_size = np.bincount(comp[free], minlength=ncomp).tolist()
         members_sorted = free[np.argsort(comp[free], kind="stable")]
         bounds = np.concatenate(([0], np.cumsum(self.comp_size)))
-        self.comps = [members_sorted[bounds[c] : bounds[c + 1]].tolist() for c in range(ncomp)]
+        ms, bs = members_sorted.tolist(), bounds.tolist()
+        self.comps = [ms[bs[c] : bs[c + 1]] for c in range(ncomp)]
 
         # Bridges: a DFS tree per component (C speed); low-link = the smallest preorder
         # index reachable by one back edge from the subtree. Tree edge (parent, v) is a
@@ -184,7 +250,8 @@ class PebbleStructure:
         esize = np.bincount(ecc[free], minlength=m)
         emembers_sorted = free[np.argsort(ecc[free], kind="stable")]
         ebounds = np.concatenate(([0], np.cumsum(esize)))
-        self.ecc_members = [emembers_sorted[ebounds[e] : ebounds[e + 1]].tolist() for e in range(m)]
+        em, eb = emembers_sorted.tolist(), ebounds.tolist()
+        self.ecc_members = [em[eb[e] : eb[e + 1]] for e in range(m)]
         self._ecc_array = ecc
         self._free = free
         self.big = (esize >= 3).tolist()
@@ -223,7 +290,9 @@ class PebbleStructure:
             if tparent[e] >= 0:
                 sub[tparent[e]] += sub[e]
         self.sub_size = sub
-        self._abstract: dict[tuple[int, int], _UnionFind] = {}
+        self._abstract: dict[tuple[int, int], _Classes] = {}
+        self._chains: dict[int, list[_Chain]] = {}
+        self._chain_at: dict[int, tuple[int, int]] = {}
 
     def bridge_nbrs(self, v: int) -> set[int]:
         """Neighbours of ``v`` across a bridge."""
@@ -253,34 +322,76 @@ class PebbleStructure:
         return out
 
     # ------------------------------------------------------------------ abstract graph
-    def abstract_classes(self, cid: int, h: int) -> _UnionFind:
-        """Components of the marked-pebble state graph of component ``cid`` with h holes."""
+    def abstract_classes(self, cid: int, h: int) -> _Classes:
+        """Classes of the marked-pebble state graph of component ``cid`` with h holes."""
         key = (cid, h)
-        uf = self._abstract.get(key)
-        if uf is None:
-            uf = self._build_abstract(cid, h)
-            self._abstract[key] = uf
-        return uf
+        classes = self._abstract.get(key)
+        if classes is None:
+            classes = self._build_abstract(cid, h)
+            self._abstract[key] = classes
+        return classes
+
+    def _is_corridor(self, v: int) -> bool:
+        return not self.big[self.ecc[v]] and len(self.adj[v]) == 2
+
+    def _chains_of(self, cid: int) -> list[_Chain]:
+        """Maximal paths of degree-2 tree vertices of component ``cid`` (h-independent)."""
+        chains = self._chains.get(cid)
+        if chains is not None:
+            return chains
+        chains = []
+        nc = self.comp_size[cid]
+        for v in self.comps[cid]:
+            if not self._is_corridor(v) or v in self._chain_at:
+                continue
+            ends: list[tuple[list[int], int]] = []
+            for first in self.adj[v]:  # walk to both ends
+                path: list[int] = []
+                prev, cur = v, first
+                while self._is_corridor(cur):
+                    path.append(cur)
+                    prev, cur = cur, next(w for w in self.adj[cur] if w != prev)
+                ends.append((path, cur))
+            (path_a, end_a), (path_b, end_b) = ends
+            verts = [*reversed(path_a), v, *path_b]
+            toward_a = [end_a, *verts[:-1]]
+            chain = _Chain(
+                verts=verts,
+                toward_a=toward_a,
+                end_a=end_a,
+                t_a=self.adj[end_a].index(verts[0]),
+                end_b=end_b,
+                t_b=self.adj[end_b].index(verts[-1]),
+                size_a=[self.side(x, y, self.sub_size, nc) for x, y in zip(verts, toward_a)],
+                n=nc,
+            )
+            for i, x in enumerate(verts):
+                self._chain_at[x] = (len(chains), i)
+            chains.append(chain)
+        self._chains[cid] = chains
+        return chains
 
     def _arrive(self, b: int, t: int, m: int, h: int) -> State:
-        """State of a pebble that enters b from its neighbour index t, with m holes in
-        b's other branches (so h - m on the side it came from)."""
+        """State of a pebble that enters b (not a corridor vertex) from its neighbour
+        index t, with m holes in b's other branches (so h - m on the side it came from)."""
         if self.big[self.ecc[b]]:
             return ("H", self.ecc[b])
-        deg = len(self.adj[b])
-        if deg == 1:
+        if len(self.adj[b]) == 1:
             return ("l", b)
-        if deg == 2:
-            return ("c", b, (h - m) if t == 0 else m)
         return ("j", b, t) if m == 0 else ("j", b, "rich")
 
-    def _build_abstract(self, cid: int, h: int) -> _UnionFind:
+    def _build_abstract(self, cid: int, h: int) -> _Classes:
         uf = _UnionFind()
         adj = self.adj
         nc = self.comp_size[cid]
         sub = self.sub_size
+        # Moves into or out of corridor vertices are the chains' business (below); the
+        # loops over hole counts k only need the values where the target state changes
+        # (m = k - 1 = 0 or not), so each enumeration looks at <= 3 values of k.
         relevant = [
-            a for a in self.comps[cid] if not self.big[self.ecc[a]] or a in self._bridge_nbrs
+            a
+            for a in self.comps[cid]
+            if (a in self._bridge_nbrs if self.big[self.ecc[a]] else len(adj[a]) != 2)
         ]
         for a in relevant:
             nb = adj[a]
@@ -289,36 +400,60 @@ class PebbleStructure:
                 for r in self.bridge_nbrs(a):
                     if self.big[self.ecc[r]]:
                         uf.union(src, ("H", self.ecc[r]))
-                        continue
-                    size_r = self.side(a, r, sub, nc)
-                    t = adj[r].index(a)
-                    for k in range(max(0, h - (nc - size_r)), min(size_r - 1, h - 1) + 1):
-                        uf.union(src, self._arrive(r, t, k, h))
+                    elif not self._is_corridor(r):
+                        size_r = self.side(a, r, sub, nc)
+                        t = adj[r].index(a)
+                        lo, hi = max(0, h - (nc - size_r)), min(size_r - 1, h - 1)
+                        for m in _samples(lo, hi):
+                            uf.union(src, self._arrive(r, t, m, h))
+                continue
+            if len(nb) == 1:
+                if not self._is_corridor(nb[0]):
+                    self._step(uf, ("l", a), a, 0, h, h)
                 continue
             sizes = [self.side(a, b, sub, nc) for b in nb]
-            if len(nb) == 1:
-                self._step(uf, ("l", a), a, 0, h, h)
-            elif len(nb) == 2:
-                for k0 in range(max(0, h - sizes[1]), min(sizes[0], h) + 1):
-                    s: State = ("c", a, k0)
-                    uf.find(s)
-                    if k0 >= 1:
-                        self._step(uf, s, a, 0, k0, h)
-                    if h - k0 >= 1:
-                        self._step(uf, s, a, 1, h - k0, h)
-            elif len(nb) >= 3:
-                rich: State = ("j", a, "rich")
-                for i, si in enumerate(sizes):
-                    if h >= 2:
-                        for k in range(max(1, h - (nc - 1 - si)), min(si, h - 1) + 1):
-                            self._step(uf, rich, a, i, k, h)
-                    if si >= h:
-                        self._step(uf, ("j", a, i), a, i, h, h)
-        return uf
+            rich: State = ("j", a, "rich")
+            for i, si in enumerate(sizes):
+                if self._is_corridor(nb[i]):
+                    continue
+                if h >= 2:
+                    for k in _samples(max(1, h - (nc - 1 - si)), min(si, h - 1)):
+                        self._step(uf, rich, a, i, k, h)
+                if si >= h:
+                    self._step(uf, ("j", a, i), a, i, h, h)
+        chains = self._chains_of(cid)
+        p = nc - h
+        exits: list[tuple[tuple[int, int, int], tuple[int, int, int]]] = []
+        for ch in chains:
+            exit_a = self._chain_exit(ch, True, p, h)
+            exit_b = self._chain_exit(ch, False, p, h)
+            exits.append((exit_a, exit_b))
+            lo, hi = max(exit_a[0], exit_b[0]), min(exit_a[1], exit_b[1])
+            for c in _samples(lo, hi, exit_a[2], exit_b[2]):
+                uf.union(self._exit_state(ch, 0, c, p, h), self._exit_state(ch, -1, c, p, h))
+        return _Classes(self, uf, chains, exits, p, h)
+
+    def _chain_exit(self, ch: _Chain, at_a: bool, p: int, h: int) -> tuple[int, int, int]:
+        """Tracks c (agents on the A side) that can leave the chain at end A (or B):
+        the range [lo, hi] and the one track whose arrival leaves no hole behind."""
+        sa = ch.size_a[0 if at_a else -1]
+        sb = ch.n - 1 - sa
+        lo, hi = max(0, sa - h, p - 1 - sb), min(sa, p - 1)
+        if at_a:  # towards A: needs a hole on the A side
+            return lo, min(hi, sa - 1), sa - 1
+        return max(lo, p - sb), hi, p - sb  # towards B: needs a hole on the B side
+
+    def _exit_state(self, ch: _Chain, end: int, c: int, p: int, h: int) -> State:
+        if end == 0:
+            holes = ch.size_a[0] - c  # on the A side, one of them is end_a itself
+            return self._arrive(ch.end_a, ch.t_a, holes - 1, h)
+        sb = ch.n - 1 - ch.size_a[-1]
+        holes = sb - (p - 1 - c)
+        return self._arrive(ch.end_b, ch.t_b, holes - 1, h)
 
     def _step(self, uf: _UnionFind, src: State, a: int, i: int, k: int, h: int) -> None:
         """Join ``src`` (pebble on a, k >= 1 holes beyond neighbour i) with the state
-        after it steps to that neighbour."""
+        after it steps to that neighbour (never a corridor vertex)."""
         b = self.adj[a][i]
         uf.union(src, self._arrive(b, self.adj[b].index(a), k - 1, h))
 
@@ -330,10 +465,13 @@ class PebbleStructure:
         nb = self.adj[v]
         if len(nb) <= 1:
             return ("l", v)
-        total = h
-        side = [self.side(v, b, holes_sub, total) for b in nb]
         if len(nb) == 2:
-            return ("c", v, side[0])
+            self._chains_of(self.comp[v])
+            k, i = self._chain_at[v]
+            x = self._chains[self.comp[v]][k]
+            holes_a = self.side(v, x.toward_a[i], holes_sub, h)
+            return ("t", k, x.size_a[i] - holes_a)  # track: agents on the A side
+        side = [self.side(v, b, holes_sub, h) for b in nb]
         filled = [i for i, x in enumerate(side) if x > 0]
         return ("j", v, filled[0]) if len(filled) == 1 else ("j", v, "rich")
 
@@ -465,12 +603,12 @@ def arrangement_violation(
         have: dict[Hashable, Counter[int]] = {}
         first: dict[tuple[Hashable, int], int] = {}
         for i in robots:
-            key = uf.find(s.state(starts[i], occ_s, holes_s, h))
+            key = uf.of(s.state(starts[i], occ_s, holes_s, h))
             have.setdefault(key, Counter())[colours[i]] += 1
             first.setdefault((key, colours[i]), i)
         need: dict[Hashable, Counter[int]] = {}
         for j in tgts:
-            key = uf.find(s.state(targets[j], occ_t, holes_t, h))
+            key = uf.of(s.state(targets[j], occ_t, holes_t, h))
             need.setdefault(key, Counter())[target_colours[j]] += 1
         if have != need:
             for key, cnt in have.items():
@@ -593,7 +731,7 @@ def arrangement_key(graph: Graph, positions: Sequence[int]) -> tuple:
             continue
         uf = s.abstract_classes(cid, h)
         for i in sorted(robots):
-            key.append(("class", i, uf.find(s.state(positions[i], occ, holes, h))))
+            key.append(("class", i, uf.of(s.state(positions[i], occ, holes, h))))
         if s.is_cycle_component[cid]:
             order = s.cycle_order(s.ecc[members[0]])
             key.append(("ring", cid, _min_rotation([at[v] for v in order if v in at])))
