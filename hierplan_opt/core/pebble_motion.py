@@ -362,7 +362,9 @@ class PebbleStructure:
                 t_a=self.adj[end_a].index(verts[0]),
                 end_b=end_b,
                 t_b=self.adj[end_b].index(verts[-1]),
-                size_a=[self.side(x, y, self.sub_size, nc) for x, y in zip(verts, toward_a)],
+                size_a=[
+                    self.side(x, y, self.sub_size, nc) for x, y in zip(verts, toward_a, strict=True)
+                ],
                 n=nc,
             )
             for i, x in enumerate(verts):
