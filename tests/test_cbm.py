@@ -168,16 +168,26 @@ def test_tapf_validation_each_target_once() -> None:
     assert "wrong_start" in kinds and "wrong_goal" in kinds
 
 
-def test_two_teams_must_pass_time_limit() -> None:
-    # A corridor: two teams must pass each other, which is impossible. CBM cannot prove
-    # it (CBS-style search) and must stop at the time limit with a lower bound.
+def test_two_teams_must_pass_proven_infeasible() -> None:
+    # A corridor: two teams must pass each other, which is impossible; the exact
+    # pebble-motion test (core/pebble_motion.py) proves it before any search.
     g = Graph.grid(4, 1)
     inst = Instance.tapf(g, [([(0, 0)], [(3, 0)]), ([(3, 0)], [(0, 0)])])
+    r = hp.solve(inst, "cbm", time_limit=5.0)
+    assert r.status == Status.INFEASIBLE and "cannot pass" in r.stats["reason"]
+
+
+def test_two_teams_must_pass_time_limit() -> None:
+    # A full one-way ring only rotates its robots; on directed roadmaps no check proves
+    # that two teams cannot trade places, so CBM must stop at the time limit.
+    ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
+    g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
+    inst = Instance.tapf(g, [(["A", "B"], ["A", "C"]), (["C", "D"], ["B", "D"])])
     t0 = time.perf_counter()
     r = hp.solve(inst, "cbm", time_limit=1.0)
     assert time.perf_counter() - t0 < 3.0
     assert r.status == Status.TIME_LIMIT and r.plan is None
-    assert r.lower_bound >= 3
+    assert r.lower_bound >= 1
 
 
 def test_infeasible_detected() -> None:

@@ -195,6 +195,11 @@ def test_messages_name_the_case() -> None:
     assert "permuted evenly" in (quick_infeasibility(odd) or "")
     even = Instance.mapf(bowtie, ["0", "1", "2", "3", "4"], ["1", "2", "0", "3", "4"])
     assert quick_infeasibility(even) is None
+    # Two full triangles joined by a bridge: robots never cross it, so team counts per
+    # triangle must already be right.
+    dumbbell = as_graph(cycles_at(3, 3, bridge=1))  # triangles {0,1,2}, {3,4,5}; bridge 0-3
+    teams = [(["0", "2", "4"], ["0", "4", "5"]), (["3", "1", "5"], ["2", "3", "1"])]
+    assert "cannot reach any target" in (quick_infeasibility(Instance.tapf(dumbbell, teams)) or "")
 
 
 def test_directed_graphs_keep_the_necessary_checks_only() -> None:

@@ -671,8 +671,9 @@ def _full_component(
             continue
         done.add(e)
         members = s.ecc_members[e]
-        if Counter(at_s[x] for x in members) != Counter(at_t[x] for x in members):
-            x = next(x for x in members if at_s[x] not in {at_t[y] for y in members})
+        have, need = Counter(at_s[x] for x in members), Counter(at_t[x] for x in members)
+        if have != need:  # agents never leave a full 2ECC
+            x = next(x for x in members if have[at_s[x]] > need[at_s[x]])
             return Violation("class", x, None, who[x])
         if s.ecc_is_cycle[e]:
             order = s.cycle_order(e)
