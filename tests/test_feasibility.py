@@ -166,7 +166,7 @@ def test_reproducer_3x3_grid_three_agents() -> None:
     why = quick_infeasibility(inst)
     assert time.perf_counter() - t0 < 1.0  # milliseconds in practice; generous for CI
     assert why is not None and "cyclic order" in why
-    for solver in ("cbs", "ecbs", "cpsat"):
+    for solver in ("cbs", "ecbs", "eecbs", "cbm", "cpsat", "mip"):
         r = hierplan_opt.solve(inst, solver, time_limit=5.0)
         assert r.status == Status.INFEASIBLE, solver
     # The same cells with the cyclic order kept are solvable, and the test says so.
