@@ -32,7 +32,7 @@ def plus_schedule(**kw):  # noqa: ANN003, ANN201
 
 @pytest.mark.parametrize("ext", [".yaml", ".json", ".csv"])
 def test_round_trip(tmp_path: Path, ext: str) -> None:
-    s = plus_schedule(delta=0.25)
+    s = plus_schedule(margin=0.25)
     path = write_schedule(s, tmp_path / f"s{ext}")
     data = read_schedule(path)
     assert data["statistics"]["makespan"] == pytest.approx(s.makespan)
@@ -48,26 +48,30 @@ def test_round_trip(tmp_path: Path, ext: str) -> None:
 
 
 def test_yaml_layout(tmp_path: Path) -> None:
-    s = plus_schedule(delta=0.25)
+    s = plus_schedule(margin=0.25)
     data = yaml.safe_load(write_schedule(s, tmp_path / "s.yaml").read_text())
     assert list(data) == ["statistics", "schedule"]
     assert list(data["schedule"]) == ["agent0", "agent1"]
     assert list(data["schedule"]["agent0"][0]) == ["x", "y", "theta", "arrival"]
     for key in ("makespan", "safety_distance", "objective", "method", "tpg_nodes", "stn_arcs"):
         assert key in data["statistics"]
+    assert data["statistics"]["margin"] == 0.25
+    assert data["statistics"]["clearance"] == [
+        {"types": ["pioneer", "youbot"], "required": 0.25, "guaranteed": True}
+    ]
     json.dumps(data)  # plain values only
 
 
 def test_3d_schedule_has_z(tmp_path: Path) -> None:
     g = Graph.grid(2, 1, 2)
     inst = Instance.mapf(g, [(0, 0, 0)], [(1, 0, 1)])
-    s = postprocess(inst, Plan.from_paths([[0, 1, 3]]), delta=0.25)
+    s = postprocess(inst, Plan.from_paths([[0, 1, 3]]), margin=0.25)
     rows = read_schedule(write_schedule(s, tmp_path / "s.yaml"))["schedule"]["agent0"]
     assert rows[-1]["z"] == 1 and rows[-1]["arrival"] == 2
 
 
 def test_dot_node_count() -> None:
-    s = plus_schedule(delta=0.25)
+    s = plus_schedule(margin=0.25)
     text = to_dot(s.stn, s)
     assert text.startswith("digraph STN {") and text.rstrip().endswith("}")
     nodes = re.findall(r"^\s+n\d+ \[label=", text, flags=re.M)
@@ -79,7 +83,7 @@ def test_dot_node_count() -> None:
 
 
 def test_gantt_png(tmp_path: Path) -> None:
-    s = plus_schedule(delta=0.25)
+    s = plus_schedule(margin=0.25)
     out = tmp_path / "g.png"
     plot_gantt(s, out)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -118,7 +122,7 @@ def test_cli_post(tmp_path: Path, capsys: pytest.CaptureFixture[str], objective:
     out, dot, png = tmp_path / "s.yaml", tmp_path / "s.dot", tmp_path / "g.png"
     code = main(
         [
-            "post", inst, plan, "--objective", objective, "--delta", "0.2",
+            "post", inst, plan, "--objective", objective, "--margin", "0.2",
             "--out", str(out), "--dot", str(dot), "--gantt", str(png), "--check",
         ]
     )  # fmt: skip
@@ -136,9 +140,10 @@ def test_cli_post(tmp_path: Path, capsys: pytest.CaptureFixture[str], objective:
 def test_cli_post_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     inst, plan = _files(tmp_path)
     out = str(tmp_path / "s.yaml")
-    code = main(["post", inst, plan, "--delta", "0.7", "--out", out])
+    with pytest.raises(SystemExit) as exc:
+        main(["post", inst, plan, "--margin", "-1", "--out", out])
     err = capsys.readouterr().err
-    assert code == 2 and "delta = 0.7 is too large" in err and len(err.strip().splitlines()) == 1
+    assert exc.value.code == 2 and "--margin" in err and len(err.strip().splitlines()) == 1
     code = main(["post", inst, plan, "--objective", "safety", "--method", "graph", "--out", out])
     err = capsys.readouterr().err
     assert code == 2 and "needs method='lp'" in err
@@ -149,18 +154,61 @@ def test_cli_post_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert code == 2 and "error:" in err and "Traceback" not in err
 
 
+def test_cli_post_clearance(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    inst, plan = _files(tmp_path)
+    out = tmp_path / "s.yaml"
+    assert main(["post", inst, plan, "--out", str(out), "--check"]) == 0
+    line = capsys.readouterr().out
+    assert "clearance pioneer/youbot 0.55 m guaranteed" in line and "(ok)" in line
+    assert main(["post", inst, plan, "--no-clearance", "--out", str(out)]) == 0
+    assert "pioneer/youbot 0.55 m NOT guaranteed" in capsys.readouterr().out
+    data = yaml.safe_load(out.read_text())
+    assert data["statistics"]["clearance"][0]["guaranteed"] is False
+
+
+def test_cli_post_refuses_a_rotation_with_clearance(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "ring.yaml").write_text(
+        "graph: {type: grid, dimensions: [2, 2]}\n"
+        "robot_types: {r: {drive: omni, v_max: 1.0, radius: 0.2}}\n"
+        "agents:\n"
+        "  - {name: a, start: [0, 0], goal: [1, 0], type: r}\n"
+        "  - {name: b, start: [1, 0], goal: [1, 1], type: r}\n"
+        "  - {name: c, start: [1, 1], goal: [0, 1], type: r}\n"
+        "  - {name: d, start: [0, 1], goal: [0, 0], type: r}\n"
+    )
+    (tmp_path / "ring-plan.yaml").write_text(
+        "schedule:\n"
+        "  a: [{x: 0, y: 0, t: 0}, {x: 1, y: 0, t: 1}]\n"
+        "  b: [{x: 1, y: 0, t: 0}, {x: 1, y: 1, t: 1}]\n"
+        "  c: [{x: 1, y: 1, t: 0}, {x: 0, y: 1, t: 1}]\n"
+        "  d: [{x: 0, y: 1, t: 0}, {x: 0, y: 0, t: 1}]\n"
+    )
+    out = tmp_path / "s.yaml"
+    args = ["post", str(tmp_path / "ring.yaml"), str(tmp_path / "ring-plan.yaml")]
+    code = main([*args, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert "robots of type r 0.4 m apart" in err and "cells of 1 m" in err and "rotate" in err
+    assert not out.exists()
+    assert main([*args, "--no-clearance", "--out", str(out)]) == 0  # point robots: fine
+
+
 def test_bench_post_smoke(capsys: pytest.CaptureFixture[str]) -> None:
     root = Path(__file__).resolve().parents[1] / "instances" / "movingai"
     code = main(
         [
             "bench", "post", "--map", str(root / "empty-8-8.map"),
             "--scen", str(root / "empty-8-8-even-1.scen"), "--agents", "4,8",
-            "--repeats", "1", "--planner", "prioritized", "--pyomo-max", "4",
+            "--repeats", "1", "--planner", "prioritized", "--pyomo-max", "4", "--fleet", "6",
         ]
     )  # fmt: skip
     out = capsys.readouterr().out
     assert code == 0
     rows = [ln.split() for ln in out.splitlines() if ln.strip()[:1].isdigit()]
     assert [r[0] for r in rows] == ["4", "8"]
+    fleet = [ln for ln in out.splitlines() if ln.startswith("fleet 6 robots")]
+    assert len(fleet) == 1 and "replay ok" in fleet[0]
     for r in rows:
         assert float(r[-3]) == pytest.approx(float(r[-2]))  # graph makespan == LP makespan

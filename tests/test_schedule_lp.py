@@ -69,7 +69,7 @@ def test_enough_cases() -> None:
 @pytest.mark.parametrize("backend", ["pyomo", "highs"])
 def test_lp_makespan_equals_graph(case: int, backend: str) -> None:
     inst, plan = CASES[case]
-    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    stn = build_stn(inst, build_tpg(inst, plan, margin=0.2))
     g = solve_graph(stn)
     lp = solve_lp(stn, "makespan", backend=backend)
     assert lp.makespan == pytest.approx(g.makespan, rel=1e-7, abs=1e-7)
@@ -82,7 +82,7 @@ def test_lp_makespan_equals_graph(case: int, backend: str) -> None:
 
 def test_pyomo_and_highs_agree_on_safety() -> None:
     inst, plan = CASES[0]
-    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    stn = build_stn(inst, build_tpg(inst, plan, margin=0.2))
     a = solve_lp(stn, "safety", backend="pyomo")
     b = solve_lp(stn, "safety", backend="highs")
     r_pyomo, r_highs = a.R, b.R
@@ -98,15 +98,20 @@ def _slowest_piece_speed(s) -> float:  # noqa: ANN001
 
 
 @pytest.mark.parametrize("case", range(len(CASES)))
-def test_safety_distance_holds_in_replay(case: int) -> None:
+def test_clearance_holds_in_replay(case: int) -> None:
     inst, plan = CASES[case]
-    graph_s = postprocess(inst, plan, "makespan", delta=0.2)
-    safe_s = postprocess(inst, plan, "safety", method="lp", delta=0.2)
+    graph_s = postprocess(inst, plan, "makespan", margin=0.2)
+    safe_s = postprocess(inst, plan, "safety", method="lp", margin=0.2)
     for s in (graph_s, safe_s):
         assert check_bounds(s.stn, s.times) == []
-        rep = replay(s, all_pairs=True)
+        rep = replay(s, inst, all_pairs=True)
+        assert rep.ok, rep
         assert rep.min_distance >= s.safety_distance - 1e-9, (rep, s.safety_distance)
-        assert s.safety_distance > 0
+        assert s.safety_distance == pytest.approx(0.2)
+        # Item 5: every way-point lies in its window, for the schedule returned.
+        for wp in s.waypoints:
+            assert np.all(wp.earliest <= wp.arrival + 1e-9)
+            assert np.all(wp.arrival <= wp.latest + 1e-9)
     # The safety LP maximises the slowest piece speed (1 / R*) ...
     R = safe_s.stats["R"]
     assert _slowest_piece_speed(safe_s) == pytest.approx(1 / R, rel=1e-6)
@@ -116,15 +121,15 @@ def test_safety_distance_holds_in_replay(case: int) -> None:
 
 
 def test_replay_sees_the_closest_approach() -> None:
-    # Two robots meet at the centre of the plus map (plain TPG, delta = 0). agent1's
-    # wait is merged, so it creeps from (1, 0) at t = 0 to (1, 1) at t = 2 (when agent0
-    # enters (2, 1)): it is at (1, t / 2). agent0 is at (t, 1) for t in [0, 2]. Their
-    # squared distance (t - 1)^2 + (1 - t / 2)^2 is minimal at t = 1.2: sqrt(0.2).
+    # Two point robots meet at the centre of the plus map. agent1's wait is merged, so
+    # it creeps from (1, 0) at t = 0 to (1, 1) at t = 2 (agent0 leaves (1, 1) at t = 1,
+    # plus a lag epsilon = 1): it is at (1, t / 2). agent0 is at (t, 1) for t in [0, 2].
+    # Their squared distance (t - 1)^2 + (1 - t / 2)^2 is minimal at t = 1.2: sqrt(0.2).
     g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
     v = g.vertex
     inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 1)])
     plan = Plan.from_paths([[v((0, 1)), v((1, 1)), v((2, 1))], [v((1, 0)), v((1, 0)), v((1, 1))]])
-    s = postprocess(inst, plan, delta=0)
+    s = postprocess(inst, plan, epsilon=1.0)
     rep = replay(s)
     assert s.arrival_times("agent1").tolist() == [0.0, 2.0]
     assert rep.min_distance == pytest.approx(math.sqrt(0.2))
@@ -132,31 +137,38 @@ def test_replay_sees_the_closest_approach() -> None:
     assert rep.agents == ("agent0", "agent1")
 
 
-def test_grid_pair_pruning_matches_all_pairs() -> None:
-    for inst, plan in CASES:
-        s = postprocess(inst, plan, delta=0.2)
-        full = replay(s, all_pairs=True)
+def test_pair_pruning_is_exact() -> None:
+    # Pruned pairs stay farther apart than required + watch; every pair that comes
+    # closer is checked and gives the same minimum as the full check.
+    for inst, plan in CASES + DENSE:
+        s = postprocess(inst, plan, margin=0.2)
+        full = replay(s, inst, all_pairs=True)
         pruned = replay(s, inst)
-        assert pruned.min_distance >= full.min_distance - 1e-12
-        assert min(pruned.min_distance, pruned.skipped_bound) == pytest.approx(
-            min(full.min_distance, 1.0)
-        ) or pruned.min_distance == pytest.approx(full.min_distance)
+        assert pruned.ok == full.ok
+        assert pruned.pairs_checked + pruned.pairs_skipped == full.pairs_checked
+        if full.min_distance < 0.2 + s.scale:
+            assert pruned.min_distance == pytest.approx(full.min_distance)
+        else:
+            assert pruned.min_distance >= full.min_distance - 1e-12
 
 
-def test_roadmap_safety_with_acute_angle() -> None:
-    # A roadmap with a 45-degree junction at C: the guarantee shrinks by sin(45 deg).
+def test_roadmap_with_acute_angle() -> None:
+    # A roadmap with a 45-degree junction at C: robots on the two edges into C are
+    # close long before C; the general claims (half an edge + both radii) keep them
+    # apart.
     g = Graph.roadmap(
         {"A": (0, 0), "B": (2, 0), "C": (4, 0), "D": (6, 0), "E": (2, 2)},
         [("A", "B"), ("B", "C"), ("C", "D"), ("E", "C")],
     )
-    inst = Instance.mapf(g, ["A", "E"], ["D", "B"])
+    kin = Kinematics("r", v_max=1.0, radius=0.3)
+    inst = Instance.mapf(g, ["A", "E"], ["D", "B"], kinematics=[kin, kin])
     plan = Plan.from_paths([[0, 1, 2, 3], [4, 4, 4, 4, 2, 1]])
     assert validate(inst, plan) == []
     for obj, method in (("makespan", "graph"), ("safety", "lp")):
-        s = postprocess(inst, plan, obj, method=method, delta=0.5)
-        assert s.stats["angle_factor"] == pytest.approx(math.sin(math.pi / 4))
-        rep = replay(s, inst)
-        assert rep.min_distance >= s.safety_distance - 1e-9
+        s = postprocess(inst, plan, obj, method=method, margin=0.1)
+        assert s.stats["regime"] == "general"
+        rep = replay(s, inst, all_pairs=True)
+        assert rep.ok and rep.min_distance >= 0.7 - 1e-9
 
 
 @pytest.mark.parametrize("case", range(len(CASES)))
@@ -165,7 +177,7 @@ def test_reduced_lp_equals_full_lp(case: int) -> None:
     # the same optimum as the LP with one variable per STN node, and the eliminated
     # nodes' recovered times meet every bound.
     inst, plan = CASES[case]
-    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    stn = build_stn(inst, build_tpg(inst, plan, margin=0.2))
     for objective in ("makespan", "flowtime", "safety"):
         full = solve_lp(stn, objective, backend="highs", reduction="none")
         for reduction in ("auto", "chains"):
@@ -182,7 +194,7 @@ def test_safety_marker_elimination_is_used_and_exact() -> None:
 
     hits = 0
     for inst, plan in CASES:
-        stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+        stn = build_stn(inst, build_tpg(inst, plan, margin=0.2))
         chains = _compress(stn)
         net = _eliminate_markers(chains)
         if isinstance(net, _Markers):
@@ -204,14 +216,14 @@ def test_projection_shrinks_the_lp_and_keeps_deadlines() -> None:
     from hierplan_opt.schedule.solve_lp import _eliminate
 
     inst, plan = CASES[1]
-    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    stn = build_stn(inst, build_tpg(inst, plan, margin=0.2))
     net = _eliminate(stn)
     assert net.n < stn.num_nodes and len(net.src) < stn.num_arcs
     # A deadline on a robot's final node: protected, the bound stays in the LP.
     g = solve_graph(stn)
     finals = stn.tpg.final_nodes()
     j = int(np.argmax(g.earliest[finals]))
-    tight = build_stn(inst, build_tpg(inst, plan, 0.2), deadlines={j: g.makespan})
+    tight = build_stn(inst, build_tpg(inst, plan, margin=0.2), deadlines={j: g.makespan})
     lp = solve_lp(tight, "flowtime", backend="highs")
     assert lp.times[finals[j]] <= g.makespan + 1e-9
     assert check_bounds(tight, lp.times) == []
@@ -244,7 +256,7 @@ DENSE = [c for c in (dense_case(s) for s in range(8, 16)) if c is not None][:5]
 @pytest.mark.parametrize("case", range(len(DENSE)))
 def test_safety_reductions_agree_on_dense_plans(case: int) -> None:
     inst, plan = DENSE[case]
-    stn = build_stn(inst, build_tpg(inst, plan, 0.2))
+    stn = build_stn(inst, build_tpg(inst, plan, margin=0.2))
     full = solve_lp(stn, "safety", backend="highs", reduction="none")
     for reduction in ("chains", "auto"):
         red = solve_lp(stn, "safety", backend="highs", reduction=reduction)

@@ -153,8 +153,9 @@ def _median_time(fn, repeats: int) -> tuple[float, object]:  # noqa: ANN001
 
 
 def main(argv: list[str] | None = None) -> int:
+    from hierplan_opt.bench.fleet import fleet_row
     from hierplan_opt.io.movingai import load_map, load_scen
-    from hierplan_opt.schedule import build_stn, build_tpg, default_delta, solve_graph, solve_lp
+    from hierplan_opt.schedule import build_stn, build_tpg, solve_graph, solve_lp
 
     ap = argparse.ArgumentParser(prog="hierplan bench post", description=__doc__)
     ap.add_argument("--map", default=DEFAULT_MAP)
@@ -173,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--planner", choices=("auto", "prioritized"), default="auto")
     ap.add_argument("--time-limit", type=float, default=120.0, help="ECBS time limit per plan")
     ap.add_argument("--cache", metavar="DIR", help="keep plans in DIR and reuse them")
+    ap.add_argument("--fleet", type=int, default=1000, help="robots of the fleet row (0: none)")
     args = ap.parse_args(argv)
 
     from hierplan_opt.experiments.data import instances_dir  # shipped with the package
@@ -221,10 +223,9 @@ def main(argv: list[str] | None = None) -> int:
 
             save_plan(cached, inst, plan)
         log.info("plan for %d robots by %s in %.1f s", k, planner, time.perf_counter() - t0)
-        delta = default_delta(inst, plan)
 
-        def build(inst=inst, plan=plan, delta=delta):  # noqa: ANN001, ANN202
-            tpg = build_tpg(inst, plan, delta)
+        def build(inst=inst, plan=plan):  # noqa: ANN001, ANN202
+            tpg = build_tpg(inst, plan)  # MovingAI agents: point robots
             return build_stn(inst, tpg)
 
         t_build, stn = _median_time(build, args.repeats)
@@ -259,6 +260,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{(t_build + t_ch) / graph_total:6.1f} {py} {sf} "
             f"{gsol.makespan:9.3f} {lp.makespan:9.3f} {rs}"
         )
+    if args.fleet:
+        print(fleet_row(graph, args.fleet, args.repeats))  # noqa: T201
     print(  # noqa: T201
         "build = TPG + STN; graph = earliest schedule + latest times + critical path; "
         "lp = makespan LP via HiGHS direct on the projected STN; lp/gr = (build+lp)/(build+graph); "

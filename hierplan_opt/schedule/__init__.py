@@ -1,13 +1,15 @@
 """MAPF-POST: from a valid discrete plan to an execution schedule.
 
-Pipeline: plan -> temporal plan graph (:mod:`.tpg`) -> simple temporal network
-(:mod:`.stn`) -> node times by graph algorithms (:mod:`.solve_graph`) or an LP
-(:mod:`.solve_lp`) -> :class:`Schedule` (:mod:`.output`), checked by a
-continuous-time replay (:mod:`.replay`). The front door is :func:`postprocess`.
+Pipeline: plan -> temporal plan graph with markers from the robots' radii
+(:mod:`.tpg`, :mod:`.clearance`) -> simple temporal network (:mod:`.stn`) -> node
+times by graph algorithms (:mod:`.solve_graph`) or an LP (:mod:`.solve_lp`) ->
+:class:`Schedule` (:mod:`.output`), checked independently by a continuous-time replay
+(:mod:`.replay`). The front door is :func:`postprocess`.
 """
 
 from __future__ import annotations
 
+from hierplan_opt.schedule.clearance import ClearanceError, PairClearance, Requirement
 from hierplan_opt.schedule.output import (
     Schedule,
     Waypoints,
@@ -16,7 +18,7 @@ from hierplan_opt.schedule.output import (
     to_dot,
     write_schedule,
 )
-from hierplan_opt.schedule.post import default_delta, postprocess
+from hierplan_opt.schedule.post import postprocess
 from hierplan_opt.schedule.replay import ReplayReport, check_bounds, replay
 from hierplan_opt.schedule.solve_graph import (
     GraphSolution,
@@ -24,21 +26,26 @@ from hierplan_opt.schedule.solve_graph import (
     bellman_ford,
     critical_path,
     earliest_times,
+    fix_and_propagate,
     latest_times,
     solve_graph,
+    windows,
 )
 from hierplan_opt.schedule.solve_lp import LPError, LPSolution, solve_lp
-from hierplan_opt.schedule.stn import STN, accel_time, build_stn
+from hierplan_opt.schedule.stn import STN, accel_time, build_stn, reach_time
 from hierplan_opt.schedule.tpg import TPG, build_tpg
 
 __all__ = [
     "STN",
     "TPG",
+    "ClearanceError",
     "GraphSolution",
     "InconsistentSTNError",
     "LPError",
     "LPSolution",
+    "PairClearance",
     "ReplayReport",
+    "Requirement",
     "Schedule",
     "Waypoints",
     "accel_time",
@@ -47,15 +54,17 @@ __all__ = [
     "build_tpg",
     "check_bounds",
     "critical_path",
-    "default_delta",
     "earliest_times",
+    "fix_and_propagate",
     "latest_times",
     "postprocess",
+    "reach_time",
     "read_schedule",
     "replay",
     "schedule_text",
     "solve_graph",
     "solve_lp",
     "to_dot",
+    "windows",
     "write_schedule",
 ]

@@ -28,7 +28,8 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
-from hierplan_opt.schedule.stn import MOVE, PRECEDENCE, STN
+from hierplan_opt.schedule.clearance import PairClearance
+from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
 
 #: Way-point kinds: STN node kinds plus the end of a turn in place.
@@ -41,7 +42,9 @@ class Waypoints:
 
     ``coords`` (n, dim) instance coordinates; ``theta``, ``arrival``, ``earliest``,
     ``latest`` (n,); ``node`` the STN node id (-1 for turn way-points); ``kind`` the
-    way-point kinds ("vertex", "leave", "enter", "turn").
+    way-point kinds ("vertex", "leave", "enter", "marker", "turn"). ``earliest`` and
+    ``latest`` bound the arrival in any schedule of the STN that finishes by this
+    schedule's makespan; ``slack = latest - arrival`` is the delay the way-point absorbs.
     """
 
     coords: np.ndarray
@@ -57,7 +60,7 @@ class Waypoints:
 
     @property
     def slack(self) -> np.ndarray:
-        return self.latest - self.earliest
+        return self.latest - self.arrival
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,14 +74,16 @@ class Schedule:
     makespan, flowtime : float
         Latest and summed arrival times at the robots' final way-points.
     safety_distance : float
-        Guaranteed lower bound on the distance between any two robots' centres during
-        a constant-velocity replay (see :func:`hierplan_opt.schedule.replay.guaranteed_distance`).
+        Guaranteed lower bound on the distance between any two robots' centres: the
+        smallest ``r_i + r_j + margin`` over all pairs (0 without a clearance
+        guarantee). Every pair ``i, j`` keeps its own ``r_i + r_j + margin``
+        (see :attr:`clearance`) in any motion that passes the way-points in order.
     objective, method : str
     delta : float
-        Marker distance of the augmented TPG (0: plain TPG).
+        Deprecated alias of :attr:`margin` (earlier a marker distance).
     earliest, latest : (N,) float
-        Earliest and latest time of every STN node (latest against the graph
-        makespan); ``slack = latest - earliest``.
+        Earliest and latest time of every STN node in any schedule of the STN that
+        finishes by this schedule's makespan; ``slack = latest - times``.
     times : (N,) float
         The scheduled time of every STN node.
     critical_path : tuple of int
@@ -87,6 +92,11 @@ class Schedule:
         Metres per instance coordinate unit (the grid's cell size; 1 on roadmaps).
     stats : dict
     stn : STN
+    margin : float
+        Extra clearance beyond the radii (metres).
+    clearance : tuple of PairClearance
+        Per pair of robot types: the required distance ``r_a + r_b + margin`` and
+        whether the schedule guarantees it.
     """
 
     agent_names: tuple[str, ...]
@@ -104,11 +114,14 @@ class Schedule:
     scale: float
     stats: dict[str, Any] = field(default_factory=dict)
     stn: STN | None = field(default=None, repr=False)
+    margin: float = 0.0
+    clearance: tuple[PairClearance, ...] = ()
 
     @property
     def slack(self) -> np.ndarray:
-        """Slack of every STN node (latest - earliest)."""
-        return self.latest - self.earliest
+        """Slack of every STN node: how much later than scheduled it may happen
+        without delaying the last arrival (``latest - times``)."""
+        return self.latest - self.times
 
     @property
     def num_agents(self) -> int:
@@ -147,11 +160,12 @@ class Schedule:
             "safety_distance": _num(self.safety_distance),
             "objective": self.objective,
             "method": self.method,
-            "delta": _num(self.delta),
+            "margin": _num(self.margin),
+            "clearance": [c.as_dict() for c in self.clearance],
         }
         for k, v in self.stats.items():
             out[k] = _plain(v)
-        return out
+        return _finite(out)
 
     def to_dict(self) -> dict[str, Any]:
         """``{statistics: {...}, schedule: {agent: [{x, y, [z,] theta, arrival}, ...]}}``."""
@@ -175,6 +189,17 @@ def _num(x: float) -> float | int:
         return f
     r = round(f, 9)
     return int(r) if r == int(r) and abs(r) < 1e15 else r
+
+
+def _finite(tree: Any) -> Any:
+    """``tree`` with every non-finite number replaced by None (files never hold them)."""
+    if isinstance(tree, float) and not math.isfinite(tree):
+        return None
+    if isinstance(tree, dict):
+        return {k: _finite(v) for k, v in tree.items()}
+    if isinstance(tree, list):
+        return [_finite(v) for v in tree]
+    return tree
 
 
 def _plain(v: Any) -> Any:
@@ -203,14 +228,29 @@ def build_schedule(
     method: str,
     scale: float,
     safety_distance: float = 0.0,
+    margin: float = 0.0,
+    clearance: tuple[PairClearance, ...] = (),
     stats: dict[str, Any] | None = None,
 ) -> Schedule:
-    """Way-points of every robot from STN node times (adds turn way-points)."""
+    """Way-points of every robot from STN node times (adds turn way-points).
+
+    Raises :class:`InputError` when a time is not a finite number (a schedule file
+    never holds one).
+    """
     tpg = stn.tpg
     N = tpg.num_nodes
-    times = np.asarray(times, dtype=float)
+    times = np.array(times, dtype=float)
+    earliest = np.array(earliest, dtype=float)
+    latest = np.array(latest, dtype=float)
+    for name, x in (("time", times), ("earliest time", earliest), ("latest time", latest)):
+        bad = np.flatnonzero(~np.isfinite(x))
+        if len(bad):
+            raise InputError(
+                f"the {name} of {tpg.label(int(bad[0]))} is not a finite number; "
+                "MAPF-POST cannot represent this schedule"
+            )
     turn_after = np.zeros(N)
-    piece = stn.arc_kind == 1
+    piece = stn.arc_kind == PIECE
     turn_after[stn.arc_src[piece]] = stn.arc_turn[piece]
     # Heading on arrival: the previous node's leaving heading (a robot's first node:
     # its own, i.e. it starts facing its first move).
@@ -230,8 +270,8 @@ def build_schedule(
     all_coords = tpg.node_coord[src]
     all_theta = np.where(is_turn, heading[src], head_in[src])
     all_arr = times[src] + shift
-    all_ear = np.asarray(earliest, dtype=float)[src] + shift
-    all_lat = np.asarray(latest, dtype=float)[src] + shift
+    all_ear = earliest[src] + shift
+    all_lat = latest[src] + shift
     all_node = np.where(is_turn, -1, src)
     names = np.array([*KIND_NAMES, TURN], dtype=object)
     all_kind = names[np.where(is_turn, len(KIND_NAMES), tpg.node_kind[src])].tolist()
@@ -263,7 +303,7 @@ def build_schedule(
         safety_distance=float(safety_distance),
         objective=objective,
         method=method,
-        delta=tpg.delta,
+        delta=float(margin),
         earliest=earliest,
         latest=latest,
         times=times,
@@ -271,6 +311,8 @@ def build_schedule(
         scale=float(scale),
         stats=dict(stats or {}),
         stn=stn,
+        margin=float(margin),
+        clearance=tuple(clearance),
     )
 
 
@@ -306,7 +348,7 @@ def schedule_text(schedule: Schedule, fmt: str = "yaml") -> str:
                         repr(round(float(wp.arrival[k]), 9)),
                         repr(round(float(wp.earliest[k]), 9)),
                         repr(round(float(wp.latest[k]), 9)),
-                        repr(round(float(wp.latest[k] - wp.earliest[k]), 9)),
+                        repr(round(float(wp.latest[k] - wp.arrival[k]), 9)),
                         wp.kind[k],
                     ]
                 )
@@ -326,7 +368,7 @@ def write_schedule(schedule: Schedule, path: str | Path) -> Path:
     >>> from hierplan_opt.schedule import postprocess
     >>> g = Graph.grid(3, 1)
     >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
-    >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2]]), delta=0)
+    >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2]]))
     >>> with tempfile.TemporaryDirectory() as d:
     ...     p = write_schedule(s, os.path.join(d, "s.yaml"))
     ...     [w["arrival"] for w in read_schedule(p)["schedule"]["agent0"]]

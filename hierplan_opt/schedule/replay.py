@@ -1,221 +1,70 @@
-"""Checks of a schedule: continuous-time replay and STN bounds.
+"""Independent checks of a schedule: continuous-time replay, and the STN's bounds.
 
-Replay: every robot moves in a straight line at constant speed between consecutive
-way-points (and stays at its last one). For two robots the relative position is
-piecewise linear in time, so the closest approach on each piece has a closed form;
-the minimum over all pieces and pairs is the exact minimum distance of the replay.
-Pairs of robots that never visit a common vertex are always on vertex-disjoint
-segments of the map, at least the map's *clearance* apart (one cell on grids); they
-are skipped on grids and on large roadmaps, and reported through the clearance.
+The replay reads only the schedule's way-points and the robots' radii: it never looks
+at the temporal plan graph or the markers that produced the schedule. Every robot moves
+in a straight line at constant speed between consecutive way-points (and stays at its
+last one). For two robots the relative position is piecewise linear in time, so the
+closest approach on each piece has a closed form; the minimum over all pieces is the
+exact minimum centre distance of the pair. The contract checked is
+``distance >= r_i + r_j + margin`` for every pair.
 
-Guaranteed distance (``delta > 0``): with the augmented TPG a robot comes within
-``delta`` of a vertex only after the previous visitor is ``delta`` beyond it. At a
-shared vertex this keeps two robots at least ``delta * a`` apart, where ``a = 1`` if
-no two edges used at a vertex meet at less than 90 degrees, else ``sin`` of the
-sharpest such angle. A robot that follows another along the same edge may catch up
-between markers; while the leader travels ``2 delta`` around the next vertex (at most
-``v_fast``), the follower still needs the marker and moves at least ``v_slow``, so the
-gap stays at least ``2 delta v_slow / v_fast`` (the reference implementation's
-``2 delta / (R* v_max)``). Markers of one move are ``ell - 2 delta`` apart, and
-vertex-disjoint segments are ``clearance`` apart. The guarantee is the minimum of
-these four terms, where ``v_slow`` and ``v_fast`` are the slowest and fastest
-way-point-to-way-point speeds of the schedule. The maximum-safety LP raises
-``v_slow`` (it minimises ``R = 1 / v_slow``). The derivation is a sketch, not a
-proof; tests replay random plans against it.
+Pairs are pruned exactly: time is cut into windows, every robot's positions in a window
+lie in an axis-aligned box, and two robots whose boxes, widened by their radii, half
+the margin and half of ``watch``, never overlap in the same window stay farther apart
+than ``r_i + r_j + margin + watch`` all the time. They are counted in
+``pairs_skipped``; ``all_pairs=True`` checks every pair.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.stn import STN
-from hierplan_opt.schedule.tpg import TPG, VERTEX
 
-TOL = 1e-6
-
-
-# ---------------------------------------------------------------------- geometry
-@dataclass(frozen=True)
-class Geometry:
-    """What the guarantee needs from the map and the plan's segments (metres)."""
-
-    clearance: float  # min distance between vertex-disjoint used segments / points
-    angle_factor: float  # 1, or sin of the sharpest (< 90 deg) angle at a used vertex
-    shortest_move: float  # shortest geometric length of a move in the plan
+#: Tolerance of the distance check (metres, relative to the distance, at least 1 m).
+TOL = 1e-9
+#: Bound checks (seconds).
+BOUND_TOL = 1e-6
 
 
-def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray) -> np.ndarray:
-    """Distances between segments ``p1q1`` and ``p2q2`` (row-wise arrays, any dim).
-
-    Example
-    -------
-    >>> a = np.array([[0.0, 0.0]]); b = np.array([[1.0, 0.0]])
-    >>> segment_distance(a, b, np.array([[0.5, 2.0]]), np.array([[3.0, 2.0]])).tolist()
-    [2.0]
-    >>> segment_distance(a, b, np.array([[0.5, -1.0]]), np.array([[0.5, 1.0]])).tolist()
-    [0.0]
-    """
-    d1 = q1 - p1
-    d2 = q2 - p2
-    r = p1 - p2
-    a = np.einsum("ij,ij->i", d1, d1)
-    e = np.einsum("ij,ij->i", d2, d2)
-    f = np.einsum("ij,ij->i", d2, r)
-    c = np.einsum("ij,ij->i", d1, r)
-    b = np.einsum("ij,ij->i", d1, d2)
-    denom = a * e - b * b
-    safe_a = np.where(a > 0, a, 1.0)
-    safe_e = np.where(e > 0, e, 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.where(
-            denom > 1e-12, np.clip((b * f - c * e) / np.where(denom > 0, denom, 1), 0, 1), 0
-        )
-    t = np.where(e > 0, (b * s + f) / safe_e, 0.0)
-    low = t < 0
-    high = t > 1
-    t = np.clip(t, 0, 1)
-    s = np.where(low, np.clip(-c / safe_a, 0, 1), s)
-    s = np.where(high, np.clip((b - c) / safe_a, 0, 1), s)
-    s = np.where(a > 0, s, 0.0)
-    t = np.where((a <= 0) & (e > 0), np.clip(f / safe_e, 0, 1), t)
-    diff = p1 + d1 * s[:, None] - p2 - d2 * t[:, None]
-    return np.sqrt(np.einsum("ij,ij->i", diff, diff))
-
-
-def plan_geometry(instance: Instance, tpg: TPG) -> Geometry:
-    """Clearance, sharpest-angle factor and shortest move of the plan's segments."""
-    g = instance.graph
-    scale = g.cell_size if g.kind == "grid" else 1.0
-    V = tpg.node_vertex[tpg.node_kind == VERTEX]
-    A = tpg.node_agent[tpg.node_kind == VERTEX]
-    same = A[1:] == A[:-1]
-    us, vs = V[:-1][same], V[1:][same]
-    if len(us):
-        pu = g.coords[us] * scale
-        pv = g.coords[vs] * scale
-        shortest = float(np.linalg.norm(pv - pu, axis=1).min())
-    else:
-        shortest = math.inf
-    if g.kind == "grid":
-        # Vertex-disjoint unit segments / points of a lattice are >= one cell apart,
-        # and used edges meet at 90 or 180 degrees.
-        return Geometry(float(g.cell_size), 1.0, shortest)
-    segs = {(min(a, b), max(a, b)) for a, b in zip(us.tolist(), vs.tolist(), strict=True)}
-    moving = set(A[np.flatnonzero(same)].tolist()) if len(us) else set()
-    for j in range(tpg.num_agents):
-        if j not in moving:
-            v = int(tpg.node_vertex[tpg.agent_ptr[j]])
-            segs.add((v, v))
-    seg = np.array(sorted(segs), dtype=np.int64).reshape(-1, 2)
-    P = g.coords[seg[:, 0]].astype(float)
-    Q = g.coords[seg[:, 1]].astype(float)
-    # Clearance over vertex-disjoint pairs.
-    clearance = math.inf
-    m = len(seg)
-    if m > 1:
-        ii, jj = np.triu_indices(m, 1)
-        disjoint = (
-            (seg[ii, 0] != seg[jj, 0])
-            & (seg[ii, 0] != seg[jj, 1])
-            & (seg[ii, 1] != seg[jj, 0])
-            & (seg[ii, 1] != seg[jj, 1])
-        )
-        ii, jj = ii[disjoint], jj[disjoint]
-        for k0 in range(0, len(ii), 200_000):
-            sl = slice(k0, k0 + 200_000)
-            d = segment_distance(P[ii[sl]], Q[ii[sl]], P[jj[sl]], Q[jj[sl]])
-            if d.size:
-                clearance = min(clearance, float(d.min()))
-    # Sharpest angle between two distinct used edges at a common vertex.
-    dirs: dict[int, list[np.ndarray]] = {}
-    for a, b in seg.tolist():
-        if a == b:
-            continue
-        d = g.coords[b] - g.coords[a]
-        n = float(np.linalg.norm(d))
-        dirs.setdefault(a, []).append(d / n)
-        dirs.setdefault(b, []).append(-d / n)
-    factor = 1.0
-    for ds in dirs.values():
-        for x, y in itertools.combinations(ds, 2):
-            cos = float(np.dot(x, y))
-            if cos > 1e-12:
-                factor = min(factor, math.sqrt(max(0.0, 1.0 - cos * cos)))
-    return Geometry(clearance, factor, shortest)
-
-
-def speed_range(schedule: Schedule) -> tuple[float, float]:
-    """Slowest and fastest way-point-to-way-point speed of moving segments (m/s)."""
-    slow, fast = math.inf, 0.0
-    for wp in schedule.waypoints:
-        if len(wp) < 2:
-            continue
-        dist = np.linalg.norm(np.diff(wp.coords, axis=0), axis=1) * schedule.scale
-        dt = np.diff(wp.arrival)
-        mv = dist > 1e-12
-        if mv.any():
-            sp = dist[mv] / np.maximum(dt[mv], 1e-300)
-            slow = min(slow, float(sp.min()))
-            fast = max(fast, float(sp.max()))
-    return slow, fast
-
-
-def guaranteed_distance(delta: float, geometry: Geometry, v_slow: float, v_fast: float) -> float:
-    """The safety distance the augmented TPG guarantees (0 for the plain TPG).
-
-    Example
-    -------
-    >>> guaranteed_distance(0.25, Geometry(1.0, 1.0, 1.0), 1.0, 1.0)
-    0.25
-    >>> guaranteed_distance(0.25, Geometry(1.0, 1.0, 1.0), 0.25, 1.0)
-    0.125
-    """
-    if delta <= 0:
-        return 0.0
-    if not math.isfinite(v_slow) or v_fast <= 0:  # no robot moves
-        return float(geometry.clearance) if math.isfinite(geometry.clearance) else math.inf
-    return float(
-        min(
-            geometry.clearance,
-            delta * geometry.angle_factor,
-            2.0 * delta * v_slow / v_fast,
-            geometry.shortest_move - 2.0 * delta,
-        )
-    )
-
-
-# ---------------------------------------------------------------------- replay
 @dataclass(frozen=True)
 class ReplayReport:
-    """Result of :func:`replay`: the minimum distance, where and when it happens."""
+    """Result of :func:`replay`.
+
+    ``min_distance`` is the smallest centre distance over the pairs checked (``inf``
+    if none), reached by ``agents`` at ``time``. ``ok`` says whether every pair kept
+    its required distance ``r_i + r_j + margin``; ``worst_gap`` is the smallest
+    ``distance - required`` (for ``worst_pair``). ``by_type`` maps each pair of robot
+    types to ``(smallest distance, required distance)`` over its pairs checked.
+    Skipped pairs stay at least ``skipped_bound`` apart (their required distance plus
+    ``watch``).
+    """
 
     min_distance: float
     agents: tuple[str, str] | None
     time: float | None
     pairs_checked: int
     pairs_skipped: int
-    skipped_bound: float  # skipped pairs are at least this far apart
-
-
-def _trajectory(schedule: Schedule, j: int) -> tuple[np.ndarray, np.ndarray]:
-    wp = schedule.waypoints[j]
-    return wp.arrival, wp.coords * schedule.scale
+    skipped_bound: float
+    ok: bool = True
+    worst_gap: float = math.inf
+    worst_pair: tuple[str, str] | None = None
+    by_type: dict[tuple[str, str], tuple[float, float]] = field(default_factory=dict)
 
 
 def _pair_min(ta: np.ndarray, pa: np.ndarray, tb: np.ndarray, pb: np.ndarray):  # noqa: ANN202
+    """Exact minimum distance of two piecewise-linear trajectories, and when."""
     tau = np.union1d(ta, tb)
     ra = np.stack([np.interp(tau, ta, pa[:, k]) for k in range(pa.shape[1])], axis=1)
     rb = np.stack([np.interp(tau, tb, pb[:, k]) for k in range(pb.shape[1])], axis=1)
     r = ra - rb
     if len(tau) == 1:
-        d = float(np.linalg.norm(r[0]))
-        return d, float(tau[0])
+        return float(np.linalg.norm(r[0])), float(tau[0])
     r0 = r[:-1]
     dr = r[1:] - r[:-1]
     dd = np.einsum("ij,ij->i", dr, dr)
@@ -229,13 +78,94 @@ def _pair_min(ta: np.ndarray, pa: np.ndarray, tb: np.ndarray, pb: np.ndarray):  
     return float(dist[k]), float(tau[k] + s[k] * (tau[k + 1] - tau[k]))
 
 
-def replay(
-    schedule: Schedule, instance: Instance | None = None, *, all_pairs: bool | None = None
-) -> ReplayReport:
-    """Exact minimum centre distance between any two robots in a constant-velocity replay.
+def _boxes(
+    times: list[np.ndarray], pos: list[np.ndarray], n_win: int, width: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per robot and time window, the box holding all its positions: (K, n_win, dim)."""
+    K = len(times)
+    dim = pos[0].shape[1]
+    edges = np.arange(n_win + 1) * width
+    lo = np.empty((K, n_win, dim))
+    hi = np.empty((K, n_win, dim))
+    for j in range(K):
+        t, p = times[j], pos[j]
+        at = np.stack([np.interp(edges, t, p[:, k]) for k in range(dim)], axis=1)
+        lo[j] = np.minimum(at[:-1], at[1:])
+        hi[j] = np.maximum(at[:-1], at[1:])
+        win = np.clip((t // width).astype(np.int64), 0, n_win - 1)
+        np.minimum.at(lo[j], win, p)
+        np.maximum.at(hi[j], win, p)
+    return lo, hi
 
-    With ``instance`` given, pairs that never share a vertex are skipped on grids (they
-    stay at least one cell apart); ``all_pairs=True`` checks every pair.
+
+def _candidate_pairs(lo: np.ndarray, hi: np.ndarray, widen: np.ndarray) -> np.ndarray:
+    """Unique robot pairs ``(i < j)`` whose widened boxes overlap in some window."""
+    K, n_win, dim = lo.shape
+    lo = lo - widen[:, None, None]
+    hi = hi + widen[:, None, None]
+    ext = (hi - lo).reshape(-1, dim)
+    cell = max(float(ext.max()), 1e-9)  # every box meets at most 2**dim cells
+    origin = lo.reshape(-1, dim).min(axis=0)
+    clo = np.floor((lo.reshape(-1, dim) - origin) / cell).astype(np.int64)
+    chi = np.floor((hi.reshape(-1, dim) - origin) / cell).astype(np.int64)
+    span = chi - clo + 1
+    count = np.prod(span, axis=1)
+    box = np.repeat(np.arange(K * n_win), count)
+    local = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    dims = chi.max(axis=0) + 1
+    key = (box % n_win).astype(np.int64)  # window index first, then the cell
+    rem = local
+    for k in range(dim):
+        sp = span[box, k]
+        key = key * int(dims[k]) + clo[box, k] + rem % sp
+        rem = rem // sp
+    order = np.argsort(key, kind="stable")
+    key_s = key[order]
+    robot_s = box[order] // n_win
+    win_s = box[order] % n_win
+    start = np.flatnonzero(np.concatenate(([True], key_s[1:] != key_s[:-1])))
+    size = np.diff(np.concatenate((start, [len(key_s)])))
+    # All pairs inside each group of one window and cell.
+    pos_in = np.arange(len(key_s)) - np.repeat(start, size)
+    after = np.repeat(size, size) - pos_in - 1
+    first = np.repeat(np.arange(len(key_s)), after)
+    offs = np.arange(int(after.sum())) - np.repeat(np.cumsum(after) - after, after)
+    second = first + 1 + offs
+    a, b = robot_s[first], robot_s[second]
+    w = win_s[first]
+    keep = a != b
+    a, b, w = a[keep], b[keep], w[keep]
+    # Exact overlap of the two widened boxes in that window.
+    ia, ib = a * n_win + w, b * n_win + w
+    lo2, hi2 = lo.reshape(-1, dim), hi.reshape(-1, dim)
+    overlap = np.all((lo2[ia] <= hi2[ib]) & (lo2[ib] <= hi2[ia]), axis=1)
+    a, b = a[overlap], b[overlap]
+    pairs = np.unique(np.stack([np.minimum(a, b), np.maximum(a, b)], axis=1), axis=0)
+    return pairs.reshape(-1, 2)
+
+
+def replay(
+    schedule: Schedule,
+    instance: Instance | None = None,
+    *,
+    all_pairs: bool | None = None,
+    margin: float | None = None,
+    watch: float | None = None,
+) -> ReplayReport:
+    """Exact minimum centre distances of a constant-velocity replay, against the
+    required ``r_i + r_j + margin`` of every pair.
+
+    Parameters
+    ----------
+    instance : Instance, optional
+        Gives the robots' radii and types (without it every radius is 0).
+    all_pairs : bool
+        Check every pair (default: prune pairs that provably stay apart).
+    margin : float, optional
+        Extra clearance (default: the schedule's :attr:`Schedule.margin`).
+    watch : float, optional
+        Pairs that come within ``required + watch`` are always checked (default: the
+        schedule's scale, i.e. one grid cell or 1 roadmap unit).
 
     Example
     -------
@@ -244,43 +174,62 @@ def replay(
     >>> from hierplan_opt.schedule import postprocess
     >>> g = Graph.grid(3, 2)
     >>> inst = Instance.mapf(g, [(0, 0), (0, 1)], [(2, 0), (2, 1)])
-    >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]]), delta=0.25)
-    >>> replay(s).min_distance  # two robots side by side, one cell apart
-    1.0
+    >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]]), margin=0.25)
+    >>> rep = replay(s, inst)
+    >>> rep.min_distance, rep.ok  # two robots side by side, one cell apart
+    (1.0, True)
     """
     K = schedule.num_agents
-    stn = schedule.stn
-    if all_pairs is None:
-        all_pairs = instance is None or instance.graph.kind != "grid" or stn is None
-    pairs: list[tuple[int, int]]
-    skipped_bound = math.inf
-    if all_pairs:
-        pairs = [(a, b) for a in range(K) for b in range(a + 1, K)]
+    if instance is not None and instance.num_agents == K:
+        radius = np.array([a.kinematics.radius for a in instance.agents], dtype=float)
+        types = [a.kinematics.robot_type for a in instance.agents]
     else:
-        assert stn is not None and instance is not None
-        tpg = stn.tpg
-        vk = tpg.node_kind == VERTEX
-        by_vertex: dict[int, set[int]] = {}
-        for v, a in zip(tpg.node_vertex[vk].tolist(), tpg.node_agent[vk].tolist(), strict=True):
-            by_vertex.setdefault(v, set()).add(a)
-        ps: set[tuple[int, int]] = set()
-        for agents in by_vertex.values():
-            if len(agents) > 1:
-                ag = sorted(agents)
-                ps.update(itertools.combinations(ag, 2))
-        pairs = sorted(ps)
-        skipped_bound = float(instance.graph.cell_size)
+        radius = np.zeros(K)
+        types = ["robot"] * K
+    m = float(schedule.margin if margin is None else margin)
+    watch = float(schedule.scale if watch is None else watch)
+    times = [np.asarray(wp.arrival, dtype=float) for wp in schedule.waypoints]
+    pos = [np.asarray(wp.coords, dtype=float) * schedule.scale for wp in schedule.waypoints]
     total = K * (K - 1) // 2
+    if K < 2:
+        return ReplayReport(math.inf, None, None, 0, 0, math.inf)
+    if all_pairs:
+        ii, jj = np.triu_indices(K, 1)
+        pairs = np.stack([ii, jj], axis=1)
+    else:
+        horizon = max(float(max(t[-1] for t in times)), 1e-9)
+        n_win = int(min(4096, max(1, sum(len(t) for t in times) // K)))
+        lo, hi = _boxes(times, pos, n_win, horizon / n_win * (1 + 1e-12))
+        pairs = _candidate_pairs(lo, hi, radius + m / 2 + watch / 2)
     best = (math.inf, None, None)
-    trajs = [_trajectory(schedule, j) for j in range(K)]
-    for a, b in pairs:
-        d, t = _pair_min(trajs[a][0], trajs[a][1], trajs[b][0], trajs[b][1])
+    worst = (math.inf, None)
+    by_type: dict[tuple[str, str], tuple[float, float]] = {}
+    ok = True
+    for a, b in pairs.tolist():
+        d, t = _pair_min(times[a], pos[a], times[b], pos[b])
+        need = float(radius[a] + radius[b] + m)
+        names = (schedule.agent_names[a], schedule.agent_names[b])
         if d < best[0]:
-            best = (d, (schedule.agent_names[a], schedule.agent_names[b]), t)
-    return ReplayReport(best[0], best[1], best[2], len(pairs), total - len(pairs), skipped_bound)
+            best = (d, names, t)
+        if d - need < worst[0]:
+            worst = (d - need, names)
+        if d < need - TOL * max(1.0, need):
+            ok = False
+        key = (min(types[a], types[b]), max(types[a], types[b]))
+        old = by_type.get(key, (math.inf, 0.0))
+        by_type[key] = (min(old[0], d), max(old[1], need))
+    skipped = total - len(pairs)
+    if skipped:
+        r = np.sort(radius)
+        bound = float(r[0] + r[1] + m + watch)
+    else:
+        bound = math.inf
+    return ReplayReport(
+        best[0], best[1], best[2], len(pairs), skipped, bound, ok, worst[0], worst[1], by_type
+    )
 
 
-def check_bounds(stn: STN, times: np.ndarray, tol: float = TOL) -> list[str]:
+def check_bounds(stn: STN, times: np.ndarray, tol: float = BOUND_TOL) -> list[str]:
     """Every STN bound the node ``times`` break (an empty list when all hold).
 
     Example
@@ -298,8 +247,9 @@ def check_bounds(stn: STN, times: np.ndarray, tol: float = TOL) -> list[str]:
     out = []
     tpg = stn.tpg
     diff = times[stn.arc_dst] - times[stn.arc_src]
-    bad_lo = np.flatnonzero(diff < stn.lb - tol)
-    bad_hi = np.flatnonzero(diff > stn.ub + tol)
+    scale = np.maximum(1.0, np.abs(times[stn.arc_dst]))
+    bad_lo = np.flatnonzero(diff < stn.lb - tol * scale)
+    bad_hi = np.flatnonzero(diff > stn.ub + tol * scale)
     for k in bad_lo.tolist():
         u, v = int(stn.arc_src[k]), int(stn.arc_dst[k])
         out.append(
@@ -314,4 +264,7 @@ def check_bounds(stn: STN, times: np.ndarray, tol: float = TOL) -> list[str]:
         out.append(f"{tpg.label(v)}: time {times[v]:.6g} before its release {stn.release[v]:.6g}")
     for v in np.flatnonzero(times > stn.deadline + tol).tolist():
         out.append(f"{tpg.label(v)}: time {times[v]:.6g} after its deadline {stn.deadline[v]:.6g}")
+    bad = np.flatnonzero(~np.isfinite(times))
+    for v in bad.tolist():
+        out.append(f"{tpg.label(v)}: time {times[v]} is not a finite number")
     return out

@@ -1,22 +1,30 @@
-"""Temporal plan graph (TPG) of a discrete plan, plain or augmented with safety markers.
+"""Temporal plan graph (TPG) of a discrete plan, with safety markers chosen from the radii.
 
-A node is an event "robot j reaches a point of its path". The plain TPG has one node
-per visit of a location (consecutive waits merged): "robot j enters p_j(t)". Type-1
-arcs run along each robot's path; a Type-2 arc ``u -> w`` says that event ``w`` of one
-robot may happen only after event ``u`` of another robot.
+A node is an event "robot j passes a point of its path": one *vertex node* per visit of
+a location (consecutive waits merged) and *markers* on the moves. Type-1 arcs run along
+each robot's path; a Type-2 arc ``u -> w`` says that robot B may pass ``w`` only after
+robot A has *left* ``u`` (reached it and, at a vertex where it turns in place, finished
+turning).
 
-Type-2 arcs come from the order in which robots visit each location. For every
-location, the visits are sorted by their entry timestep; for two *consecutive* visits
-by different robots (j before k) the plain TPG adds "j enters its next location" ->
-"k enters the location". Arcs to later visits follow transitively through the
-Type-1 chain of the robots in between, so the first later visit suffices.
-
-The augmented TPG (``delta > 0``) puts two safety markers on every move a -> b: ``m1``
-at distance ``delta`` past ``a`` and ``m2`` at distance ``delta`` before ``b``. Type-2
-arcs then run from j's marker past the shared location to k's marker before it: k may
-come within ``delta`` of the location only once j is ``delta`` beyond it. A marker that
-no Type-2 arc touches (one arc in, one arc out) is merged away, so only the markers
-that carry a precedence remain.
+* **Point robots** (every radius and the margin 0, or ``clearance=False``): the plain
+  TPG. For every location the visits are sorted by their entry timestep; for two
+  *consecutive* visits by different robots (A before B) an arc from A's visit to B's
+  visit: B may enter once A has left. Later visitors follow transitively through the
+  Type-1 chains in between, so the arcs are built from per-location visit lists with
+  one ``lexsort`` (near-linear in the plan size, never a scan over pairs of robots).
+  Robots that rotate along a cycle (each entering the cell the next one leaves at the
+  same step) are fine: each waits only for the next one to *leave*.
+* **Robots with a size** (``r_i + r_j + margin > 0``): markers from the clearance claims
+  of :mod:`hierplan_opt.schedule.clearance`. A robot claims a vertex while its centre is
+  within ``lambda`` of it; the claims of one vertex are ordered as in the plan, and a
+  Type-2 arc runs from the earlier robot's *exit marker* to the later robot's *entry
+  marker*. On a grid with ``2 r_max + margin < cell`` the exit marker lies
+  ``cell/2 + r + margin/2`` beyond the vertex, i.e. past the middle of the next edge;
+  with cells smaller than the robots it lies several vertices further on.
+  Every motion that passes the markers in the TPG's order keeps the centres of robots
+  ``i`` and ``j`` at least ``r_i + r_j + margin`` apart (proof in ``docs/post.md``).
+  When the claims wait for each other in a cycle (e.g. a rotation), no such schedule
+  exists and :class:`~hierplan_opt.schedule.clearance.ClearanceError` says why.
 
 Nodes of robot j are contiguous, in path order: ``agent_ptr[j]:agent_ptr[j+1]``.
 """
@@ -25,18 +33,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.schedule.clearance import (
+    ClearanceError,
+    Requirement,
+    Segments,
+    claim_precedences,
+    claim_radii,
+    describe_types,
+)
+from hierplan_opt.schedule.dag import csr, find_cycle, topo_order
 
-#: Node kinds.
+#: Node kinds: a visited vertex; markers that end a claim (precedence source), begin
+#: one (precedence target), or both; and a robot's start again where it waits, at
+#: rest, for an earlier robot to leave before it sets off.
 VERTEX = 0
-LEAVE = 1  # marker m1: ``delta`` past the vertex being left
-ENTER = 2  # marker m2: ``delta`` before the vertex being entered
-KIND_NAMES = ("vertex", "leave", "enter")
+LEAVE = 1
+ENTER = 2
+MARKER = 3
+WAIT = 4
+KIND_NAMES = ("vertex", "leave", "enter", "marker", "wait")
 
 #: Arc types.
 TYPE1 = 1
@@ -52,13 +74,15 @@ class TPG:
     agent_ptr : (K+1,) int
         Nodes of agent ``j`` are ``agent_ptr[j]:agent_ptr[j+1]`` in path order.
     node_agent, node_kind, node_vertex : (N,) int
-        Robot, kind (:data:`VERTEX`, :data:`LEAVE`, :data:`ENTER`) and the vertex the
-        node is at or ``delta`` away from.
+        Robot, kind (:data:`VERTEX`, :data:`LEAVE`, :data:`ENTER`, :data:`MARKER`,
+        :data:`WAIT`) and the vertex the node is at (markers: the vertex their move
+        starts from).
     node_step : (N,) int
         Discrete timestep of the event in the plan (vertex nodes: entry step; markers:
-        the step at which the move starts).
+        the step at which their move starts).
     node_pos : (N, dim) float
-        Geometric position (``Graph.position`` units, i.e. grid cells times cell size).
+        Geometric position in metres (``Graph.position`` units: grid cells times the
+        cell size, or roadmap coordinates).
     node_coord : (N, dim) float
         Position in instance coordinates (grid cells; roadmap coordinates).
     node_s : (N,) float
@@ -72,8 +96,14 @@ class TPG:
         Arcs; Type-1 arcs are exactly the pairs of consecutive nodes of one robot.
     arc_type : (M,) int
         :data:`TYPE1` or :data:`TYPE2`.
-    delta : float
-        Marker distance (0 for the plain TPG).
+    arc_lock : (M,) int
+        For Type-2 arcs the vertex whose surroundings the two robots share (the
+        location of the plain TPG, the claimed vertex with radii); -1 for Type-1.
+    requirement : Requirement
+        Radii, robot types and margin (``D_ij = r_i + r_j + margin``).
+    regime : str
+        ``none`` (point robots or ``clearance=False``), ``tight`` or ``general``
+        (see :mod:`hierplan_opt.schedule.clearance`).
     """
 
     agent_ptr: np.ndarray
@@ -89,9 +119,21 @@ class TPG:
     arc_src: np.ndarray
     arc_dst: np.ndarray
     arc_type: np.ndarray
-    delta: float
+    arc_lock: np.ndarray
+    requirement: Requirement
+    regime: str
     agent_names: tuple[str, ...]
-    location_names: tuple[str, ...]
+    location_names: _LocationNames
+
+    @property
+    def margin(self) -> float:
+        """Extra clearance beyond the radii (metres)."""
+        return self.requirement.margin
+
+    @property
+    def delta(self) -> float:
+        """Deprecated name of :attr:`margin` (kept for readers of earlier schedules)."""
+        return self.requirement.margin
 
     @property
     def num_nodes(self) -> int:
@@ -119,16 +161,63 @@ class TPG:
     def final_nodes(self) -> np.ndarray:
         return self.agent_ptr[1:] - 1
 
+    @cached_property
+    def _type2_in(self) -> tuple[np.ndarray, np.ndarray]:
+        t2 = np.flatnonzero(self.arc_type == TYPE2)
+        order, ptr = csr(self.num_nodes, self.arc_dst[t2])
+        return t2[order], ptr
+
+    def type2_predecessors(self, v: int) -> np.ndarray:
+        """Nodes of other robots that must have been *left* before node ``v`` happens.
+
+        Example
+        -------
+        >>> from hierplan_opt.core.graph import Graph
+        >>> g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
+        >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)])
+        >>> v = g.vertex
+        >>> plan = Plan.from_paths([[v((0, 1)), v((1, 1)), v((2, 1))],
+        ...                         [v((1, 0)), v((1, 0)), v((1, 1)), v((1, 2))]])
+        >>> tpg = build_tpg(inst, plan)
+        >>> [tpg.label(int(u)) for u in tpg.type2_predecessors(4)]
+        ['agent0 at (1, 1)']
+        """
+        arcs, ptr = self._type2_in
+        return self.arc_src[arcs[ptr[v] : ptr[v + 1]]]
+
     def label(self, v: int) -> str:
-        """A short human-readable name of node ``v``, e.g. ``agent1 enters (2, 0)``."""
+        """A short human-readable name of node ``v``, e.g. ``agent1 at (2, 0)``."""
         who = self.agent_names[int(self.node_agent[v])]
         loc = self.location_names[int(self.node_vertex[v])]
-        kind = int(self.node_kind[v])
-        if kind == VERTEX:
+        if int(self.node_kind[v]) == VERTEX:
             return f"{who} at {loc}"
-        if kind == LEAVE:
-            return f"{who} {self.delta:g} past {loc}"
-        return f"{who} {self.delta:g} before {loc}"
+        if int(self.node_kind[v]) == WAIT:
+            return f"{who} sets off from {loc}"
+        first = int(self.agent_ptr[int(self.node_agent[v])])
+        u = v - 1
+        while u > first and int(self.node_kind[u]) != VERTEX:
+            u -= 1
+        return f"{who} {float(self.node_s[v] - self.node_s[u]):.4g} past {loc}"
+
+
+# ---------------------------------------------------------------------- visits
+@dataclass(frozen=True, eq=False)
+class _Visits:
+    """Every robot's visits (waits merged) and moves, concatenated over robots."""
+
+    V: np.ndarray  # vertex of each visit
+    T: np.ndarray  # entry timestep
+    A: np.ndarray  # robot
+    ptr: np.ndarray  # visits of robot j: ptr[j]:ptr[j+1]
+    is_first: np.ndarray
+    is_last: np.ndarray
+    pos: np.ndarray  # metres
+    s: np.ndarray  # arc length at the visit
+    turn: np.ndarray  # heading change before leaving
+    heading: np.ndarray
+    mv: np.ndarray  # visit index of each move's origin
+    elen: np.ndarray  # declared length of each move
+    head: np.ndarray  # heading of each move
 
 
 def _compress(path: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -145,11 +234,107 @@ def _wrap(a: np.ndarray) -> np.ndarray:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def build_tpg(instance: Instance, plan: Plan, delta: float = 0.0) -> TPG:
-    """The (augmented, when ``delta > 0``) temporal plan graph of a *valid* plan.
+def _visits(instance: Instance, plan: Plan) -> _Visits:
+    g = instance.graph
+    K = plan.num_agents
+    scale = g.cell_size if g.kind == "grid" else 1.0
+    verts_l, steps_l = [], []
+    for p in plan.paths:
+        vv, ss = _compress(p)
+        verts_l.append(vv)
+        steps_l.append(ss)
+    counts = np.array([len(v) for v in verts_l], dtype=np.int64)
+    V = np.concatenate(verts_l)
+    T = np.concatenate(steps_l)
+    A = np.repeat(np.arange(K), counts)
+    ptr = np.zeros(K + 1, dtype=np.int64)
+    ptr[1:] = np.cumsum(counts)
+    nvis = len(V)
+    is_last = np.zeros(nvis, dtype=bool)
+    is_last[ptr[1:] - 1] = True
+    is_first = np.zeros(nvis, dtype=bool)
+    is_first[ptr[:-1]] = True
+    with np.errstate(over="ignore", invalid="ignore"):
+        pos = g.coords[V] * scale
+    mv = np.flatnonzero(~is_last)
+    a_v, b_v = V[mv], V[mv + 1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        d = pos[mv + 1] - pos[mv]
+        geo = np.linalg.norm(d, axis=1)
+    elen = _edge_lengths(g, a_v, b_v)
+    _check_geometry(instance, pos, mv, V, geo, elen)
+    # Heading of each move (x-y plane); vertical 3D moves keep the previous heading.
+    flat = np.hypot(d[:, 0], d[:, 1]) > 1e-12 * np.maximum(geo, 1e-300)
+    head = np.where(flat, np.arctan2(d[:, 1], d[:, 0]), np.nan)
+    head = _fill_headings(head, A[mv])
+    vis_head = np.zeros(nvis)
+    vis_head[mv] = head
+    last_with_move = ptr[1:] - 1
+    has_move = counts > 1
+    vis_head[last_with_move[has_move]] = head[np.searchsorted(mv, last_with_move[has_move] - 1)]
+    vis_turn = np.zeros(nvis)
+    kk = np.flatnonzero(~is_first[mv])  # moves that are not their robot's first
+    vis_turn[mv[kk]] = np.abs(_wrap(head[kk] - head[kk - 1]))
+    step_len = np.zeros(nvis)
+    step_len[mv + 1] = elen
+    cs = np.cumsum(step_len)
+    vis_s = cs - np.repeat(cs[ptr[:-1]], counts)
+    return _Visits(V, T, A, ptr, is_first, is_last, pos, vis_s, vis_turn, vis_head, mv, elen, head)
 
-    The plan is assumed valid (``postprocess`` validates it first); ``delta`` must be
-    below half of every move's geometric length (checked by ``postprocess``).
+
+def _check_geometry(
+    instance: Instance,
+    pos: np.ndarray,
+    mv: np.ndarray,
+    V: np.ndarray,
+    geo: np.ndarray,
+    elen: np.ndarray,
+) -> None:
+    """Refuse positions and lengths that cannot be represented, and roadmap edges
+    declared shorter than the straight segment the robots drive along."""
+    g = instance.graph
+    bad = np.flatnonzero(~np.isfinite(pos).all(axis=1))
+    if len(bad):
+        v = int(V[bad[0]])
+        what = f"cell_size {g.cell_size:g}" if g.kind == "grid" else "its coordinates"
+        raise InputError(
+            f"the position of {_loc(g, v)} in metres is not a finite number ({what}); "
+            "MAPF-POST cannot represent this map"
+        )
+    bad = np.flatnonzero(~np.isfinite(geo))
+    if len(bad):
+        u, w = int(V[mv[bad[0]]]), int(V[mv[bad[0]] + 1])
+        raise InputError(
+            f"the distance from {_loc(g, u)} to {_loc(g, w)} is not a finite number; "
+            "MAPF-POST cannot represent this map"
+        )
+    short = np.flatnonzero(elen < geo * (1.0 - 1e-9))
+    if len(short):
+        k = int(short[0])
+        u, w = int(V[mv[k]]), int(V[mv[k] + 1])
+        raise InputError(
+            f"roadmap edge {_loc(g, u)} -> {_loc(g, w)} is {elen[k]:g} long but its end "
+            f"points are {geo[k]:g} apart; robots drive straight between way-points, so an "
+            "edge may not be shorter than the straight segment (fix the length or omit it)"
+        )
+
+
+# ---------------------------------------------------------------------- build
+def build_tpg(
+    instance: Instance, plan: Plan, margin: float = 0.0, *, clearance: bool = True
+) -> TPG:
+    """The temporal plan graph of a *valid* plan, with markers for the robots' radii.
+
+    Parameters
+    ----------
+    margin : float
+        Extra clearance in metres: robots ``i`` and ``j`` keep their centres at least
+        ``r_i + r_j + margin`` apart (radii from the robots' kinematics).
+    clearance : bool
+        False builds the plain TPG (order of the plan only, no distance guarantee).
+
+    Raises :class:`~hierplan_opt.schedule.clearance.ClearanceError` (an
+    :class:`InputError`) when the plan cannot keep that distance.
 
     Example
     -------
@@ -164,193 +349,323 @@ def build_tpg(instance: Instance, plan: Plan, delta: float = 0.0) -> TPG:
     (6, 5, 1)
     >>> [tpg.label(int(u)) + " -> " + tpg.label(int(w))
     ...  for u, w, t in zip(tpg.arc_src, tpg.arc_dst, tpg.arc_type) if t == 2]
-    ['agent0 at (2, 1) -> agent1 at (1, 1)']
-    >>> build_tpg(inst, plan, delta=0.25).num_nodes  # 6 vertices + 2 markers kept
-    8
+    ['agent0 at (1, 1) -> agent1 at (1, 1)']
+    >>> wide = build_tpg(inst, plan, margin=0.2)  # markers 0.6 m from (1, 1)
+    >>> [wide.label(int(u)) + " -> " + wide.label(int(w))
+    ...  for u, w, t in zip(wide.arc_src, wide.arc_dst, wide.arc_type) if t == 2]
+    ['agent0 0.6 past (1, 1) -> agent1 0.4 past (1, 0)']
     """
+    req = Requirement.of(instance, margin, enforced=clearance)
+    if plan.num_agents != instance.num_agents:
+        raise InputError(
+            f"the plan has {plan.num_agents} paths but the instance {instance.num_agents} agents"
+        )
+    vis = _visits(instance, plan)
+    regime = req.regime(instance.graph)
+    if regime == "none":
+        tpg = _plain(instance, vis, req)
+    else:
+        tpg = _with_claims(instance, vis, req, regime)
+    return _freeze(tpg)
+
+
+def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
+    """Plain TPG: consecutive visitors of a location, "left" -> "enters"."""
     g = instance.graph
-    if delta < 0 or not math.isfinite(delta):
-        raise InputError(f"delta must be a finite number >= 0, got {delta!r}")
-    K = plan.num_agents
-    scale = g.cell_size if g.kind == "grid" else 1.0
-
-    # ---- visits (waits merged), concatenated over robots -------------------------
-    verts_l, steps_l = [], []
-    for p in plan.paths:
-        vv, ss = _compress(p)
-        verts_l.append(vv)
-        steps_l.append(ss)
-    counts = np.array([len(v) for v in verts_l], dtype=np.int64)
-    V = np.concatenate(verts_l)
-    T = np.concatenate(steps_l)
-    A = np.repeat(np.arange(K), counts)
-    visit_ptr = np.zeros(K + 1, dtype=np.int64)
-    visit_ptr[1:] = np.cumsum(counts)
-    nvis = len(V)
-    is_last = np.zeros(nvis, dtype=bool)
-    is_last[visit_ptr[1:] - 1] = True
-    is_first = np.zeros(nvis, dtype=bool)
-    is_first[visit_ptr[:-1]] = True
-
-    # ---- moves: visit i -> visit i+1 of the same robot ------------------------------
-    mv = np.flatnonzero(~is_last)  # visit index of each move's origin
-    a_v, b_v = V[mv], V[mv + 1]
-    coords = g.coords
-    pos_a = coords[a_v] * scale
-    pos_b = coords[b_v] * scale
-    geo = np.linalg.norm(pos_b - pos_a, axis=1)
-    elen = _edge_lengths(g, a_v, b_v)
-    # Heading of each move (x-y plane); vertical 3D moves keep the previous heading.
-    d = pos_b - pos_a
-    flat = np.hypot(d[:, 0], d[:, 1]) > 1e-12
-    head = np.where(flat, np.arctan2(d[:, 1], d[:, 0]), np.nan)
-    # Forward-fill NaNs within each robot (and backward-fill a leading NaN).
-    move_agent = A[mv]
-    head = _fill_headings(head, move_agent)
-
-    # Per visit: heading when leaving (or the arrival heading for the last visit) and
-    # the turn made at the visit before the next move.
-    vis_head = np.zeros(nvis)
-    vis_head[mv] = head
-    last_with_move = visit_ptr[1:] - 1
-    has_move = counts > 1
-    vis_head[last_with_move[has_move]] = head[np.searchsorted(mv, last_with_move[has_move] - 1)]
-    vis_turn = np.zeros(nvis)
-    # Turn at visit mv[k] (k not the robot's first move) = |head[k] - head[k-1]|.
-    not_first_move = ~is_first[mv]
-    kk = np.flatnonzero(not_first_move)
-    vis_turn[mv[kk]] = np.abs(_wrap(head[kk] - head[kk - 1]))
-
-    # Cumulative path length per visit.
-    vis_s = np.zeros(nvis)
-    step_len = np.zeros(nvis)
-    step_len[mv + 1] = elen
-    cs = np.cumsum(step_len)
-    vis_s = cs - np.repeat(cs[visit_ptr[:-1]], counts)
-
-    # ---- Type-2 precedences between consecutive visits of each location -------------
-    order = np.lexsort((T, V))
-    same_loc = V[order[1:]] == V[order[:-1]]
-    other = A[order[1:]] != A[order[:-1]]
+    order = np.lexsort((vis.T, vis.V))
+    same_loc = vis.V[order[1:]] == vis.V[order[:-1]]
+    other = vis.A[order[1:]] != vis.A[order[:-1]]
     sel = np.flatnonzero(same_loc & other)
-    prev_vis = order[sel]  # j's visit (earlier)
-    next_vis = order[sel + 1]  # k's visit (later)
-    if np.any(is_last[prev_vis]) or np.any(is_first[next_vis]):
+    prev_vis = order[sel]
+    next_vis = order[sel + 1]
+    if np.any(vis.is_last[prev_vis]):
         raise InputError("the plan has a vertex conflict (validate it first)")
+    t1 = np.flatnonzero(~vis.is_last)
+    nvis = len(vis.V)
+    coords = g.coords[vis.V].astype(float)
+    return TPG(
+        agent_ptr=vis.ptr,
+        node_agent=vis.A,
+        node_kind=np.zeros(nvis, dtype=np.int8),
+        node_vertex=vis.V,
+        node_step=vis.T,
+        node_pos=vis.pos,
+        node_coord=coords,
+        node_s=vis.s,
+        node_turn=vis.turn,
+        node_heading=vis.heading,
+        arc_src=np.concatenate([t1, prev_vis]),
+        arc_dst=np.concatenate([t1 + 1, next_vis]),
+        arc_type=np.concatenate(
+            [np.full(len(t1), TYPE1, np.int8), np.full(len(prev_vis), TYPE2, np.int8)]
+        ),
+        arc_lock=np.concatenate([np.full(len(t1), -1, np.int64), vis.V[next_vis]]),
+        requirement=req,
+        regime="none",
+        agent_names=tuple(a.name for a in instance.agents),
+        location_names=_LocationNames(g),
+    )
 
+
+def _segments(vis: _Visits) -> Segments:
+    """The moves as segments, plus one point segment per robot that never moves."""
+    K = len(vis.ptr) - 1
+    counts = np.diff(vis.ptr)
+    still = np.flatnonzero(counts == 1)
+    o = np.concatenate([vis.mv, vis.ptr[still]])
+    moving = np.concatenate([np.ones(len(vis.mv), bool), np.zeros(len(still), bool)])
+    dest = np.where(moving, o + 1, o)
+    agent = vis.A[o]
+    order = np.lexsort((o, agent))
+    o, dest, moving, agent = o[order], dest[order], moving[order], agent[order]
+    length = np.where(moving, vis.s[dest] - vis.s[o], 0.0)
+    first = np.zeros(len(o), dtype=bool)
+    last = np.zeros(len(o), dtype=bool)
+    seg_ptr = np.searchsorted(agent, np.arange(K + 1))
+    first[seg_ptr[:-1]] = True
+    last[seg_ptr[1:] - 1] = True
+    tau_move = np.where(moving, vis.T[dest] - 1, vis.T[o]).astype(float)
+    leaves = moving & ~vis.is_last[dest]
+    tau_next = np.full(len(o), np.inf)
+    tau_next[leaves] = vis.T[dest[leaves] + 1] - 1
+    return Segments(
+        agent=agent,
+        origin=o,
+        a=vis.pos[o],
+        b=vis.pos[dest],
+        s0=vis.s[o],
+        length=length,
+        tau0=vis.T[o].astype(float),
+        tau_move=tau_move,
+        tau_next=tau_next,
+        first=first,
+        last=last,
+        moving=moving,
+    )
+
+
+def _with_claims(instance: Instance, vis: _Visits, req: Requirement, regime: str) -> TPG:
+    g = instance.graph
+    seg = _segments(vis)
+    geo = np.linalg.norm(seg.b - seg.a, axis=1)
+    locks, lock_pos, rho = _locks(vis, seg, geo, req, regime)
+    base, extra = claim_radii(req, regime, rho, g.cell_size)
     names = tuple(a.name for a in instance.agents)
-    loc_names = _LocationNames(g)
+    room = _room(g, geo)
 
-    if delta == 0:
-        node_kind = np.zeros(nvis, dtype=np.int8)
-        src2 = prev_vis + 1  # j enters its next location ...
-        dst2 = next_vis  # ... before k enters the shared one
-        t1 = np.flatnonzero(~is_last)
-        arc_src = np.concatenate([t1, src2])
-        arc_dst = np.concatenate([t1 + 1, dst2])
-        arc_type = np.concatenate(
-            [np.full(len(t1), TYPE1, np.int8), np.full(len(src2), TYPE2, np.int8)]
-        )
-        return _freeze(
-            TPG(
-                agent_ptr=visit_ptr,
-                node_agent=A,
-                node_kind=node_kind,
-                node_vertex=V,
-                node_step=T,
-                node_pos=coords[V] * scale,
-                node_coord=coords[V].astype(float),
-                node_s=vis_s,
-                node_turn=vis_turn,
-                node_heading=vis_head,
-                arc_src=arc_src,
-                arc_dst=arc_dst,
-                arc_type=arc_type,
-                delta=0.0,
-                agent_names=names,
-                location_names=loc_names,  # type: ignore[arg-type]
+    def describe(kind: str, agents: tuple[int, int], lock: int, dist: float) -> str:
+        a, b = agents
+        loc = _loc(g, int(locks[lock]))
+        need = req.required(a, b)
+        types = describe_types(req, (a, b))
+        if kind == "start":
+            what = (
+                f"robots {names[a]} and {names[b]} ({types}) start too close near {loc}: "
+                f"{names[a]}'s start is {dist:.4g} m from {names[b]}'s first moves"
             )
-        )
+        elif kind == "goal":
+            what = (
+                f"robots {names[a]} and {names[b]} ({types}) end too close near {loc}: "
+                f"{names[a]}'s goal is {dist:.4g} m from {names[b]}'s last moves"
+            )
+        else:
+            what = (
+                f"robot {names[a]} never leaves the surroundings of {loc} and robot "
+                f"{names[b]} ({types}) passes {dist:.4g} m from its path there"
+            )
+        return f"{what}, but they need {need:g} m between their centres ({room})"
 
-    # ---- augmented TPG: vertex, m1, m2 per move ------------------------------------
-    # Full node layout before merging: visit i occupies 1 slot if last, else 3.
-    width = np.where(is_last, 1, 3)
-    base = np.zeros(nvis + 1, dtype=np.int64)
-    base[1:] = np.cumsum(width)
-    nfull = int(base[-1])
-    m1_of_move = base[mv] + 1
-    m2_of_move = base[mv] + 2
-    # The move index of a visit's outgoing move: position of the visit in mv.
-    move_of_visit = np.full(nvis, -1, dtype=np.int64)
-    move_of_visit[mv] = np.arange(len(mv))
-    src2 = m1_of_move[move_of_visit[prev_vis]]
-    dst2 = m2_of_move[move_of_visit[next_vis - 1]]
+    claims = claim_precedences(seg, lock_pos, base, extra, req, describe=describe)
+    # ---- markers: the claim ends that carry a precedence ----------------------------
+    wait = claims.dst_wait
+    go = ~wait
+    pts_seg = np.concatenate([claims.seg_out[claims.src], claims.seg_in[claims.dst[go]]])
+    pts_t = np.concatenate([claims.t_out[claims.src], claims.t_in[claims.dst[go]]])
+    role = np.concatenate([np.full(len(claims.src), LEAVE), np.full(int(go.sum()), ENTER)])
+    # A claim end at a segment's end point is the vertex node itself.
+    o = seg.origin[pts_seg]
+    at_vertex = (pts_t <= 0.0) | (pts_t >= 1.0) | ~seg.moving[pts_seg]
+    vert_of_pt = np.where((pts_t >= 1.0) & seg.moving[pts_seg], o + 1, o)
+    mk = ~at_vertex
+    uniq, inv = np.unique(
+        np.stack([pts_seg[mk].astype(float), pts_t[mk]]), axis=1, return_inverse=True
+    )
+    inv = inv.ravel()
+    m_seg = uniq[0].astype(np.int64)
+    m_t = uniq[1]
+    m_role = np.zeros(len(m_seg), dtype=np.int8)
+    np.bitwise_or.at(m_role, inv, role[mk].astype(np.int8))
+    m_kind = np.where(m_role == LEAVE | ENTER, MARKER, m_role).astype(np.int8)
+    # Robots that wait at their start until an earlier start claim has ended.
+    waiters = np.unique(claims.agent[claims.dst[wait]])
+    w_vis = vis.ptr[waiters]
+    # ---- nodes: visits, waits and markers, sorted along each robot's path -------------
+    nvis = len(vis.V)
+    nw = len(waiters)
+    m_orig = seg.origin[m_seg]
+    key = np.concatenate([np.arange(nvis, dtype=float), w_vis.astype(float), m_orig + m_t])
+    rank = np.concatenate([np.zeros(nvis), np.ones(nw), np.full(len(m_seg), 2.0)])
+    order = np.lexsort((rank, key))
+    newid = np.empty(len(key), dtype=np.int64)
+    newid[order] = np.arange(len(key))
+    vis_node = newid[:nvis]
+    wait_node = newid[nvis : nvis + nw]
+    mark_node = newid[nvis + nw :]
+    d = seg.b[m_seg] - seg.a[m_seg]
+    cu = g.coords[vis.V[m_orig]].astype(float)
+    cw = g.coords[vis.V[np.minimum(m_orig + 1, nvis - 1)]].astype(float)
+    move_of = np.searchsorted(vis.mv, m_orig)
+    cat = np.concatenate
 
-    keep = np.zeros(nfull, dtype=bool)
-    keep[base[:-1]] = True
-    keep[src2] = True
-    keep[dst2] = True
+    def arrange(x: np.ndarray, w: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return cat([x, w, y])[order]
 
-    kind = np.zeros(nfull, dtype=np.int8)
-    kind[m1_of_move] = LEAVE
-    kind[m2_of_move] = ENTER
-    agent = np.repeat(A, width)
-    vertex = np.repeat(V, width)
-    vertex[m2_of_move] = b_v
-    step = np.repeat(T, width)
-    step[m1_of_move] = T[mv + 1] - 1
-    step[m2_of_move] = T[mv + 1] - 1
-    frac = delta / geo
-    pos = np.repeat(coords[V] * scale, width, axis=0)
-    pos[m1_of_move] = pos_a + frac[:, None] * d
-    pos[m2_of_move] = pos_b - frac[:, None] * d
-    cvec = (coords[b_v] - coords[a_v]).astype(float)
-    coord = np.repeat(coords[V].astype(float), width, axis=0)
-    coord[m1_of_move] = coords[a_v] + frac[:, None] * cvec
-    coord[m2_of_move] = coords[b_v] - frac[:, None] * cvec
-    s = np.repeat(vis_s, width)
-    s[m1_of_move] = vis_s[mv] + frac * elen
-    s[m2_of_move] = vis_s[mv + 1] - frac * elen
-    turn = np.repeat(vis_turn, width)
-    turn[m1_of_move] = 0.0
-    turn[m2_of_move] = 0.0
-    heading = np.repeat(vis_head, width)
-    heading[m1_of_move] = head
-    heading[m2_of_move] = head
-
-    newid = np.cumsum(keep) - 1
-    kept = np.flatnonzero(keep)
-    n_agent = agent[kept]
-    counts_new = np.bincount(n_agent, minlength=K)
-    agent_ptr = np.zeros(K + 1, dtype=np.int64)
-    agent_ptr[1:] = np.cumsum(counts_new)
-    last_node = np.zeros(len(kept), dtype=bool)
+    node_agent = arrange(vis.A, waiters, vis.A[m_orig])
+    counts = np.bincount(node_agent, minlength=len(vis.ptr) - 1)
+    agent_ptr = np.zeros(len(vis.ptr), dtype=np.int64)
+    agent_ptr[1:] = np.cumsum(counts)
+    node_kind = arrange(np.zeros(nvis, np.int8), np.full(nw, WAIT, np.int8), m_kind)
+    node_vertex = arrange(vis.V, vis.V[w_vis], vis.V[m_orig])
+    node_step = arrange(vis.T, vis.T[w_vis], vis.T[np.minimum(m_orig + 1, nvis - 1)] - 1)
+    node_pos = arrange(vis.pos, vis.pos[w_vis], seg.a[m_seg] + m_t[:, None] * d)
+    node_coord = arrange(
+        g.coords[vis.V].astype(float),
+        g.coords[vis.V[w_vis]].astype(float),
+        cu + m_t[:, None] * (cw - cu),
+    )
+    node_s = arrange(vis.s, vis.s[w_vis], seg.s0[m_seg] + m_t * seg.length[m_seg])
+    node_turn = arrange(vis.turn, np.zeros(nw), np.zeros(len(m_seg)))
+    node_heading = arrange(vis.heading, vis.heading[w_vis], vis.head[move_of])
+    # ---- arcs -------------------------------------------------------------------------
+    point_node = np.empty(len(pts_seg), dtype=np.int64)
+    point_node[at_vertex] = vis_node[vert_of_pt[at_vertex]]
+    point_node[mk] = mark_node[inv]
+    ns = len(claims.src)
+    t2_src = point_node[:ns]
+    t2_dst = np.empty(len(claims.dst), dtype=np.int64)
+    t2_dst[go] = point_node[ns:]
+    t2_dst[wait] = wait_node[np.searchsorted(waiters, claims.agent[claims.dst[wait]])]
+    t2_lock = locks[claims.lock[claims.dst]]
+    pairs = np.unique(np.stack([t2_src, t2_dst, t2_lock]), axis=1)
+    last_node = np.zeros(len(node_agent), dtype=bool)
     last_node[agent_ptr[1:] - 1] = True
     t1 = np.flatnonzero(~last_node)
-    arc_src = np.concatenate([t1, newid[src2]])
-    arc_dst = np.concatenate([t1 + 1, newid[dst2]])
-    arc_type = np.concatenate(
-        [np.full(len(t1), TYPE1, np.int8), np.full(len(src2), TYPE2, np.int8)]
+    tpg = TPG(
+        agent_ptr=agent_ptr,
+        node_agent=node_agent,
+        node_kind=node_kind,
+        node_vertex=node_vertex,
+        node_step=node_step,
+        node_pos=node_pos,
+        node_coord=node_coord,
+        node_s=node_s,
+        node_turn=node_turn,
+        node_heading=node_heading,
+        arc_src=cat([t1, pairs[0]]),
+        arc_dst=cat([t1 + 1, pairs[1]]),
+        arc_type=cat([np.full(len(t1), TYPE1, np.int8), np.full(pairs.shape[1], TYPE2, np.int8)]),
+        arc_lock=cat([np.full(len(t1), -1, np.int64), pairs[2]]),
+        requirement=req,
+        regime=regime,
+        agent_names=names,
+        location_names=_LocationNames(g),
     )
-    return _freeze(
-        TPG(
-            agent_ptr=agent_ptr,
-            node_agent=n_agent,
-            node_kind=kind[kept],
-            node_vertex=vertex[kept],
-            node_step=step[kept],
-            node_pos=pos[kept],
-            node_coord=coord[kept],
-            node_s=s[kept],
-            node_turn=turn[kept],
-            node_heading=heading[kept],
-            arc_src=arc_src,
-            arc_dst=arc_dst,
-            arc_type=arc_type,
-            delta=float(delta),
-            agent_names=names,
-            location_names=loc_names,  # type: ignore[arg-type]
-        )
+    _check_acyclic(tpg, g, room)
+    return tpg
+
+
+def _locks(
+    vis: _Visits, seg: Segments, geo: np.ndarray, req: Requirement, regime: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lock points: every visited vertex, and in the general regime points that cut
+    every used edge longer than the largest ``D_ij`` into equal pieces no longer than
+    it. Returns the nearest vertex of each lock (for messages), the positions, and
+    ``rho``: half the longest piece at each lock (every robot is within ``rho`` of a lock
+    of its own path)."""
+    verts = np.unique(vis.V)
+    dest = np.where(seg.moving, seg.origin + 1, seg.origin)
+    u, w = vis.V[seg.origin], vis.V[dest]
+    h = 2.0 * float(req.radius.max(initial=0.0)) + req.margin
+    pieces = np.ones(len(geo), dtype=np.int64)
+    if regime == "general" and h > 0:
+        pieces = np.maximum(np.ceil(geo / h * (1 - 1e-12)).astype(np.int64), 1)
+    half = np.where(seg.moving, geo / pieces / 2.0, 0.0)
+    rho = np.zeros(len(verts))
+    np.maximum.at(rho, np.searchsorted(verts, u), half)
+    np.maximum.at(rho, np.searchsorted(verts, w), half)
+    pos = [_vertex_positions(vis, verts)]
+    near = [verts]
+    rhos = [rho]
+    # Cut points of each used edge (either direction once).
+    cut = np.flatnonzero(seg.moving & (pieces > 1))
+    if len(cut):
+        key = np.stack([np.minimum(u[cut], w[cut]), np.maximum(u[cut], w[cut])], axis=1)
+        _, first = np.unique(key, axis=0, return_index=True)
+        cut = cut[first]
+        n = pieces[cut]
+        k = np.concatenate([np.arange(1, m) for m in n.tolist()])
+        e = np.repeat(cut, n - 1)
+        # Measured from the edge's smaller vertex id, so both directions agree.
+        flip = u[e] > w[e]
+        a = np.where(flip[:, None], seg.b[e], seg.a[e])
+        b = np.where(flip[:, None], seg.a[e], seg.b[e])
+        frac = k / np.repeat(n, n - 1)
+        pos.append(a + frac[:, None] * (b - a))
+        near.append(np.where(frac <= 0.5, np.minimum(u[e], w[e]), np.maximum(u[e], w[e])))
+        rhos.append(np.repeat(half[cut], n - 1))
+    return np.concatenate(near), np.concatenate(pos), np.concatenate(rhos)
+
+
+def _vertex_positions(vis: _Visits, verts: np.ndarray) -> np.ndarray:
+    """Positions of ``verts`` (sorted, all visited) from their first visits."""
+    uniq, first = np.unique(vis.V, return_index=True)
+    return vis.pos[first[np.searchsorted(uniq, verts)]]
+
+
+def _room(g, geo: np.ndarray) -> str:  # noqa: ANN001
+    """``cells of 1 m`` / ``roadmap edges of up to 2.5 m``, for error messages."""
+    if g.kind == "grid":
+        return f"cells of {g.cell_size:g} m"
+    return f"roadmap edges of up to {float(geo.max(initial=0.0)):g} m"
+
+
+def _check_acyclic(tpg: TPG, g, room: str) -> None:  # noqa: ANN001
+    """Refuse, in one line, a TPG whose precedences wait for each other in a cycle."""
+    topo = topo_order(tpg.num_nodes, tpg.arc_src, tpg.arc_dst)
+    if topo.is_dag:
+        return
+    cyc = find_cycle(tpg.num_nodes, tpg.arc_src, tpg.arc_dst, topo.cyclic)
+    succ = cyc[1:] + cyc[:1]
+    key = {
+        (int(a), int(b)): k for k, (a, b) in enumerate(zip(tpg.arc_src, tpg.arc_dst, strict=True))
+    }
+    robots: list[int] = []
+    locs: list[str] = []
+    steps: set[int] = set()
+    need = 0.0
+    req = tpg.requirement
+    for u, w in zip(cyc, succ, strict=True):
+        k = key[(u, w)]
+        if tpg.arc_type[k] != TYPE2:
+            continue
+        a, b = int(tpg.node_agent[u]), int(tpg.node_agent[w])
+        robots.append(a)
+        need = max(need, req.required(a, b))
+        locs.append(tpg.location_names[int(tpg.arc_lock[k])])
+        steps.add(int(tpg.node_step[w]))
+    names = [tpg.agent_names[a] for a in robots]
+    ring = " -> ".join([*names, names[0]]) if names else "?"
+    where = ", ".join(dict.fromkeys(locs))
+    why = (
+        f"they rotate at step {steps.pop()}: each enters the cell that the next one leaves, "
+        "so with any clearance > 0 one of them would have to move first"
+        if len(steps) == 1
+        else "each holds the surroundings of a cell that the next one needs"
+    )
+    raise ClearanceError(
+        f"no schedule keeps robots of {describe_types(req, robots)} {need:g} m apart "
+        f"(r_i + r_j + margin {req.margin:g}) on {room}: {ring} wait for each other around "
+        f"{where} ({why}); replan, or use smaller radii, a smaller margin or larger cells"
     )
 
 
@@ -409,8 +724,12 @@ class _LocationNames:
         self._g = graph
 
     def __getitem__(self, v: int) -> str:
-        loc = self._g.location(v)
-        return loc if isinstance(loc, str) else "(" + ", ".join(map(str, loc)) + ")"
+        return _loc(self._g, v)
+
+
+def _loc(g, v: int) -> str:  # noqa: ANN001
+    loc = g.location(v)
+    return loc if isinstance(loc, str) else "(" + ", ".join(map(str, loc)) + ")"
 
 
 def _freeze(tpg: TPG) -> TPG:
