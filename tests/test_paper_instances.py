@@ -104,3 +104,48 @@ def test_generator_reproduces_files(tmp_path: Path, monkeypatch: pytest.MonkeyPa
     mod.main()
     for name in NAMES:
         assert (tmp_path / f"{name}.yaml").read_text() == (PAPER / f"{name}.yaml").read_text()
+
+
+@pytest.mark.parametrize("name", ["warehouse-part1", "warehouse-part2", "formation-usc"])
+def test_paper_schedules_keep_the_robots_apart(name: str) -> None:
+    # Issue 9 item 1: the robots' radii are the contract. youBots (radius 0.35 m) keep
+    # 0.7 m between centres, Pioneers (0.3 m) 0.6 m, a youBot and a Pioneer 0.65 m, on
+    # the 1 m cells of the warehouse (2 * 0.35 < 1: the tight claims fit).
+    from hierplan_opt.schedule import check_bounds, postprocess, replay
+
+    inst = load(name)
+    r = hp.solve(inst, "cbm", time_limit=60)
+    assert r.plan is not None
+    radius = {a.kinematics.robot_type: a.kinematics.radius for a in inst.agents}
+    for objective, method in (("makespan", "graph"), ("safety", "lp")):
+        s = postprocess(inst, r.plan, objective, method=method)
+        assert s.stats["regime"] == "tight"
+        assert check_bounds(s.stn, s.times) == []
+        rep = replay(s, inst, all_pairs=True)
+        assert rep.ok
+        for c in s.clearance:
+            assert c.guaranteed
+            assert c.required == pytest.approx(radius[c.types[0]] + radius[c.types[1]])
+            if c.types in rep.by_type:
+                assert rep.by_type[c.types][0] >= c.required - 1e-9
+        # Every robot needs at least its drive at full speed (1 m cells).
+        for j, (a, path) in enumerate(zip(inst.agents, r.plan.paths, strict=True)):
+            moves = sum(u != v for u, v in zip(path[:-1], path[1:], strict=True))
+            assert s.arrival_times(j)[-1] >= moves / a.kinematics.v_max - 1e-9
+
+
+def test_cli_post_checks_the_warehouse(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The issue's reproducer: `hierplan post warehouse-part2 ... --check` reported "(ok)"
+    # with robot centres 0.066 m apart; now the check compares with r_i + r_j.
+    from hierplan_opt.cli import main
+
+    plan = tmp_path / "plan.yaml"
+    out = tmp_path / "s.yaml"
+    wh = str(PAPER / "warehouse-part2.yaml")
+    assert main(["-q", "solve", wh, "--solver", "cbm", "--out", str(plan)]) == 0
+    capsys.readouterr()
+    assert main(["post", wh, str(plan), "--out", str(out), "--check"]) == 0
+    line = capsys.readouterr().out
+    assert "youbot/youbot 0.7 m" in line and "guaranteed" in line and "(ok)" in line
+    gap = float(line.split("worst pair vs required ")[1].split(" m")[0])
+    assert gap >= 0

@@ -12,13 +12,15 @@ held at the same time, in any motion that passes the markers in that order.
 
 Radii (``docs/post.md`` has the proofs):
 
-* **tight** (2D/3D grids of cell ``c`` with ``2 r_max + margin < c``):
-  ``lambda_j = c/2 + r_j + margin/2`` (+ a relative 1e-9). Every two points of grid
-  edges closer than ``D_ij <= c`` lie on edges that share a vertex, both within their
-  robot's radius of it (at a right or straight angle ``a, b < D_ij <= lambda``; on one
-  edge one of its two end points works because ``lambda_i + lambda_j = c + D_ij``). The
-  exit marker lies ``lambda_j`` beyond the vertex, past the middle of the next edge, so a
-  follower keeps exactly ``D_ij`` behind its leader.
+* **tight** (2D/3D grids of cell ``c`` with ``2 r_max + margin < c``, and roadmaps
+  whose used edges are laid out like that: see :func:`~hierplan_opt.schedule.tpg.
+  _grid_like`): ``lambda_j = c/2 + r_j + margin/2`` (``c``: the longest used edge at
+  the vertex; + a relative 1e-12). Every two points of used edges closer than
+  ``D_ij`` lie on edges that share a vertex, both within their robot's radius of it
+  (at a right or obtuse angle ``a, b < D_ij <= lambda``; on one edge one of its two end
+  points works because ``lambda_i + lambda_j >= c + D_ij``). The exit marker lies
+  ``lambda_j`` beyond the vertex, past the middle of the next edge, so a follower keeps
+  exactly ``D_ij`` behind its leader.
 * **general** (roadmaps, and grids whose cells are smaller than ``2 r_max + margin``):
   ``lambda_j(w) = rho_w + r_j + r_max + margin`` where ``rho_w`` is half the longest
   used segment at ``w``. A robot is always within ``rho_w`` of an end point ``w`` of its
@@ -221,8 +223,8 @@ def claim_radii(
     """``lambda_j(w) = base_w + extra_j``: returns ``(base per lock, extra per agent)``."""
     r = req.radius
     if regime == "tight":
-        scale = max(cell, 1e-300)
-        base = np.full(len(lock_rho), cell / 2.0)
+        scale = max(float(lock_rho.max(initial=0.0)), cell, 1e-300)
+        base = lock_rho.astype(float)  # half the longest used edge at the vertex
         extra = r + req.margin / 2.0 + ETA * scale
     else:
         scale = max(float(lock_rho.max(initial=0.0)), float(r.max(initial=0.0)), req.margin)

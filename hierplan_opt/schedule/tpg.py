@@ -362,6 +362,8 @@ def build_tpg(
         )
     vis = _visits(instance, plan)
     regime = req.regime(instance.graph)
+    if regime == "general" and instance.graph.kind != "grid" and _grid_like(vis, req):
+        regime = "tight"
     if regime == "none":
         tpg = _plain(instance, vis, req)
     else:
@@ -572,6 +574,56 @@ def _with_claims(instance: Instance, vis: _Visits, req: Requirement, regime: str
     )
     _check_acyclic(tpg, g, room)
     return tpg
+
+
+#: Above this many used edges a roadmap is not checked for the tight regime.
+GRID_LIKE_MAX_EDGES = 3000
+
+
+def _grid_like(vis: _Visits, req: Requirement) -> bool:
+    """Whether the roadmap edges the plan uses are laid out like grid edges, so that the
+    tight claim radii (half the longest edge at a vertex + r + margin/2) are sound:
+    with ``D = 2 r_max + margin``, every vertex has a used edge at least ``D`` long, used
+    edges meet at 90 degrees or more, and used segments without a common vertex (and
+    robots that never move) are at least ``D`` apart (``docs/post.md``)."""
+    from hierplan_opt.schedule.geometry import segment_distance
+
+    need = 2.0 * float(req.radius.max(initial=0.0)) + req.margin
+    u, w = vis.V[vis.mv], vis.V[vis.mv + 1]
+    key = np.unique(np.stack([np.minimum(u, w), np.maximum(u, w)], axis=1), axis=0)
+    counts = np.diff(vis.ptr)
+    still = vis.V[vis.ptr[:-1][counts == 1]]
+    segs = np.concatenate([key, np.stack([still, still], axis=1)]).reshape(-1, 2)
+    if len(segs) > GRID_LIKE_MAX_EDGES:
+        return False
+    first = np.unique(vis.V, return_index=True)
+    pos_of = dict(zip(first[0].tolist(), vis.pos[first[1]], strict=True))
+    a = np.array([pos_of[int(x)] for x in segs[:, 0]])
+    b = np.array([pos_of[int(x)] for x in segs[:, 1]])
+    # Every vertex on a used edge has one at least D long; edges meet at >= 90 degrees.
+    longest: dict[int, float] = {}
+    dirs: dict[int, list[np.ndarray]] = {}
+    for (p, q), pa, pb in zip(key.tolist(), a[: len(key)], b[: len(key)], strict=True):
+        d = pb - pa
+        n = float(np.linalg.norm(d))
+        for x, vec in ((p, d / n), (q, -d / n)):
+            longest[x] = max(longest.get(x, 0.0), n)
+            for other in dirs.get(x, []):
+                if float(np.dot(other, vec)) > 1e-9:
+                    return False
+            dirs.setdefault(x, []).append(vec)
+    if any(L < need for L in longest.values()):
+        return False
+    # Used segments without a common vertex stay D apart.
+    ii, jj = np.triu_indices(len(segs), 1)
+    apart = (
+        (segs[ii, 0] != segs[jj, 0])
+        & (segs[ii, 0] != segs[jj, 1])
+        & (segs[ii, 1] != segs[jj, 0])
+        & (segs[ii, 1] != segs[jj, 1])
+    )
+    ii, jj = ii[apart], jj[apart]
+    return bool(not len(ii) or segment_distance(a[ii], b[ii], a[jj], b[jj]).min() >= need)
 
 
 def _locks(
