@@ -17,16 +17,16 @@
 # # MAPF-POST: from a discrete plan to an execution schedule
 #
 # A discrete plan moves every robot one cell per timestep. `hp.postprocess` builds the
-# temporal plan graph (TPG) with safety markers at distance δ on every move, turns it into a
-# simple temporal network with each robot's kinematics, and computes node times:
+# temporal plan graph (TPG) with safety markers chosen from the robots' radii (every pair
+# keeps `r_i + r_j + margin` between centres), turns it into a simple temporal network
+# with each robot's kinematics, and computes node times:
 #
 # * `makespan` — earliest schedule (`method="graph"`, longest paths) or the LP; both must agree;
 # * `safety` — LP maximising the slowest speed, then the makespan at that level;
 # * `flowtime` — LP minimising the sum of arrival times.
 #
 # A constant-velocity replay (`hierplan_opt.schedule.replay`) measures the true minimum
-# distance between any two robots, which must be at least the schedule's guaranteed safety
-# distance.
+# distance of every pair of robots, which must be at least `r_i + r_j + margin`.
 
 # %%
 import time
@@ -68,7 +68,7 @@ runs = [("makespan", "graph"), ("makespan", "lp"), ("safety", "lp"), ("flowtime"
 schedules, rows = {}, []
 for objective, method in runs:
     t0 = time.perf_counter()
-    s = hp.postprocess(inst, plan, objective, method=method, delta=0.25)
+    s = hp.postprocess(inst, plan, objective, method=method, margin=0.25)
     elapsed = time.perf_counter() - t0
     rep = replay(s, inst, all_pairs=True)
     schedules[objective, method] = s
@@ -84,7 +84,7 @@ for objective, method in runs:
             "runtime": round(elapsed, 3),
         }
     )
-    assert rep.min_distance >= s.safety_distance - 1e-9, (objective, method)
+    assert rep.ok and rep.min_distance >= s.safety_distance - 1e-9, (objective, method)
     assert check_bounds(s.stn, s.times) == [], (objective, method)
 print(format_table(rows))
 graph_ms = schedules["makespan", "graph"].makespan
@@ -96,8 +96,8 @@ assert schedules["safety", "lp"].makespan >= graph_ms - 1e-6
 # The graph method and the LP agree on the minimum makespan. The flowtime LP cannot beat
 # the earliest schedule here (with lower bounds only, every node at its earliest time
 # minimises every arrival at once) — the check above asserts it is never worse. The safety
-# LP raises the slowest speed, which raises the guaranteed distance at no makespan cost in
-# this plan. Below: the Gantt chart of the earliest schedule —
+# LP raises the slowest speed: robots keep moving, and the replay's distances grow beyond
+# the guaranteed `r_i + r_j + margin`. Below: the Gantt chart of the earliest schedule —
 # one row per robot, bars are arrival windows (slack), red ticks the critical path.
 
 # %%
@@ -124,22 +124,23 @@ axes[0].set_xlabel("discrete path cost [steps]")
 axes[0].set_ylabel("arrival at the goal [s]")
 axes[0].legend(fontsize=8)
 axes[0].set_title("finish time per robot (dotted: distance / v_max)")
-deltas = [0.0, 0.1, 0.2, 0.3, 0.4, 0.49]
-ms = [hp.postprocess(inst, plan, delta=d).makespan for d in deltas]
-axes[1].plot(deltas, ms, marker="o")
-axes[1].set_xlabel("safety marker distance δ [cells]")
+margins = [0.0, 0.1, 0.2, 0.3, 0.35]  # robots of radius 0.3 m on 1 m cells
+ms = [hp.postprocess(inst, plan, margin=d).makespan for d in margins]
+axes[1].plot(margins, ms, marker="o")
+axes[1].set_xlabel("margin beyond r_i + r_j [m]")
 axes[1].set_ylabel("earliest-schedule makespan [s]")
-axes[1].set_title("makespan vs δ")
+axes[1].set_title("makespan vs clearance margin")
 fig.tight_layout()
-print("makespan for δ =", {d: round(float(m), 3) for d, m in zip(deltas, ms, strict=True)})
+print("makespan per margin:", {d: round(float(m), 3) for d, m in zip(margins, ms, strict=True)})
 
 # %% [markdown]
 # Left: every robot needs at least its distance divided by its top speed (dotted lines).
 # The acceleration-aware bounds add more (with `a_max` = 1 m/s² a fast robot needs 2 s per
 # 1 m cell here, as its way-points below show), slow robots turn in place, and robots wait
 # for each other. Right: the
-# makespan of the earliest schedule as the safety-marker distance δ changes; δ = 0 is the
-# plain TPG without markers. The numbers are this plan's, not a general law.
+# makespan of the earliest schedule as the clearance margin beyond the two radii grows
+# (robots hold a cell until they are `cell/2 + r + margin/2` beyond it). The numbers are
+# this plan's, not a general law.
 
 # %%
 ax = plot_plan(inst, plan, legend=False, title="the plan that was scheduled")

@@ -116,7 +116,7 @@ fig = plot_layers(usc, out["flow"].plan)  # one panel per altitude; triangles = 
 #
 # The youBots (omni-directional, 0.8 m/s) and the Pioneers (differential drive, 0.6 m/s,
 # turning in place at 1.5 rad/s) share one temporal network; the schedule respects each
-# robot's own limits and the safety distance.
+# robot's own limits and keeps every pair `r_i + r_j` apart (0.7 m for two youBots).
 
 # %%
 from hierplan_opt.schedule import replay
@@ -128,7 +128,7 @@ print(
     f"makespan {sched.makespan:.2f} s (discrete: {r.plan.makespan} steps), "
     f"guaranteed distance {sched.safety_distance:.3f} m, replay minimum {rep.min_distance:.3f} m"
 )
-assert rep.min_distance >= sched.safety_distance - 1e-9
+assert rep.ok and rep.min_distance >= sched.safety_distance - 1e-9
 rows = []
 for robot_type in sorted({a.kinematics.robot_type for a in inst.agents}):
     idx = [i for i, a in enumerate(inst.agents) if a.kinematics.robot_type == robot_type]

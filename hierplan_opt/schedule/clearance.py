@@ -62,6 +62,24 @@ class ClearanceError(InputError):
     """The plan's geometry cannot keep the required distance between two robots."""
 
 
+def finite_nonnegative(value: object, message: str) -> float:
+    """``value`` as a float when it is a finite number >= 0, else ``InputError(message)``.
+
+    Example
+    -------
+    >>> finite_nonnegative(2, "margin")
+    2.0
+    """
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.floating, np.integer))
+        or not math.isfinite(value)
+        or value < 0
+    ):
+        raise InputError(message)
+    return float(value)
+
+
 @dataclass(frozen=True)
 class PairClearance:
     """The contract for one pair of robot types: required distance, and whether the
@@ -102,13 +120,9 @@ class Requirement:
 
     @classmethod
     def of(cls, instance: Instance, margin: float = 0.0, *, enforced: bool = True) -> Requirement:
-        if (
-            isinstance(margin, bool)
-            or not isinstance(margin, (int, float, np.floating))
-            or not math.isfinite(margin)
-            or margin < 0
-        ):
-            raise InputError(f"margin must be a finite number >= 0 (metres), got {margin!r}")
+        margin = finite_nonnegative(
+            margin, f"margin must be a finite number >= 0 (metres), got {margin!r}"
+        )
         radius = np.array([a.kinematics.radius for a in instance.agents], dtype=float)
         radius.setflags(write=False)
         types = tuple(a.kinematics.robot_type for a in instance.agents)

@@ -366,8 +366,7 @@ def write_schedule(schedule: Schedule, path: str | Path) -> Path:
     >>> from hierplan_opt.core.instance import Instance
     >>> from hierplan_opt.core.plan import Plan
     >>> from hierplan_opt.schedule import postprocess
-    >>> g = Graph.grid(3, 1)
-    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2]]))
     >>> with tempfile.TemporaryDirectory() as d:
     ...     p = write_schedule(s, os.path.join(d, "s.yaml"))

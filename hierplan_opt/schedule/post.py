@@ -11,7 +11,6 @@ and ``hierplan post --check`` run.
 from __future__ import annotations
 
 import logging
-import math
 import time
 import warnings
 from collections.abc import Mapping
@@ -23,6 +22,7 @@ from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.validate import validate
+from hierplan_opt.schedule.clearance import finite_nonnegative
 from hierplan_opt.schedule.output import Schedule, build_schedule
 from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 from hierplan_opt.schedule.solve_lp import BACKENDS, solve_lp
@@ -94,15 +94,12 @@ def postprocess(
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
-    >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)])
-    >>> v = g.vertex
-    >>> plan = Plan.from_paths([[v((0, 1)), v((1, 1)), v((2, 1))],
-    ...                         [v((1, 0)), v((1, 0)), v((1, 1)), v((1, 2))]])
-    >>> s = postprocess(inst, plan, margin=0.2)
-    >>> round(s.makespan, 6), s.safety_distance, s.arrival_times("agent1").round(6).tolist()
-    (3.2, 0.2, [0.0, 1.6, 2.2, 3.2])
+    >>> from hierplan_opt import Graph
+    >>> inst = Instance.mapf(Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
+    >>> plan = Plan.from_paths([[1, 2, 3], [0, 1, 2]])  # agent1 follows agent0
+    >>> s = postprocess(inst, plan, margin=0.5)  # point robots kept 0.5 m apart
+    >>> s.arrival_times("agent1").round(6).tolist(), s.safety_distance
+    ([0.0, 0.75, 1.5, 1.75, 2.5], 0.5)
     """
     t_start = time.perf_counter()
     margin = _check_arguments(instance, plan, objective, method, lp_backend, margin, delta)
@@ -182,14 +179,9 @@ def _check_arguments(
         if margin:
             raise OptionError("give margin or its old name delta, not both")
         margin = delta
-    if (
-        isinstance(margin, bool)
-        or not isinstance(margin, (int, float, np.floating))
-        or not math.isfinite(margin)
-        or margin < 0
-    ):
-        raise InputError(f"margin must be a finite number >= 0 (metres), got {margin!r}")
-    return float(margin)
+    return finite_nonnegative(
+        margin, f"margin must be a finite number >= 0 (metres), got {margin!r}"
+    )
 
 
 def _check_plan(instance: Instance, plan: Plan, check: bool) -> None:

@@ -172,8 +172,7 @@ def replay(
     >>> from hierplan_opt.core.graph import Graph
     >>> from hierplan_opt.core.plan import Plan
     >>> from hierplan_opt.schedule import postprocess
-    >>> g = Graph.grid(3, 2)
-    >>> inst = Instance.mapf(g, [(0, 0), (0, 1)], [(2, 0), (2, 1)])
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (0, 1)], [(2, 0), (2, 1)])
     >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]]), margin=0.25)
     >>> rep = replay(s, inst)
     >>> rep.min_distance, rep.ok  # two robots side by side, one cell apart
@@ -234,12 +233,9 @@ def check_bounds(stn: STN, times: np.ndarray, tol: float = BOUND_TOL) -> list[st
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(2, 1)
-    >>> inst = Instance.mapf(g, [(0, 0)], [(1, 0)])
+    >>> from hierplan_opt import Graph, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(2, 1), [(0, 0)], [(1, 0)])
     >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1]])))
     >>> check_bounds(stn, np.array([0.0, 1.0])), len(check_bounds(stn, np.array([0.0, 0.5])))
     ([], 1)

@@ -128,6 +128,27 @@ def _backward(stn: STN, topo: TopoOrder, t: np.ndarray) -> None:
             np.minimum.at(t, src[a:b], t[dst[a:b]] - lb[a:b])
 
 
+def _settle(stn: STN, topo: TopoOrder, t: np.ndarray, *, forward: bool) -> bool:
+    """Passes (forward: raise to lower bounds; backward: lower to upper bounds) until
+    every arc upper bound holds too; False when they do not settle (a cycle)."""
+    fin = np.flatnonzero(np.isfinite(stn.ub))
+    a, b, ub = stn.arc_src[fin], stn.arc_dst[fin], stn.ub[fin]
+    for _ in range(len(fin) + 2):
+        if forward:
+            _forward(stn, topo, t)
+            need = t[b] - ub  # t_a >= t_b - ub
+            bad = need > t[a] + _tol(t[a])
+            np.maximum.at(t, a[bad], need[bad])
+        else:
+            _backward(stn, topo, t)
+            need = t[a] + ub  # t_b <= t_a + ub
+            bad = need < t[b] - _tol(t[b])
+            np.minimum.at(t, b[bad], need[bad])
+        if not bad.any():
+            return True
+    return False
+
+
 def earliest_times(stn: STN, topo: TopoOrder | None = None) -> np.ndarray:
     """Earliest time of every node (the least solution of the STN).
 
@@ -135,13 +156,9 @@ def earliest_times(stn: STN, topo: TopoOrder | None = None) -> np.ndarray:
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 1)
-    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> tpg = build_tpg(inst, Plan.from_paths([[0, 1, 2]]))
     >>> earliest_times(build_stn(inst, tpg)).tolist()
     [0.0, 1.0, 2.0]
@@ -152,18 +169,7 @@ def earliest_times(stn: STN, topo: TopoOrder | None = None) -> np.ndarray:
     """
     topo = topo if topo is not None else _dag(stn)
     t = stn.release.astype(float).copy()
-    fin = np.flatnonzero(np.isfinite(stn.ub))
-    u_src, u_dst, u_ub = stn.arc_src[fin], stn.arc_dst[fin], stn.ub[fin]
-    for _ in range(len(fin) + 2):
-        _forward(stn, topo, t)
-        if not len(fin):
-            break
-        need = t[u_dst] - u_ub
-        up = need > t[u_src] + _tol(t[u_src])
-        if not up.any():
-            break
-        np.maximum.at(t, u_src[up], need[up])
-    else:
+    if not _settle(stn, topo, t, forward=True):
         _raise_cycle(stn, t, forward=True)
     late = t > stn.deadline + _tol(stn.deadline)
     if late.any():
@@ -177,13 +183,9 @@ def latest_times(stn: STN, horizon: float, topo: TopoOrder | None = None) -> np.
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 1)
-    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> latest_times(build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2]]))), 5).tolist()
     [0.0, 4.0, 5.0]
     """
@@ -191,18 +193,7 @@ def latest_times(stn: STN, horizon: float, topo: TopoOrder | None = None) -> np.
     t = stn.deadline.astype(float).copy()
     finals = stn.tpg.final_nodes()
     t[finals] = np.minimum(t[finals], horizon)
-    fin = np.flatnonzero(np.isfinite(stn.ub))
-    u_src, u_dst, u_ub = stn.arc_src[fin], stn.arc_dst[fin], stn.ub[fin]
-    for _ in range(len(fin) + 2):
-        _backward(stn, topo, t)
-        if not len(fin):
-            break
-        cap = t[u_src] + u_ub
-        down = cap < t[u_dst] - _tol(t[u_dst])
-        if not down.any():
-            break
-        np.minimum.at(t, u_dst[down], cap[down])
-    else:
+    if not _settle(stn, topo, t, forward=False):
         _raise_cycle(stn, -t, forward=False)
     early = t < stn.release - _tol(stn.release)
     if early.any():
@@ -225,13 +216,9 @@ def windows(
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 2)
-    >>> inst = Instance.mapf(g, [(0, 0), (2, 1)], [(2, 0), (1, 1)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (2, 1)], [(2, 0), (1, 1)])
     >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2], [5, 4]])))
     >>> [x.tolist() for x in windows(stn, np.array([0.0, 1.5, 3.0, 0.0, 1.0]))]
     [[0.0, 1.0, 2.0, 0.0, 1.0], [0.0, 2.0, 3.0, 0.0, 3.0]]
@@ -252,13 +239,9 @@ def critical_path(stn: STN, times: np.ndarray) -> tuple[int, ...]:
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 1)
-    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2]])))
     >>> critical_path(stn, earliest_times(stn))
     (0, 1, 2)
@@ -287,13 +270,9 @@ def solve_graph(stn: STN) -> GraphSolution:
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 2)
-    >>> inst = Instance.mapf(g, [(0, 0), (2, 1)], [(2, 0), (1, 1)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (2, 1)], [(2, 0), (1, 1)])
     >>> plan = Plan.from_paths([[0, 1, 2], [5, 4]])
     >>> sol = solve_graph(build_stn(inst, build_tpg(inst, plan)))
     >>> sol.makespan, sol.slack.tolist(), sol.critical_path
@@ -339,13 +318,9 @@ def fix_and_propagate(
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 2)
-    >>> inst = Instance.mapf(g, [(0, 0), (2, 1)], [(2, 0), (1, 1)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (2, 1)], [(2, 0), (1, 1)])
     >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2], [5, 4]])))
     >>> t = earliest_times(stn)
     >>> fix_and_propagate(stn, t, {1: 1.75}).tolist()  # agent0 reached (1, 0) late

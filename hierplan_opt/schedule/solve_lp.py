@@ -93,13 +93,9 @@ def solve_lp(
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
-    >>> from hierplan_opt.schedule.stn import build_stn
-    >>> g = Graph.grid(3, 1)
-    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> from hierplan_opt import Graph, Instance, Plan
+    >>> from hierplan_opt.schedule import build_stn, build_tpg
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2]])))
     >>> round(solve_lp(stn, "makespan", backend="pyomo").makespan, 6)
     2.0
@@ -140,7 +136,8 @@ def _solve_pyomo(
     release = net.release.tolist()
     deadline = net.deadline.tolist()
 
-    m = pyo.ConcreteModel(name="mapf_post")
+    # Pyomo builds components dynamically; its classes do not declare them for a checker.
+    m: Any = pyo.ConcreteModel(name="mapf_post")
     m.N = pyo.RangeSet(0, n - 1)
     m.t = pyo.Var(
         m.N,
@@ -185,7 +182,7 @@ def _solve_pyomo(
     stats["lp_build_time"] = time.perf_counter() - t_build
 
     t_solve = time.perf_counter()
-    opt = pyo.SolverFactory("appsi_highs")
+    opt: Any = pyo.SolverFactory("appsi_highs")
     if not opt.available():
         raise LPError("the HiGHS solver is not available to Pyomo (appsi_highs)")
     if time_limit is not None:
@@ -203,18 +200,18 @@ def _solve_pyomo(
 
     run()
     if objective == "safety":
-        R_val = float(pyo.value(m.R))
+        R_val = _value(pyo, m.R)
         m.R.setub(R_val * (1 + R_SLACK) + 1e-12)
         m.obj_R.deactivate()
         m.obj_M.activate()
         run()
-        obj_val = float(pyo.value(m.M))
+        obj_val = _value(pyo, m.M)
     elif objective == "makespan":
-        obj_val = float(pyo.value(m.M))
+        obj_val = _value(pyo, m.M)
     else:
-        obj_val = float(sum(pyo.value(m.t[f]) for f in finals))
+        obj_val = float(sum(_value(pyo, m.t[f]) for f in finals))
     stats["lp_solve_time"] = time.perf_counter() - t_solve
-    x = np.array([pyo.value(m.t[v]) for v in range(n)], dtype=float)
+    x = np.array([_value(pyo, m.t[v]) for v in range(n)], dtype=float)
     times = _clean(net.expand(x, R_val), stn)
     stats["lp_nodes"] = n
     stats["lp_arcs"] = len(src)
@@ -226,6 +223,14 @@ def _solve_pyomo(
         "pyomo",
         stats,
     )
+
+
+def _value(pyo: Any, component: Any) -> float:
+    """A solved Pyomo variable's value as a float (LPError if the solver left none)."""
+    v = pyo.value(component)
+    if v is None:
+        raise LPError(f"the LP solver gave no value for {component}")
+    return float(v)
 
 
 # ---------------------------------------------------------------------- HiGHS direct
@@ -264,6 +269,7 @@ def _solve_highs(
     row_hi.append(np.full(K, inf))
     r0 += K
     if objective == "safety":
+        assert not isinstance(net, _Projected)  # safety networks keep their pieces
         pieces = np.flatnonzero((net.kind == PIECE) & (net.length > 0))
         P = len(pieces)
         # t_dst - t_src - len * R <= 0
@@ -300,7 +306,7 @@ def _solve_highs(
     else:
         cost[iR] = 1.0
 
-    lp = highspy.HighsLp()
+    lp: Any = highspy.HighsLp()  # its stubs ask for lists; numpy arrays are accepted
     lp.num_col_ = ncol
     lp.num_row_ = r0
     lp.col_cost_ = cost

@@ -33,7 +33,6 @@ Upper bounds come from deadlines (arrival of a robot at its final node) or from 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
@@ -42,6 +41,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.schedule.clearance import finite_nonnegative
 from hierplan_opt.schedule.dag import TopoOrder, csr, topo_order
 from hierplan_opt.schedule.tpg import TPG, TYPE1, TYPE2, VERTEX, WAIT
 
@@ -190,8 +190,7 @@ class STN:
         >>> from hierplan_opt.core.graph import Graph
         >>> from hierplan_opt.core.plan import Plan
         >>> from hierplan_opt.schedule.tpg import build_tpg
-        >>> g = Graph.grid(3, 1)
-        >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+        >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
         >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2]])))
         >>> stn.with_bounds(lb=stn.lb * 2).lb.tolist()  # a robot running at half speed
         [2.0, 2.0]
@@ -243,22 +242,15 @@ def build_stn(
 
     Example
     -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.plan import Plan
-    >>> from hierplan_opt.schedule.tpg import build_tpg
+    >>> from hierplan_opt import Graph, Plan
+    >>> from hierplan_opt.schedule import build_tpg
     >>> g = Graph.grid(3, 1, cell_size=2.0)
     >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
     >>> stn = build_stn(inst, build_tpg(inst, Plan.from_paths([[0, 1, 2]])))
     >>> stn.lb.tolist()  # two cells of 2 m at 1 m/s
     [2.0, 2.0]
     """
-    if (
-        isinstance(epsilon, bool)
-        or not isinstance(epsilon, (int, float, np.floating))
-        or not math.isfinite(epsilon)
-        or epsilon < 0
-    ):
-        raise InputError(f"epsilon must be a finite number >= 0, got {epsilon!r}")
+    epsilon = finite_nonnegative(epsilon, f"epsilon must be a finite number >= 0, got {epsilon!r}")
     kins = [a.kinematics for a in instance.agents]
     v_max = np.array([k.v_max for k in kins], dtype=float)
     omega = np.array(
@@ -395,18 +387,13 @@ def _set_deadlines(
             j = names[key]
         else:
             raise InputError(f"deadline for unknown agent {key!r}")
-        if (
-            isinstance(when, bool)
-            or not isinstance(when, (int, float, np.floating))
-            or not math.isfinite(when)
-            or when < 0
-        ):
-            raise InputError(
-                f"deadline of agent {instance.agents[j].name!r} must be a finite "
-                f"number >= 0, got {when!r}"
-            )
+        when = finite_nonnegative(
+            when,
+            f"deadline of agent {instance.agents[j].name!r} must be a finite number >= 0, "
+            f"got {when!r}",
+        )
         f = int(finals[j])
-        deadline[f] = min(deadline[f], float(when))
+        deadline[f] = min(deadline[f], when)
 
 
 def _freeze(stn: STN) -> STN:

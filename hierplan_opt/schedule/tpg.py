@@ -172,15 +172,11 @@ class TPG:
 
         Example
         -------
-        >>> from hierplan_opt.core.graph import Graph
-        >>> g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
-        >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)])
-        >>> v = g.vertex
-        >>> plan = Plan.from_paths([[v((0, 1)), v((1, 1)), v((2, 1))],
-        ...                         [v((1, 0)), v((1, 0)), v((1, 1)), v((1, 2))]])
-        >>> tpg = build_tpg(inst, plan)
-        >>> [tpg.label(int(u)) for u in tpg.type2_predecessors(4)]
-        ['agent0 at (1, 1)']
+        >>> from hierplan_opt import Graph
+        >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0), (1, 0)], [(1, 0), (2, 0)])
+        >>> tpg = build_tpg(inst, Plan.from_paths([[0, 1], [1, 2]]))  # agent0 follows
+        >>> [tpg.label(int(u)) for u in tpg.type2_predecessors(1)]
+        ['agent1 at (1, 0)']
         """
         arcs, ptr = self._type2_in
         return self.arc_src[arcs[ptr[v] : ptr[v + 1]]]
@@ -612,7 +608,7 @@ def _grid_like(vis: _Visits, req: Requirement) -> bool:
                 if float(np.dot(other, vec)) > 1e-9:
                     return False
             dirs.setdefault(x, []).append(vec)
-    if any(L < need for L in longest.values()):
+    if any(need > L for L in longest.values()):
         return False
     # Used segments without a common vertex stay D apart.
     ii, jj = np.triu_indices(len(segs), 1)
