@@ -195,6 +195,26 @@ def test_cli_post_refuses_a_rotation_with_clearance(
     assert main([*args, "--no-clearance", "--out", str(out)]) == 0  # point robots: fine
 
 
+@pytest.mark.parametrize(
+    "old,new,what",
+    [
+        ('"@.@"]', '"@.@"]\n  cell_size: 1.0e+308', "position"),
+        ("v_max: 0.8,", "v_max: 1.0e-320,", "not a finite number"),
+    ],
+)
+def test_cli_post_refuses_unrepresentable_numbers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], old: str, new: str, what: str
+) -> None:
+    # Issue 21: huge cells or tiny speeds wrote schedules full of .nan/.inf.
+    inst, plan = _files(tmp_path)
+    Path(inst).write_text(INSTANCE.replace(old, new))
+    out = tmp_path / "s.yaml"
+    code = main(["post", inst, plan, "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and what in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
 def test_bench_post_smoke(capsys: pytest.CaptureFixture[str]) -> None:
     root = Path(__file__).resolve().parents[1] / "instances" / "movingai"
     code = main(

@@ -168,7 +168,7 @@ class Requirement:
             if a == b and count[a] < 2:
                 continue
             req = rad[a] + rad[b] + self.margin
-            out.append(PairClearance((a, b), float(req), bool(self.enforced or req == 0)))
+            out.append(PairClearance((a, b), round(req, 12), bool(self.enforced or req == 0)))
         return tuple(out)
 
     def guaranteed_distance(self) -> float:

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
-from hierplan_opt.schedule.dag import TopoOrder
+from hierplan_opt.schedule.dag import TopoOrder, topo_order
 from hierplan_opt.schedule.stn import STN
 
 log = logging.getLogger(__name__)
@@ -88,8 +88,6 @@ def topological_waves(n: int, src: np.ndarray, dst: np.ndarray) -> list[np.ndarr
     >>> [w.tolist() for w in topological_waves(4, np.array([0, 1, 0]), np.array([1, 2, 2]))]
     [[0, 3], [1], [2]]
     """
-    from hierplan_opt.schedule.dag import topo_order
-
     return topo_order(n, src, dst).waves
 
 
