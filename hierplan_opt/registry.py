@@ -1,9 +1,16 @@
-"""Solver registry: name -> (module, function, capabilities), imported lazily.
+"""Solver registry: name -> (module, capabilities), imported lazily; the checked way in.
 
 Every solver is a function ``solve(instance, *, time_limit, seed, objective,
-**its_own_options) -> Result``. The front door :func:`hierplan_opt.solve` looks the name
-up here, refuses options the solver's signature does not name, checks the problem kind
-and objective against the declared capabilities, and validates the returned plan.
+**its_own_options) -> Result`` decorated with :func:`solver`, which declares its options
+(:class:`~hierplan_opt.core.options.Option`) beside it. The table at the end of this
+module names every built-in solver and what it can do, without importing it.
+
+:func:`run` is the one way into a solver, used by the front door
+(:func:`hierplan_opt.solve`), by a direct call of a solver's ``solve`` and by solvers
+that use other solvers: it checks the problem kind and objective against the declared
+capabilities, checks every option, runs the cheap infeasibility checks once, and only
+then calls the solver. The front door adds the default time limit, the runtime and the
+validation of the returned plan.
 """
 
 from __future__ import annotations
@@ -11,9 +18,112 @@ from __future__ import annotations
 import importlib
 import inspect
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, Protocol
 
-from hierplan_opt.core.errors import UnknownSolverError
+from hierplan_opt.core.errors import OptionError, UnknownSolverError
+from hierplan_opt.core.options import Option, Options
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.timer import check_time_limit
+
+if TYPE_CHECKING:
+    from hierplan_opt.core.instance import Instance
+
+#: Arguments every solver takes besides its own options.
+COMMON = ("instance", "time_limit", "seed", "objective")
+OBJECTIVES = ("soc", "makespan")
+
+
+class SolverFn(Protocol):
+    """What the registry hands out: call it like :func:`hierplan_opt.solve` minus the name."""
+
+    def __call__(
+        self,
+        instance: Instance,
+        *,
+        time_limit: float | None = None,
+        seed: int = 0,
+        objective: str | None = None,
+        **options: Any,
+    ) -> Result: ...
+
+
+class Solver:
+    """A solve function together with its declared options (made by :func:`solver`).
+
+    Calling it runs :func:`run` under its registered name, so a direct call checks its
+    options and runs the cheap checks like the front door; :attr:`fn` is the bare
+    function :func:`run` calls after those checks.
+    """
+
+    def __init__(self, name: str, fn: Callable[..., Result], options: Options) -> None:
+        self.name = name
+        self.fn = fn
+        self.options = options
+        self.__doc__ = fn.__doc__
+        self.__wrapped__ = fn
+        self.__module__ = fn.__module__
+        self.__name__ = fn.__name__
+        self.__qualname__ = fn.__qualname__
+
+    def __call__(
+        self,
+        instance: Instance,
+        *,
+        time_limit: float | None = None,
+        seed: int = 0,
+        objective: str | None = None,
+        **options: Any,
+    ) -> Result:
+        return run(
+            self.name, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+        )
+
+    def __repr__(self) -> str:
+        return f"<solver {self.name!r}: {self.__module__}.{self.__qualname__}>"
+
+
+def _keyword_defaults(fn: Callable[..., Result]) -> dict[str, Any]:
+    """The solver's own keyword-only parameters and their defaults."""
+    return {
+        p.name: None if p.default is inspect.Parameter.empty else p.default
+        for p in inspect.signature(fn).parameters.values()
+        if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name not in COMMON
+    }
+
+
+def solver(name: str, *options: Option) -> Callable[[Callable[..., Result]], Solver]:
+    """Declare a solve function's options; the defaults come from its signature.
+
+    The declared names must be exactly the function's own keyword-only parameters.
+
+    Example
+    -------
+    >>> @solver("demo", Option("w", "float", "suboptimality bound", low=1))
+    ... def solve(instance, *, time_limit=None, seed=0, objective="soc", w=1.5):
+    ...     pass
+    >>> [o.describe() for o in solve.options]
+    ['w: number >= 1 (default 1.5) -- suboptimality bound']
+    """
+
+    def wrap(fn: Callable[..., Result]) -> Solver:
+        defaults = _keyword_defaults(fn)
+        declared = [o.name for o in options]
+        if declared != list(defaults):
+            raise TypeError(f"{name}: options {declared} do not match the signature {defaults}")
+        return Solver(name, fn, Options(options).with_defaults(defaults))
+
+    return wrap
+
+
+def _undeclared(name: str, fn: Callable[..., Result]) -> Solver:
+    """A plain function registered without :func:`solver`: options from its signature."""
+    kinds = {bool: "bool", int: "int", float: "float"}
+    opts = [
+        Option(k, kinds.get(type(v), "any"), "(undeclared)", default=v, optional=True)
+        for k, v in _keyword_defaults(fn).items()
+    ]
+    return Solver(name, fn, Options(opts))
 
 
 @dataclass(frozen=True)
@@ -34,24 +144,117 @@ class SolverInfo:
     bounded: bool = False
     description: str = ""
     one_team: bool = False
-    _fn: list[Callable] = field(default_factory=list, compare=False, repr=False)
+    _fn: list[Callable[..., Result]] = field(default_factory=list, compare=False, repr=False)
 
-    def load(self) -> Callable:
-        """Import and return the solve function (cached)."""
+    def load(self) -> Solver:
+        """Import the solver (cached): its function and declared options."""
         if not self._fn:
             mod, fn = self.target.split(":")
             self._fn.append(getattr(importlib.import_module(mod), fn))
-        return self._fn[0]
+        fn = self._fn[0]
+        return fn if isinstance(fn, Solver) else _undeclared(self.name, fn)
 
     def options(self) -> list[str]:
-        """Names of the solver's own keyword options (besides the common ones)."""
-        sig = inspect.signature(self.load())
-        common = {"instance", "time_limit", "seed", "objective"}
-        return [
-            p.name
-            for p in sig.parameters.values()
-            if p.kind is inspect.Parameter.KEYWORD_ONLY and p.name not in common
-        ]
+        """Names of the solver's own options (besides the common ones)."""
+        return self.load().options.names()
+
+    def objective_for(self, instance: Instance, objective: str | None) -> str:
+        """The objective to use (default: soc for MAPF when possible), or OptionError
+        when the solver cannot take ``instance`` or optimise ``objective``."""
+        problem = "tapf" if instance.is_tapf else "mapf"
+        if problem not in self.problems:
+            hint = ""
+            if problem == "tapf":
+                hint = "; for teams use 'cbm'" + (
+                    ", or 'flow' for one team" if len(instance.teams) == 1 else ""
+                )
+            raise OptionError(
+                f"solver {self.name!r} does not solve {problem.upper()} instances "
+                f"(it solves: {', '.join(sorted(p.upper() for p in self.problems))}){hint}"
+            )
+        if self.one_team and len(instance.teams) > 1:
+            raise OptionError(
+                f"solver {self.name!r} solves anonymous MAPF (one team); this instance has "
+                f"{len(instance.teams)} teams (use 'cbm')"
+            )
+        if objective is None:
+            return "soc" if problem == "mapf" and "soc" in self.objectives else "makespan"
+        if objective not in OBJECTIVES:
+            raise OptionError(f"unknown objective {objective!r} (use 'soc' or 'makespan')")
+        if objective not in self.objectives:
+            raise OptionError(
+                f"solver {self.name!r} does not optimise {objective!r} "
+                f"(it does: {', '.join(sorted(self.objectives))})"
+            )
+        return objective
+
+    def check_options(self, values: dict[str, Any]) -> dict[str, Any]:
+        """Every option checked (solver names and nested options too), defaults filled."""
+        spec = self.load().options
+        out = spec.check(values, self.name)
+        for opt in spec:
+            value = out[opt.name]
+            if opt.kind == "solver" and value is not None and value not in _REGISTRY:
+                raise opt.refuse(self.name, value)
+        for opt in spec:
+            if opt.kind == "options" and out[opt.name] is not None:
+                inner = get(out[opt.of])
+                try:
+                    inner.check_options(out[opt.name])
+                except OptionError as exc:
+                    raise OptionError(f"{self.name} option {opt.name}: {exc}") from None
+        return out
+
+
+def cheap_infeasibility(instance: Instance) -> str | None:
+    """A one-line reason why no plan exists, from the checks that take milliseconds."""
+    from hierplan_opt.core.feasibility import quick_infeasibility
+    from hierplan_opt.search.symmetry import path_order_infeasibility
+
+    if instance.is_tapf:
+        targets = {v for team in instance.teams for v in team.targets}
+    else:
+        targets = set(instance.goals)
+    instance.graph.precompute_distances(targets)  # one batch, which the solvers reuse
+    return quick_infeasibility(instance) or path_order_infeasibility(instance)
+
+
+def run(
+    name: str,
+    instance: Instance,
+    *,
+    time_limit: float | None = None,
+    seed: int = 0,
+    objective: str | None = None,
+    **options: Any,
+) -> Result:
+    """Check everything, then solve ``instance`` with solver ``name`` (see the module doc).
+
+    Unlike :func:`hierplan_opt.solve`, no default time limit, no runtime and no plan
+    validation: this is the way for solvers to use other solvers.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.instance import Instance
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0), (2, 0)], [(2, 0), (0, 0)])
+    >>> r = run("ecbs", inst)
+    >>> r.status, r.stats["reason"]  # doctest: +ELLIPSIS
+    (<Status.INFEASIBLE: 'INFEASIBLE'>, 'agents on a path-shaped part ...')
+    """
+    info = get(name)
+    objective = info.objective_for(instance, objective)
+    check_time_limit(time_limit)
+    values = info.check_options(options)
+    reason = cheap_infeasibility(instance)
+    if reason is not None:
+        return Result(
+            Status.INFEASIBLE, None, solver=name, objective=objective, stats={"reason": reason}
+        )
+    result = info.load().fn(
+        instance, time_limit=time_limit, seed=seed, objective=objective, **values
+    )
+    return replace(result, solver=name, objective=objective)
 
 
 _REGISTRY: dict[str, SolverInfo] = {}
@@ -104,91 +307,71 @@ def names() -> list[str]:
 
 
 # ---------------------------------------------------------------- built-in solvers
-# Each module registers nothing itself; the table below is the single place that
-# names them, so that importing the package stays cheap.
-_BUILTIN = [
-    (
-        "cbs",
-        "hierplan_opt.search.cbs:solve",
-        {"mapf"},
-        {"soc", "makespan"},
-        True,
-        False,
-        "Conflict-based search with MDD prioritisation, bypass, WDG heuristic, "
-        "disjoint splitting and symmetry reasoning",
-    ),
-    (
-        "ecbs",
-        "hierplan_opt.search.ecbs:solve",
-        {"mapf"},
-        {"soc"},
-        False,
-        True,
-        "Enhanced CBS: focal search on both levels, cost <= w * optimal",
-    ),
-    (
-        "eecbs",
-        "hierplan_opt.search.eecbs:solve",
-        {"mapf"},
-        {"soc"},
-        False,
-        True,
-        "Explicit-estimation CBS: cost <= w * optimal",
-    ),
-    (
-        "cbm",
-        "hierplan_opt.search.cbm:solve",
-        {"mapf", "tapf"},
-        {"makespan"},
-        True,
-        False,
-        "Conflict-based min-cost flow: optimal makespan for teams (TAPF)",
-    ),
-    (
-        "flow",
-        "hierplan_opt.search.flow:solve",
-        {"tapf"},
-        {"makespan"},
-        True,
-        False,
-        "Max-flow on the time-expanded network: anonymous MAPF (one team)",
-    ),
-    (
-        "hungarian",
-        "hierplan_opt.search.assignment:solve",
-        {"tapf"},
-        {"soc", "makespan"},
-        False,
-        False,
-        "Hungarian target assignment by distance, then CBS",
-    ),
-    (
-        "mip",
-        "hierplan_opt.formulations.mip:solve",
-        {"mapf", "tapf"},
-        {"soc", "makespan"},
-        True,
-        False,
-        "Time-expanded network MIP (Pyomo + HiGHS)",
-    ),
-    (
-        "cpsat",
-        "hierplan_opt.formulations.cpsat:solve",
-        {"mapf", "tapf"},
-        {"soc", "makespan"},
-        True,
-        False,
-        "Time-expanded CP-SAT model (OR-Tools)",
-    ),
-]
-for _n, _t, _p, _o, _opt, _b, _d in _BUILTIN:
-    register(
-        _n,
-        _t,
-        problems=_p,
-        objectives=_o,
-        optimal=_opt,
-        bounded=_b,
-        description=_d,
-        one_team=_n == "flow",
-    )
+# Each module registers nothing itself; this table is the single place that names
+# them, so that importing the package stays cheap.
+MAPF, TAPF, SOC, MAKESPAN = "mapf", "tapf", "soc", "makespan"
+register(
+    "cbs",
+    "hierplan_opt.search.cbs:solve",
+    problems={MAPF},
+    objectives={SOC, MAKESPAN},
+    optimal=True,
+    description="Conflict-based search with MDD prioritisation, bypass, WDG heuristic, "
+    "disjoint splitting and symmetry reasoning",
+)
+register(
+    "ecbs",
+    "hierplan_opt.search.ecbs:solve",
+    problems={MAPF},
+    objectives={SOC},
+    bounded=True,
+    description="Enhanced CBS: focal search on both levels, cost <= w * optimal",
+)
+register(
+    "eecbs",
+    "hierplan_opt.search.eecbs:solve",
+    problems={MAPF},
+    objectives={SOC},
+    bounded=True,
+    description="Explicit-estimation CBS: cost <= w * optimal",
+)
+register(
+    "cbm",
+    "hierplan_opt.search.cbm:solve",
+    problems={MAPF, TAPF},
+    objectives={MAKESPAN},
+    optimal=True,
+    description="Conflict-based min-cost flow: optimal makespan for teams (TAPF)",
+)
+register(
+    "flow",
+    "hierplan_opt.search.flow:solve",
+    problems={TAPF},
+    objectives={MAKESPAN},
+    optimal=True,
+    one_team=True,
+    description="Max-flow on the time-expanded network: anonymous MAPF (one team)",
+)
+register(
+    "hungarian",
+    "hierplan_opt.search.assignment:solve",
+    problems={TAPF},
+    objectives={SOC, MAKESPAN},
+    description="Hungarian target assignment by distance, then a MAPF solver",
+)
+register(
+    "mip",
+    "hierplan_opt.formulations.mip:solve",
+    problems={MAPF, TAPF},
+    objectives={SOC, MAKESPAN},
+    optimal=True,
+    description="Time-expanded network MIP (Pyomo + HiGHS)",
+)
+register(
+    "cpsat",
+    "hierplan_opt.formulations.cpsat:solve",
+    problems={MAPF, TAPF},
+    objectives={SOC, MAKESPAN},
+    optimal=True,
+    description="Time-expanded CP-SAT model (OR-Tools)",
+)

@@ -8,7 +8,7 @@ import pytest
 
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.plan import path_cost
-from hierplan_opt.search.astar import ConflictTable, space_time_astar
+from hierplan_opt.search.astar import space_time_astar
 from hierplan_opt.search.constraints import (
     LEN_GT,
     LEN_LE,
@@ -23,13 +23,14 @@ from hierplan_opt.search.constraints import (
 )
 from hierplan_opt.search.heuristics import dependent, min_vertex_cover
 from hierplan_opt.search.mdd import build_mdd
+from hierplan_opt.search.reservations import Reservations
 from hierplan_opt.search.symmetry import Corridors, path_order_infeasibility
 
 
-def plan(g: Graph, s, t, cons: list | None = None, cat=None):
+def plan(g: Graph, s, t, cons: list | None = None, res=None):
     sv, tv = g.vertex(s), g.vertex(t)
     c = AgentConstraints.root(g.n, tv).add_many(cons or [], n=g.n, goal=tv)
-    path, _ = space_time_astar(g.adj, sv, tv, g.dist_list(tv), c, cat=cat, dist_of=g.dist_list)
+    path, _ = space_time_astar(g.adj, sv, tv, g.dist_list(tv), c, res=res, dist_of=g.dist_list)
     return path, c
 
 
@@ -141,19 +142,22 @@ def test_conflict_table_breaks_ties():
     g = Graph.grid(3, 2)
     # Another agent sits on (1, 0) at t=1; prefer the equal-cost route through row 1.
     other = (g.vertex((1, 0)),) * 3
-    cat = ConflictTable.from_paths([other], g.n)
-    path, _ = plan(g, (0, 0), (2, 1), cat=cat)
+    res = Reservations(g.n)
+    res.add(1, other)
+    path, _ = plan(g, (0, 0), (2, 1), res=res)
     assert len(path) - 1 == 3 and g.vertex((1, 0)) not in path
 
 
 def test_conflict_table_add_remove_roundtrip():
-    cat = ConflictTable(10)
+    res = Reservations(10)
     p = (1, 2, 3, 3)
-    cat.add_path(p)
-    cat.add_path((5, 4))
-    cat.remove_path(p)
-    assert cat.vtab == ConflictTable.from_paths([(5, 4)], 10).vtab
-    assert cat.parked == {4: 1}
+    res.add(0, p)
+    res.add(1, (5, 4))
+    res.remove(0)
+    only = Reservations(10)
+    only.add(1, (5, 4))
+    assert res.vt == only.vt and res.et == only.et
+    assert res.parked == {4: (1, 1)}
 
 
 def test_mdd_levels_and_cardinality():

@@ -18,6 +18,7 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Status
 from hierplan_opt.core.validate import validate
 from hierplan_opt.search import cbs
+from hierplan_opt.search.reservations import Reservations
 
 ROOT = Path(__file__).resolve().parent.parent
 MOVINGAI = ROOT / "instances" / "movingai"
@@ -420,7 +421,7 @@ def test_incremental_conflicts_match_full_scan():
                     break
         return out
 
-    idx = cbs.OccupancyIndex(n)
+    idx = Reservations(n)
     for _ in range(600):
         k = rng.randint(2, 6)
         starts = rng.sample(range(n), k)
@@ -437,7 +438,7 @@ def test_incremental_conflicts_match_full_scan():
         idx.sync(new)
         done: set[int] = set()
         for i in changed:
-            kept += idx.conflicts_of(i, new, done)
+            kept += idx.conflicts_of(i, new[i], done)
             done.add(i)
         truth = true_pairs(new)
         # Every conflicting pair must be reported, also when three agents meet.

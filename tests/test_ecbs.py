@@ -19,7 +19,9 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Status
 from hierplan_opt.core.validate import validate
 from hierplan_opt.search import ecbs, eecbs
-from hierplan_opt.search.focal import Reservations, focal_path
+from hierplan_opt.search.constraints import NEG_E, NEG_V, AgentConstraints
+from hierplan_opt.search.focal import focal_path
+from hierplan_opt.search.reservations import Reservations
 
 SOLVERS = ["ecbs", "eecbs"]
 MOVINGAI = Path(__file__).resolve().parents[1] / "instances" / "movingai"
@@ -265,9 +267,9 @@ def test_low_level_respects_late_goal_constraint() -> None:
     # Agent at its goal already, but a vertex constraint at t=3 on the goal: it must
     # leave and come back, finishing no earlier than t=4.
     g = Graph.grid(3, 1)
-    adj = [[*a, v] for v, a in enumerate(g.adj)]
     n = g.n
-    path, lb = focal_path(adj, g.dist_list(0), 0, 0, 1.0, {3 * n + 0}, set(), Reservations(n), [])
+    cons = AgentConstraints().add((NEG_V, 0, 0, -1, 3), n=n, goal=0)
+    path, lb = focal_path(g.adj, 0, 0, g.dist_list(0), cons, Reservations(n))
     assert path[0] == 0 and path[-1] == 0 and len(path) - 1 >= 4
     assert path[3] != 0
     assert lb == 4 == len(path) - 1
@@ -277,13 +279,11 @@ def test_low_level_avoids_conflicts_within_focal() -> None:
     # Another agent sits on (1, 0) at t=1; with w=2 the low level may detour/wait
     # to avoid it, and must stay within w * lb.
     g = Graph.grid(3, 2)
-    adj = [[*a, v] for v, a in enumerate(g.adj)]
     n = g.n
     res = Reservations(n)
     res.add(1, (g.vertex((1, 1)), g.vertex((1, 0)), g.vertex((1, 1))))
-    path, lb = focal_path(
-        adj, g.dist_list(g.vertex((2, 0))), 0, g.vertex((2, 0)), 2.0, set(), set(), res, []
-    )
+    goal = g.vertex((2, 0))
+    path, lb = focal_path(g.adj, 0, goal, g.dist_list(goal), AgentConstraints(), res, w=2.0)
     assert lb == 2
     assert len(path) - 1 <= 2 * lb
     assert path[1] != g.vertex((1, 0))
@@ -291,11 +291,9 @@ def test_low_level_avoids_conflicts_within_focal() -> None:
 
 def test_edge_constraint_respected() -> None:
     g = Graph.grid(2, 1)
-    adj = [[*a, v] for v, a in enumerate(g.adj)]
     n = g.n
-    path, _ = focal_path(
-        adj, g.dist_list(1), 0, 1, 1.0, set(), {(0 * n + 0) * n + 1}, Reservations(n), []
-    )
+    cons = AgentConstraints().add((NEG_E, 0, 0, 1, 1), n=n, goal=1)  # no move 0 -> 1 at t=0
+    path, _ = focal_path(g.adj, 0, 1, g.dist_list(1), cons, Reservations(n))
     assert path == (0, 0, 1)
 
 
@@ -381,12 +379,12 @@ def test_avoid_mode_never_returns_a_conflicting_path() -> None:
     # The agent starts on its goal, another agent passes there at t=2: in avoid mode
     # the trivial path is refused and the agent must come back after t=2.
     g = Graph.grid(3, 2)
-    adj = [[*a, v] for v, a in enumerate(g.adj)]
     n = g.n
     res = Reservations(n)
     other = (g.vertex((2, 0)), g.vertex((1, 0)), g.vertex((0, 0)), g.vertex((0, 1)))
     res.add(1, other)
-    out = focal_path(adj, g.dist_list(0), 0, 0, 1.0, set(), set(), res, [2], avoid=True)
+    assert res.visits(0) == [2]
+    out = focal_path(g.adj, 0, 0, g.dist_list(0), AgentConstraints(), res, avoid=True)
     assert out is not None
     path, _ = out
     assert path[0] == 0 == path[-1] and len(path) - 1 >= 3

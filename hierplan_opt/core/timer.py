@@ -5,6 +5,36 @@ from __future__ import annotations
 import math
 import time
 
+from hierplan_opt.core.errors import OptionError
+
+
+def check_time_limit(time_limit: float | None, *, allow_zero: bool = False) -> float | None:
+    """``time_limit`` if it is None (no limit) or a positive number of seconds.
+
+    ``allow_zero`` admits an exhausted budget (internal deadlines); users give ``> 0``.
+
+    Example
+    -------
+    >>> check_time_limit(2.5), check_time_limit(None)
+    (2.5, None)
+    >>> check_time_limit(0)
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OptionError: time_limit must be a positive number of seconds, got 0
+    """
+    if time_limit is None:
+        return None
+    if (
+        isinstance(time_limit, bool)
+        or not isinstance(time_limit, (int, float))
+        or not math.isfinite(time_limit)
+        or time_limit < 0
+        or (time_limit == 0 and not allow_zero)
+    ):
+        what = "a number of seconds >= 0" if allow_zero else "a positive number of seconds"
+        raise OptionError(f"time_limit must be {what}, got {time_limit!r}")
+    return float(time_limit)
+
 
 class Deadline:
     """A wall-clock budget that starts when the object is made.
@@ -22,11 +52,7 @@ class Deadline:
     __slots__ = ("limit", "start", "_end")
 
     def __init__(self, time_limit: float | None) -> None:
-        if time_limit is not None and (not math.isfinite(time_limit) or time_limit < 0):
-            from hierplan_opt.core.errors import OptionError
-
-            raise OptionError(f"time_limit must be a finite number >= 0, got {time_limit!r}")
-        self.limit = time_limit
+        self.limit = time_limit = check_time_limit(time_limit, allow_zero=True)
         self.start = time.perf_counter()
         self._end = math.inf if time_limit is None else self.start + time_limit
 

@@ -26,12 +26,13 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
-from hierplan_opt.core.errors import OptionError
-from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt import registry
+from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +119,11 @@ def team_makespan_bound(graph: Graph, starts: Sequence[int], targets: Sequence[i
     return bottleneck_value(distance_matrix(graph, starts, targets))
 
 
+@solver(
+    "hungarian",
+    Option("mapf_solver", "solver", "MAPF solver for the assigned goals"),
+    Option("mapf_options", "options", "options of that solver", optional=True, of="mapf_solver"),
+)
 def solve(
     instance: Instance,
     *,
@@ -144,16 +150,7 @@ def solve(
     >>> r.status.value, r.cost, r.lower_bound
     ('OPTIMAL', 2, 2)
     """
-    from hierplan_opt.api import solve as front_door
-
-    if objective not in ("soc", "makespan"):
-        raise OptionError(f"unknown objective {objective!r} (use 'soc' or 'makespan')")
-    if not instance.is_tapf:
-        raise OptionError("solver 'hungarian' needs a TAPF instance (teams with targets)")
     deadline = Deadline(time_limit)
-    reason = quick_infeasibility(instance)
-    if reason is not None:
-        return Result(Status.INFEASIBLE, None, objective=objective, stats={"reason": reason})
     g = instance.graph
     goals = [0] * instance.num_agents
     bound = 0
@@ -172,9 +169,9 @@ def solve(
     remaining = deadline.remaining()
     if remaining <= 0:
         return Result(Status.TIME_LIMIT, None, lower_bound=bound, objective=objective)
-    inner = front_door(
-        mapf,
+    inner = registry.run(
         mapf_solver,
+        mapf,
         time_limit=None if time_limit is None else remaining,
         seed=seed,
         objective=objective,

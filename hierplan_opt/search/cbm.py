@@ -36,13 +36,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hierplan_opt.core.errors import OptionError
-from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan, path_cost
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.registry import solver
 from hierplan_opt.search.assignment import team_makespan_bound
 from hierplan_opt.search.tenet import TeamDistances, TimeExpandedNetwork, smallest_horizon
 
@@ -300,6 +300,12 @@ def _find_conflicts(
     return count, first, involved
 
 
+@solver(
+    "cbm",
+    Option("tie_break", "choice", "how a team avoids the others' paths", choices=TIE_BREAKS),
+    Option("cost_arcs", "int", "largest network for tie_break=auto to use cost", low=0),
+    Option("repair_rounds", "int", "rounds of local re-planning per node (0: off)", low=0),
+)
 def solve(
     instance: Instance,
     *,
@@ -344,18 +350,8 @@ def solve(
     ('OPTIMAL', 4)
     """
     del seed
-    if objective != "makespan":
-        raise OptionError(f"solver 'cbm' optimises makespan only, not {objective!r}")
-    if tie_break not in TIE_BREAKS:
-        raise OptionError(f"tie_break must be one of {list(TIE_BREAKS)}, got {tie_break!r}")
-    for name, value in (("cost_arcs", cost_arcs), ("repair_rounds", repair_rounds)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise OptionError(f"{name} must be an integer >= 0, got {value!r}")
     deadline = Deadline(time_limit)
     started = time.perf_counter()
-    reason = quick_infeasibility(instance)
-    if reason is not None:
-        return Result(Status.INFEASIBLE, None, objective=objective, stats={"reason": reason})
     g = instance.graph
     n_teams = len(instance.teams) if instance.is_tapf else instance.num_agents
     low = _LowLevel(deadline, tie_break, cost_arcs, cache=2 * n_teams + 4)

@@ -36,13 +36,14 @@ import time
 from heapq import heappop, heappush
 from typing import Any
 
-from hierplan_opt.core.errors import OptionError
-from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.astar import ConflictTable, space_time_astar
+from hierplan_opt.registry import solver
+from hierplan_opt.search.astar import space_time_astar
+from hierplan_opt.search.conflicts import EDGE, TARGET, VERTEX, Conflict, find_conflicts
 from hierplan_opt.search.constraints import (
     LEN_GT,
     LEN_LE,
@@ -59,11 +60,11 @@ from hierplan_opt.search.constraints import (
 )
 from hierplan_opt.search.heuristics import dependent, min_vertex_cover
 from hierplan_opt.search.mdd import MDD, build_mdd, restrict
+from hierplan_opt.search.reservations import Reservations
 from hierplan_opt.search.symmetry import (
     Corridors,
     Rectangles,
     corridor_split,
-    path_order_infeasibility,
     rectangle_split,
 )
 
@@ -74,13 +75,6 @@ HEURISTICS = ("wdg", "dg", "cg", "none")
 PAIR_NODE_LIMIT = 16
 #: Cached MDDs before the cache is emptied (bounds memory on long runs).
 MDD_CACHE_SIZE = 50_000
-
-# Conflict kinds: (t, kind, a, b, u, v)
-#   VERTEX: a and b both at v at t (u = -1)
-#   EDGE:   a moves u -> v and b moves v -> u, arriving at t
-#   TARGET: a is parked at its goal v (arrived before t), b is at v at t
-VERTEX, EDGE, TARGET = 0, 1, 2
-Conflict = tuple[int, int, int, int, int, int]
 
 
 class _Node:
@@ -119,153 +113,6 @@ class _Node:
         # A descendant has more constraints, so a weight stays a valid lower bound on
         # the pair's extra cost while both costs are unchanged.
         self.pairw: dict[tuple[int, int], tuple[int, int, int]] = {}
-
-
-def find_conflicts(paths: list[tuple[int, ...]], n: int) -> list[Conflict]:
-    """Every vertex, swap and target conflict between the paths (parked agents included).
-
-    Example
-    -------
-    >>> find_conflicts([(0, 1, 2), (2, 1, 0)], n=3)
-    [(1, 0, 0, 1, -1, 1)]
-    >>> find_conflicts([(1,), (0, 1, 2)], n=3)
-    [(1, 2, 0, 1, -1, 1)]
-    """
-    # Every conflicting pair is reported (children keep their parent's conflicts among
-    # agents they did not replan, so a pair missing here would never be seen again).
-    occ: dict[int, list[int]] = {}
-    goal_at: dict[int, tuple[int, int]] = {}
-    for a, p in enumerate(paths):
-        goal_at[p[-1]] = (a, len(p) - 1)
-    out: list[Conflict] = []
-    for a, p in enumerate(paths):
-        prev = p[0]
-        for t, v in enumerate(p):
-            key = t * n + v
-            lst = occ.get(key)
-            if lst is None:
-                occ[key] = [a]
-            else:
-                for b in lst:
-                    out.append((t, VERTEX, b, a, -1, v))
-                lst.append(a)
-            ga = goal_at.get(v)
-            if ga is not None and ga[0] != a and t > ga[1]:
-                out.append((t, TARGET, ga[0], a, -1, v))
-            if t and prev != v:
-                # swap with an agent b that was at v at t-1 and is at prev at t
-                l1 = occ.get((t - 1) * n + v)
-                if l1 is not None:
-                    l2 = occ.get(t * n + prev)
-                    if l2 is not None:
-                        for b in l1:
-                            if b != a and b in l2:
-                                out.append((t, EDGE, b, a, v, prev))
-            prev = v
-    return out
-
-
-class OccupancyIndex:
-    """Which agents are where (vertex-time -> agents, goal -> parked agent), patchable.
-
-    Lets a child CT node find only the conflicts of its replanned agents instead of
-    re-scanning every path.
-
-    Example
-    -------
-    >>> idx = OccupancyIndex(3)
-    >>> paths = [(0, 1, 2), (2, 1, 0)]
-    >>> idx.sync(paths)
-    >>> idx.conflicts_of(1, paths, set())
-    [(1, 0, 0, 1, -1, 1)]
-    """
-
-    __slots__ = ("n", "occ", "ends", "paths", "horizon")
-
-    def __init__(self, n: int) -> None:
-        self.n = n
-        self.occ: dict[int, list[int]] = {}
-        self.ends: dict[int, tuple[int, int]] = {}
-        self.paths: list[tuple[int, ...]] = []
-        self.horizon = 0
-
-    def _add(self, a: int, p: tuple[int, ...]) -> None:
-        n = self.n
-        occ = self.occ
-        for t, v in enumerate(p):
-            k = t * n + v
-            lst = occ.get(k)
-            if lst is None:
-                occ[k] = [a]
-            else:
-                lst.append(a)
-        self.ends[p[-1]] = (a, len(p) - 1)
-
-    def _remove(self, a: int, p: tuple[int, ...]) -> None:
-        n = self.n
-        occ = self.occ
-        for t, v in enumerate(p):
-            k = t * n + v
-            lst = occ[k]
-            if len(lst) == 1:
-                del occ[k]
-            else:
-                lst.remove(a)
-        if self.ends.get(p[-1], (-1,))[0] == a:
-            del self.ends[p[-1]]
-
-    def sync(self, paths: list[tuple[int, ...]]) -> None:
-        """Make the index describe ``paths`` (patching only the paths that changed)."""
-        old = self.paths
-        if len(old) != len(paths):
-            self.occ = {}
-            self.ends = {}
-            for a, p in enumerate(paths):
-                self._add(a, p)
-            self.paths = list(paths)
-        else:
-            for a, p in enumerate(paths):
-                q = old[a]
-                if q is not p:
-                    self._remove(a, q)
-                    self._add(a, p)
-                    old[a] = p
-        self.horizon = max(len(p) for p in paths) - 1
-
-    def conflicts_of(self, r: int, paths: list[tuple[int, ...]], skip: set[int]) -> list[Conflict]:
-        """Conflicts between agent ``r`` and every agent not in ``skip`` (index synced)."""
-        n = self.n
-        occ = self.occ
-        ends = self.ends
-        p = paths[r]
-        out: list[Conflict] = []
-        prev = p[0]
-        for t, v in enumerate(p):
-            lst = occ.get(t * n + v)
-            if lst is not None and len(lst) > 1:
-                for b in lst:
-                    if b != r and b not in skip:
-                        out.append((t, VERTEX, b, r, -1, v))
-            e = ends.get(v)
-            if e is not None and e[0] != r and t > e[1] and e[0] not in skip:
-                out.append((t, TARGET, e[0], r, -1, v))
-            if t and prev != v:
-                l1 = occ.get((t - 1) * n + v)
-                if l1 is not None:
-                    l2 = occ.get(t * n + prev)
-                    if l2 is not None:
-                        for b in l1:
-                            if b != r and b not in skip and b in l2:
-                                out.append((t, EDGE, b, r, v, prev))
-            prev = v
-        g = p[-1]
-        for t in range(len(p), self.horizon + 1):
-            lst = occ.get(t * n + g)
-            if lst is not None:
-                for b in lst:
-                    if b != r and b not in skip:
-                        out.append((t, TARGET, r, b, -1, g))
-        return out
 
 
 class _CBS:
@@ -337,12 +184,14 @@ class _CBS:
         if self.rectangles is not None and not self.rectangles.enabled:
             self.rectangles = None
         self.init_paths = init_paths
-        self._occ = OccupancyIndex(g.n)
+        # Two tables of the node's paths: one for conflict detection (patched per child,
+        # its lists ordered as the paths were added) and one the low level uses as its
+        # conflict-avoidance table (without the agent being replanned).
+        self._occ = Reservations(g.n)
+        self._cat = Reservations(g.n)
         # MDDs keyed by the constraint object's version (unique per agent and set);
         # shared with the two-agent sub-searches of WDG.
         self.mdd_cache: dict[int, MDD] = mdd_cache if mdd_cache is not None else {}
-        self._cat: ConflictTable | None = None
-        self._cat_paths: list[tuple[int, ...]] | None = None
         self.pair_cache: dict[tuple[int, int, int, int], int] = {}
         self.lower_bound = 0
         self.seq = 0
@@ -351,48 +200,27 @@ class _CBS:
     def plan(
         self, a: int, cons: AgentConstraints, paths: list[tuple[int, ...]]
     ) -> tuple[int, ...] | None:
-        cat = self._table(paths, a)
+        """Agent ``a``'s shortest path under ``cons``, fewest conflicts with ``paths``."""
+        res = None
+        if self.k > 1:
+            res = self._cat
+            res.sync(paths)
+            res.remove(a)
         path, exp = space_time_astar(
             self.adj,
             self.starts[a],
             self.goals[a],
             self.dists[a],
             cons,
-            cat=cat,
+            res=res,
             dist_of=self.dist_of,
         )
-        if cat is not None:
-            cat.add_path(paths[a])  # restore: the table again holds every path
+        if res is not None:
+            res.add(a, paths[a])  # restore: the table again holds every path
         st = self.stats
         st["low_level_calls"] += 1
         st["low_level_expanded"] += exp
         return path
-
-    def _table(self, paths: list[tuple[int, ...]], a: int) -> ConflictTable | None:
-        """The conflict table of ``paths`` without agent ``a`` (kept up to date lazily).
-
-        One table is kept for the last path list seen and patched path by path, so
-        planning in a child costs O(changed paths), not O(all paths).
-        """
-        if self.k <= 1:
-            return None
-        cat = self._cat
-        old = self._cat_paths
-        if cat is None or old is None or len(old) != len(paths):
-            cat = ConflictTable(self.n)
-            for p in paths:
-                cat.add_path(p)
-            self._cat = cat
-            self._cat_paths = old = list(paths)
-        else:
-            for i, p in enumerate(paths):
-                if old[i] is not p:
-                    cat.remove_path(old[i])
-                    cat.add_path(p)
-                    old[i] = p
-        if a < len(paths):
-            cat.remove_path(paths[a])
-        return cat
 
     def mdd(self, node: _Node, a: int) -> MDD:
         c = node.cons[a]
@@ -429,23 +257,26 @@ class _CBS:
         if self.init_paths is not None:
             # Paths already optimal under the root constraints (WDG sub-searches).
             paths = list(self.init_paths)
+        res = Reservations(self.n)
+        for a, p in enumerate(paths):
+            res.add(a, p)
         for a in range(len(paths), self.k):
             if self.deadline.expired():
                 return None
-            cat = ConflictTable.from_paths(paths, self.n) if self.k > 1 else None
             p, exp = space_time_astar(
                 self.adj,
                 self.starts[a],
                 self.goals[a],
                 self.dists[a],
                 self.root_cons[a],
-                cat=cat,
+                res=res if self.k > 1 else None,
                 dist_of=self.dist_of,
             )
             self.stats["low_level_calls"] += 1
             self.stats["low_level_expanded"] += exp
             if p is None:
                 return None
+            res.add(a, p)
             paths.append(p)
         costs = [len(p) - 1 for p in paths]
         return _Node(
@@ -558,7 +389,7 @@ class _CBS:
             occ.sync(paths)
             done: set[int] = set()
             for y in replan:
-                confs += occ.conflicts_of(y, paths, done)
+                confs += occ.conflicts_of(y, paths[y], done)
                 done.add(y)
         else:
             confs = list(node.conflicts)
@@ -769,6 +600,16 @@ class _CBS:
             return
 
 
+@solver(
+    "cbs",
+    Option("prioritize_conflicts", "bool", "split cardinal, then semi-cardinal conflicts first"),
+    Option("bypass", "bool", "adopt a child's paths when it keeps the cost, fewer conflicts"),
+    Option("heuristic", "choice", "admissible high-level heuristic", choices=HEURISTICS),
+    Option("disjoint_splitting", "bool", "positive/negative constraint children"),
+    Option("symmetry", "bool", "target, corridor and rectangle reasoning"),
+    Option("rectangle", "bool", "rectangle reasoning (4-connected 2D grids)"),
+    Option("node_limit", "int", "stop after this many high-level expansions", low=1, optional=True),
+)
 def solve(
     instance: Instance,
     *,
@@ -812,31 +653,7 @@ def solve(
     >>> r.status, r.cost
     (<Status.OPTIMAL: 'OPTIMAL'>, 8)
     """
-    for name, val in (
-        ("prioritize_conflicts", prioritize_conflicts),
-        ("bypass", bypass),
-        ("disjoint_splitting", disjoint_splitting),
-        ("symmetry", symmetry),
-        ("rectangle", rectangle),
-    ):
-        if not isinstance(val, bool):
-            raise OptionError(f"cbs option {name} must be true or false, got {val!r}")
-    if heuristic not in HEURISTICS:
-        raise OptionError(
-            f"cbs option heuristic must be one of {list(HEURISTICS)}, got {heuristic!r}"
-        )
-    if objective not in ("soc", "makespan"):
-        raise OptionError(f"unknown objective {objective!r} (use 'soc' or 'makespan')")
-    if node_limit is not None and (
-        isinstance(node_limit, bool) or not isinstance(node_limit, int) or node_limit < 1
-    ):
-        raise OptionError(f"cbs option node_limit must be a positive integer, got {node_limit!r}")
-    if instance.is_tapf:
-        raise OptionError("cbs solves MAPF instances (one goal per agent); use cbm for teams")
     deadline = Deadline(time_limit)
-    reason = quick_infeasibility(instance) or path_order_infeasibility(instance)
-    if reason is not None:
-        return Result(Status.INFEASIBLE, None, stats={"reason": reason})
     g = instance.graph
     starts = instance.starts
     goals = instance.goals

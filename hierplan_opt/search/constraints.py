@@ -23,6 +23,9 @@ node touches that agent. Vertex and edge constraints are integer keys
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable, Sequence
+
+from hierplan_opt.core.graph import UNREACHABLE
 
 NEG_V, NEG_E, POS_V, POS_E, LEN_GT, LEN_LE, NEG_RANGE = range(7)
 KIND_NAMES = ("NEG_V", "NEG_E", "POS_V", "POS_E", "LEN_GT", "LEN_LE", "NEG_RANGE")
@@ -273,3 +276,124 @@ def violates_derived(con: Constraint, path: tuple[int, ...], n: int, goals: list
             return True
         return any(path[tt] == g for tt in range(t, last + 1))
     return False
+
+
+_SUCC: dict[int, tuple[Sequence[Sequence[int]], list[tuple[int, ...]]]] = {}
+
+
+def successors(adj: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
+    """Neighbours of every vertex followed by the vertex itself (a wait), cached per ``adj``.
+
+    Example
+    -------
+    >>> successors([[1], [0]])
+    [(1, 0), (0, 1)]
+    """
+    hit = _SUCC.get(id(adj))
+    if hit is not None and hit[0] is adj:
+        return hit[1]
+    succ = [(*nb, v) for v, nb in enumerate(adj)]
+    if len(_SUCC) > 16:
+        _SUCC.clear()
+    _SUCC[id(adj)] = (adj, succ)
+    return succ
+
+
+class Moves:
+    """The moves one agent may make under its constraints, each with an admissible h.
+
+    ``at(v, t)`` lists ``(u, h_u)`` for every move ``v -> u`` (or wait) arriving at ``t``
+    that the constraints allow and after which the goal and every later landmark are
+    still reachable in time; ``h_u = max(dist(u, goal), min_finish - t, t_L - t +
+    dist(v_L, goal))`` with ``(t_L, v_L)`` the next landmark is a lower bound on the time
+    still needed. After ``cons.tmax`` nothing depends on time, so those lists are cached
+    per vertex. The space-time A* and the MDDs share this rule.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(3, 1)
+    >>> c = AgentConstraints.root(g.n, 2).add((NEG_V, 0, 1, -1, 1), n=g.n, goal=2)
+    >>> Moves(g.adj, 2, g.dist_list(2), c).at(0, 1)
+    [(0, 2)]
+    """
+
+    __slots__ = ("succ", "goal", "dist", "cons", "n", "nxt", "free", "tfree")
+
+    def __init__(
+        self,
+        adj: Sequence[Sequence[int]],
+        goal: int,
+        dist: Sequence[int],
+        cons: AgentConstraints,
+        dist_of: Callable[[int], Sequence[int]] | None = None,
+    ) -> None:
+        self.succ = successors(adj)
+        self.goal = goal
+        self.dist = dist
+        self.cons = cons
+        self.n = len(adj)
+        # Next landmark after each time: (t_L, v_L, dist-to-v_L list, h_L = dist(v_L, goal)).
+        nxt: list[tuple[int, int, Sequence[int], int]] = []
+        lms = cons.landmarks
+        if lms:
+            if dist_of is None:
+                raise ValueError("dist_of is needed for positive constraints")
+            order = sorted(lms.items())
+            k = 0
+            for t in range(order[-1][0] + 1):
+                while order[k][0] < t:
+                    k += 1
+                tl, vl = order[k]
+                # A landmark at the goal may be met by parking early: no h term for it.
+                hb = tl + dist[vl] if vl != goal else -1
+                nxt.append((tl, vl, dist_of(vl), hb))
+        self.nxt = nxt
+        #: From this time on the moves depend on the vertex only (see ``at``).
+        self.tfree = cons.tmax + 1
+        self.free: dict[int, list[tuple[int, int]]] = {}
+
+    def at(self, v: int, t: int) -> list[tuple[int, int]]:
+        """The allowed moves out of ``v`` arriving at ``t``: ``[(u, h_u), ...]``."""
+        if t >= self.tfree:
+            out = self.free.get(v)
+            if out is None:
+                out = self.free[v] = self._moves(v, t)
+            return out
+        return self._moves(v, t)
+
+    def _moves(self, v: int, t: int) -> list[tuple[int, int]]:
+        cons = self.cons
+        vc = cons.vertex
+        ec = cons.edge
+        ff = cons.forbid_from
+        lms = cons.landmarks
+        minf = cons.min_finish
+        dist = self.dist
+        n = self.n
+        need = lms.get(t) if lms else None
+        nl = self.nxt[t] if t < len(self.nxt) else None
+        base = t * n
+        out: list[tuple[int, int]] = []
+        for u in self.succ[v]:
+            if need is not None and u != need:
+                continue
+            if base + u in vc:
+                continue
+            if ec and u != v and ((base + v) * n + u) in ec:
+                continue
+            if ff and u in ff and t >= ff[u]:
+                continue
+            hu = dist[u]
+            if hu >= UNREACHABLE:
+                continue
+            if nl is not None:
+                tl, _, dl, hb = nl
+                if dl[u] > tl - t:
+                    continue
+                if hb - t > hu:
+                    hu = hb - t
+            if minf - t > hu:
+                hu = minf - t
+            out.append((u, hu))
+        return out

@@ -22,11 +22,84 @@ at most ``w * LB_min``, its path replaces the parent's without adding a constrai
 
 from __future__ import annotations
 
+from heapq import heappop, heappush
+
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result
-from hierplan_opt.search.ecbs import focal_cbs
+from hierplan_opt.core.timer import Deadline
+from hierplan_opt.registry import solver
+from hierplan_opt.search.ecbs import _ECBS, POLISH_OPTION, W_OPTION, _Node
+
+#: Cap on the learned one-step error of "conflicts left" as a distance-to-go. The
+#: estimate ``d / (1 - eps_d)`` explodes as ``eps_d -> 1`` (resolving one conflict often
+#: creates others), which empties FOCAL and degrades EECBS to best-first search on LB;
+#: capping keeps the inflation at most 2x. Any estimate keeps the bound.
+_MAX_EPS_D = 0.5
 
 
+class _EECBS(_ECBS):
+    """ECBS's constraint tree searched by explicit estimation (OPEN by f^, CLEANUP by LB)."""
+
+    name = "eecbs"
+
+    def __init__(
+        self, instance: Instance, deadline: Deadline, *, w: float, polish: bool, bypass: bool
+    ) -> None:
+        super().__init__(instance, deadline, w=w, polish=polish, bypass=bypass)
+        self.open_fhat: list[tuple[float, int, _Node]] = []
+        # Online error estimates: expansions seen, summed cost increase per expansion,
+        # summed error of the number of conflicts as a distance-to-go.
+        self.err_n = 0
+        self.err_c = 0.0
+        self.err_d = 0.0
+
+    def estimate(self, node: _Node) -> float:
+        """``f^(N) = cost + eps_c * conflicts / (1 - eps_d)`` from the errors so far."""
+        if self.err_n == 0:
+            return float(node.cost)
+        eps_c = self.err_c / self.err_n
+        eps_d = min(self.err_d / self.err_n, _MAX_EPS_D)
+        return node.cost + eps_c * len(node.conflicts) / (1.0 - eps_d)
+
+    def focal_key(self, node: _Node) -> float:
+        """FOCAL admits ``f^(N) <= w * LB_min``; the node also enters OPEN by ``f^``."""
+        node.fhat = self.estimate(node)
+        heappush(self.open_fhat, (node.fhat, node.id, node))
+        return node.fhat
+
+    def select(self) -> _Node:
+        """FOCAL's best if within the bound, else OPEN's best if it is, else CLEANUP's."""
+        stats = self.stats
+        if self.focal and self.focal[0][3].cost <= self.bound:
+            stats["selected_focal"] += 1
+            return heappop(self.focal)[3]
+        open_fhat = self.open_fhat
+        while open_fhat and open_fhat[0][2].closed:
+            heappop(open_fhat)
+        best_f = open_fhat[0][2] if open_fhat else None
+        if best_f is not None and best_f.cost <= self.bound:
+            stats["selected_open"] += 1
+            return best_f
+        stats["selected_cleanup"] += 1
+        return self.open_lb[0][2]
+
+    def learn(self, node: _Node, children: list[_Node]) -> None:
+        """Update the one-step errors from the best child of an expansion."""
+        if not children:
+            return
+        best = min(children, key=lambda c: (c.cost, len(c.conflicts)))
+        self.err_n += 1
+        self.err_c += max(0, best.cost - node.cost)
+        self.err_d += max(0, len(best.conflicts) - (len(node.conflicts) - 1))
+
+
+@solver(
+    "eecbs",
+    W_OPTION,
+    Option("bypass", "bool", "adopt a child's path when it lowers the conflicts in the bound"),
+    POLISH_OPTION,
+)
 def solve(
     instance: Instance,
     *,
@@ -59,14 +132,5 @@ def solve(
     >>> r.cost <= 1.2 * 8, r.cost / r.lower_bound <= 1.2
     (True, True)
     """
-    del seed  # deterministic
-    return focal_cbs(
-        instance,
-        time_limit=time_limit,
-        objective=objective,
-        w=w,
-        explicit_estimation=True,
-        bypass=bool(bypass),
-        solver="eecbs",
-        polish=bool(polish),
-    )
+    del seed, objective  # deterministic; the sum of costs only
+    return _EECBS(instance, Deadline(time_limit), w=w, polish=polish, bypass=bypass).search()

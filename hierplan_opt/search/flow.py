@@ -14,18 +14,24 @@ from __future__ import annotations
 import logging
 import time
 
-from hierplan_opt.core.errors import OptionError
-from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.registry import solver
 from hierplan_opt.search.assignment import team_makespan_bound
 from hierplan_opt.search.tenet import TeamDistances, TimeExpandedNetwork, smallest_horizon
 
 log = logging.getLogger(__name__)
 
 
+@solver(
+    "flow",
+    Option("search", "choice", "horizon search", choices=("doubling", "linear")),
+    Option("min_cost", "bool", "fewest moves at the optimal horizon (none: by size)", optional=True),
+    Option("min_cost_arcs", "int", "largest network for min_cost=none to minimise moves", low=0),
+)
 def solve(
     instance: Instance,
     *,
@@ -68,20 +74,8 @@ def solve(
     ('OPTIMAL', 2, 4)
     """
     del seed
-    if objective != "makespan":
-        raise OptionError(f"solver 'flow' optimises makespan only, not {objective!r}")
-    if search not in ("doubling", "linear"):
-        raise OptionError(f"search must be 'doubling' or 'linear', got {search!r}")
-    if not instance.is_tapf or len(instance.teams) != 1:
-        raise OptionError(
-            "flow solves anonymous MAPF: one team (use solver 'cbm' for several teams "
-            "or fixed goals)"
-        )
     deadline = Deadline(time_limit)
     t0 = time.perf_counter()
-    reason = quick_infeasibility(instance)
-    if reason is not None:
-        return Result(Status.INFEASIBLE, None, objective=objective, stats={"reason": reason})
     g = instance.graph
     team = instance.teams[0]
     starts = [instance.agents[i].start for i in team.agents]

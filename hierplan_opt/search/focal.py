@@ -6,17 +6,20 @@ A state is a pair (vertex, timestep), packed into one integer ``key = t * N + v`
 *OPEN* holds every generated, not yet expanded state ordered by ``f = g + h``, where
 ``g = t`` and ``h(v, t) = max(dist(v, goal), hold - t)`` (``hold`` = earliest time the
 agent may stay at its goal forever, one step after the last vertex constraint on the
-goal). ``h`` is consistent, so ``f_min`` (the smallest ``f`` in OPEN) is a lower bound
-on the cost of the best path that meets the constraints. *FOCAL* = {``f <= w *
-f_min``} is ordered by the number of conflicts with the other agents' paths, then by
-``g + 2h`` (towards the goal), then deeper first. The path returned costs at most
-``w * f_min``. After ``budget`` expansions the search stops trading cost for
-conflicts and finishes as plain A* (still within the bound): this caps the rare calls
-that would otherwise sweep the whole focal region when a conflict is unavoidable.
+goal: ``AgentConstraints.min_finish``). ``h`` is consistent, so ``f_min`` (the smallest
+``f`` in OPEN) is a lower bound on the cost of the best path that meets the
+constraints. *FOCAL* = {``f <= w * f_min``} is ordered by the number of conflicts with
+the other agents' paths, then by ``g + 2h`` (towards the goal), then deeper first. The
+path returned costs at most ``w * f_min``. After ``budget`` expansions the search stops
+trading cost for conflicts and finishes as plain A* (still within the bound): this caps
+the rare calls that would otherwise sweep the whole focal region when a conflict is
+unavoidable.
 
-Conflicts are counted incrementally from a :class:`Reservations` table of the other
-agents' paths: vertex occupancy by (vertex, time), moves by (from, to, time), and the
-goals where agents already finished (they stay there forever).
+Conflicts are counted incrementally from the
+:class:`~hierplan_opt.search.reservations.Reservations` of the other agents' paths:
+vertex occupancy by (vertex, time), moves by (from, to, time), and the goals where
+agents already finished (they stay there forever). The constraints are the CBS ones
+(:class:`~hierplan_opt.search.constraints.AgentConstraints`), vertex and edge kinds.
 
 The goal test: reaching the goal at ``t >= hold`` creates a *terminal* node whose
 conflict count includes every later visit of another agent to the goal (the agent
@@ -30,10 +33,8 @@ from collections.abc import Sequence
 from heapq import heapify, heappop, heappush
 
 from hierplan_opt.core.timer import Deadline
-
-#: "Never parks here": larger than any timestep.
-NEVER = 1 << 60
-
+from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
+from hierplan_opt.search.reservations import Reservations
 
 #: Secondary FOCAL key: ``(f + h) * _TIE - t``, i.e. by ``g + 2h`` (leaning towards the
 #: goal like weighted A*), deeper first. Any order keeps the bound; this one reaches a
@@ -49,114 +50,17 @@ class SearchTimeout(Exception):
     """Raised by the low level when the deadline expires mid-search."""
 
 
-class Reservations:
-    """The other agents' paths, indexed for conflict counting.
-
-    ``vt[t * N + v]`` lists the agents at ``v`` at time ``t`` (up to and including
-    the last timestep of their path); ``et[(t * N + u) * N + v]`` lists the agents
-    moving ``u -> v`` between ``t`` and ``t + 1``; ``parked[v] = (T, agent)`` says
-    that ``agent`` ends its path at ``v`` at time ``T`` and stays there, and
-    ``park_t[v]`` is that ``T`` (a huge number where nobody parks) for fast lookups.
-
-    Example
-    -------
-    >>> r = Reservations(10)
-    >>> r.add(0, (1, 2, 3))
-    >>> r.vt[1 * 10 + 2], r.parked[3]
-    ([0], (2, 0))
-    >>> r.remove(0, (1, 2, 3))
-    >>> r.vt, r.et, r.parked
-    ({}, {}, {})
-    """
-
-    __slots__ = ("n", "vt", "et", "parked", "park_t")
-
-    def __init__(self, n: int) -> None:
-        self.n = n
-        self.vt: dict[int, list[int]] = {}
-        self.et: dict[int, list[int]] = {}
-        self.parked: dict[int, tuple[int, int]] = {}
-        self.park_t: list[int] = [NEVER] * n
-
-    def add(self, agent: int, path: Sequence[int]) -> None:
-        """Reserve ``path`` for ``agent``."""
-        n = self.n
-        vt = self.vt
-        et = self.et
-        prev = -1
-        for t, v in enumerate(path):
-            k = t * n + v
-            lst = vt.get(k)
-            if lst is None:
-                vt[k] = [agent]
-            else:
-                lst.append(agent)
-            if t and prev != v:
-                ek = ((t - 1) * n + prev) * n + v
-                lst = et.get(ek)
-                if lst is None:
-                    et[ek] = [agent]
-                else:
-                    lst.append(agent)
-            prev = v
-        self.parked[path[-1]] = (len(path) - 1, agent)
-        self.park_t[path[-1]] = len(path) - 1
-
-    def remove(self, agent: int, path: Sequence[int]) -> None:
-        """Undo :meth:`add` of the same ``agent`` and ``path``."""
-        n = self.n
-        vt = self.vt
-        et = self.et
-        prev = -1
-        for t, v in enumerate(path):
-            k = t * n + v
-            lst = vt[k]
-            if len(lst) == 1:
-                del vt[k]
-            else:
-                lst.remove(agent)
-            if t and prev != v:
-                ek = ((t - 1) * n + prev) * n + v
-                lst = et[ek]
-                if len(lst) == 1:
-                    del et[ek]
-                else:
-                    lst.remove(agent)
-            prev = v
-        p = self.parked.get(path[-1])
-        if p is not None and p[1] == agent:
-            del self.parked[path[-1]]
-            self.park_t[path[-1]] = NEVER
-
-
-def goal_visits(goal: int, agent: int, paths: Sequence[Sequence[int] | None]) -> list[int]:
-    """Sorted timesteps at which agents other than ``agent`` are at ``goal``.
-
-    Example
-    -------
-    >>> goal_visits(5, 0, [(5,), (4, 5, 6, 5), None])
-    [1, 3]
-    """
-    out: list[int] = []
-    for j, p in enumerate(paths):
-        if j == agent or p is None or goal not in p:
-            continue
-        out.extend(t for t, v in enumerate(p) if v == goal)
-    out.sort()
-    return out
-
-
+# See the note above astar.space_time_astar: one of the two hot inner loops, written out
+# in one body on purpose.
 def focal_path(
-    adj_self: Sequence[Sequence[int]],
-    h: Sequence[int],
+    adj: Sequence[Sequence[int]],
     start: int,
     goal: int,
-    w: float,
-    vcons: set[int] | frozenset[int],
-    econs: set[int] | frozenset[int],
+    dist: Sequence[int],
+    cons: AgentConstraints,
     res: Reservations,
-    goal_times: Sequence[int],
     *,
+    w: float = 1.0,
     deadline: Deadline | None = None,
     max_t: int | None = None,
     stats: dict[str, int] | None = None,
@@ -168,17 +72,16 @@ def focal_path(
 
     Parameters
     ----------
-    adj_self
-        ``adj_self[v]`` = neighbours of ``v`` followed by ``v`` itself (the wait).
-    h
+    adj
+        Neighbour lists (``graph.adj``).
+    dist
         Timestep distances to ``goal`` (``graph.dist_list(goal)``).
-    vcons, econs
-        Forbidden states ``t * N + v`` and forbidden moves ``(t * N + u) * N + v``
-        (``u -> v`` between ``t`` and ``t + 1``); ``N = len(adj_self)``.
+    cons
+        The agent's vertex and edge constraints (other kinds are refused).
     res
         The other agents' paths (this agent's own path must not be in it).
-    goal_times
-        Sorted times at which other agents visit ``goal`` (see :func:`goal_visits`).
+    w
+        Suboptimality factor of the focal list (``>= 1``).
     budget
         After this many expansions (if positive) FOCAL shrinks to ``{f = f_min}``:
         the search stops trading cost for fewer conflicts and ends like A* (ties
@@ -188,7 +91,8 @@ def focal_path(
         Give up (return None) after this many expansions, if positive.
     avoid
         Treat every conflict with ``res`` as forbidden (only conflict-free paths;
-        with ``w = 1`` this is plain space-time A* around the other agents).
+        with ``w = 1`` this is plain space-time A* around the other agents, i.e.
+        prioritized planning).
     max_t
         No state later than this is generated (defaults to the last constraint time
         plus the number of vertices, after which waiting is never forced).
@@ -202,26 +106,23 @@ def focal_path(
     Example
     -------
     >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.search.constraints import NEG_V
     >>> g = Graph.grid(3, 1)
-    >>> adj = [list(a) + [v] for v, a in enumerate(g.adj)]
-    >>> focal_path(adj, g.dist_list(2), 0, 2, 1.0, {1 * 3 + 1}, set(), Reservations(3), [])
+    >>> c = AgentConstraints.root(g.n, 2).add((NEG_V, 0, 1, -1, 1), n=g.n, goal=2)
+    >>> focal_path(g.adj, 0, 2, g.dist_list(2), c, Reservations(3))
     ((0, 0, 1, 2), 3)
     """
-    n = len(adj_self)
-    hold = 0
-    last_c = 0
-    for k in vcons:
-        t = k // n
-        if t > last_c:
-            last_c = t
-        if k - t * n == goal and t + 1 > hold:
-            hold = t + 1
-    for k in econs:
-        t = k // (n * n) + 1
-        if t > last_c:
-            last_c = t
+    if cons.landmarks or cons.forbid_from or cons.max_finish != NO_BOUND:
+        raise ValueError("focal_path supports vertex and edge constraints only")
+    succ = successors(adj)
+    n = len(adj)
+    h = dist
+    vcons = cons.vertex
+    econs = cons.edge
+    hold = cons.min_finish  # earliest time the agent may stay at its goal forever
     if max_t is None:
-        max_t = last_c + n + 1
+        max_t = cons.tmax + n + 1
+    goal_times = res.visits(goal)
     vt = res.vt
     et = res.et
     park_t = res.park_t
@@ -318,12 +219,11 @@ def focal_path(
         nt = t + 1
         if nt <= max_t:
             base = nt * n
-            tv = t * n + v
-            for u in adj_self[v]:
+            for u in succ[v]:
                 nk = base + u
                 if has_v and nk in vcons:
                     continue
-                if has_e and u != v and tv * n + u in econs:
+                if has_e and u != v and (base + v) * n + u in econs:
                     continue
                 nc = c
                 occ = vt.get(nk)
@@ -332,7 +232,7 @@ def focal_path(
                 if nt > park_t[u]:
                     nc += 1
                 if u != v:
-                    occ = et.get((t * n + u) * n + v)
+                    occ = et.get((base + u) * n + v)  # someone moves u -> v: a swap
                     if occ:
                         nc += len(occ)
                 if avoid and nc:

@@ -9,7 +9,8 @@ there are *cardinal* (Sharon et al. 2015; Boyarski et al. 2015).
 
 from __future__ import annotations
 
-from hierplan_opt.core.graph import UNREACHABLE
+from collections.abc import Callable, Sequence
+
 from hierplan_opt.search.constraints import (
     LEN_GT,
     LEN_LE,
@@ -20,6 +21,7 @@ from hierplan_opt.search.constraints import (
     POS_V,
     AgentConstraints,
     Constraint,
+    Moves,
 )
 
 
@@ -64,64 +66,29 @@ class MDD:
 
 
 def build_mdd(
-    adj: list[list[int]],
+    adj: Sequence[Sequence[int]],
     start: int,
     goal: int,
-    dist: list[int],
+    dist: Sequence[int],
     cons: AgentConstraints,
     cost: int,
-    dist_of: object = None,
+    dist_of: Callable[[int], Sequence[int]] | None = None,
 ) -> MDD:
     """The MDD of all paths with final arrival exactly at ``cost`` that obey ``cons``.
 
     ``cost`` should be the optimal cost under ``cons`` (then the MDD is non-empty).
     """
-    n = len(adj)
-    vc = cons.vertex
-    ec = cons.edge
-    ff = cons.forbid_from
-    lms = cons.landmarks
-    minf = cons.min_finish
-    order = sorted(lms.items()) if lms else []
     if cost == 0:
         return MDD([{start: []}], 0, goal)
+    moves = Moves(adj, goal, dist, cons, dist_of)
     fwd: list[dict[int, list[int]]] = [{start: []}]
     for t in range(1, cost + 1):
         cur: dict[int, list[int]] = {}
-        prev = fwd[t - 1]
-        need = lms.get(t) if lms else None
-        nl = None
-        if order:
-            for tl, vl in order:
-                if tl >= t:
-                    hb = tl + dist[vl] if vl != goal else -1
-                    nl = (tl, vl, dist_of(vl), hb)  # type: ignore[operator]
-                    break
-        base = t * n
         last = t == cost
-        for v, kids in prev.items():
-            for u in (*adj[v], v):
+        for v, kids in fwd[t - 1].items():
+            for u, hu in moves.at(v, t):
                 if last and (u != goal or v == goal):
                     continue
-                if need is not None and u != need:
-                    continue
-                if base + u in vc:
-                    continue
-                if u != v and ((base + v) * n + u) in ec:
-                    continue
-                if ff and u in ff and t >= ff[u]:
-                    continue
-                hu = dist[u]
-                if hu >= UNREACHABLE:
-                    continue
-                if nl is not None:
-                    tl, vl, dl, hb = nl
-                    if dl[u] > tl - t:
-                        continue
-                    if hb - t > hu:
-                        hu = hb - t
-                if minf - t > hu:
-                    hu = minf - t
                 if t + hu > cost:
                     continue
                 kids.append(u)

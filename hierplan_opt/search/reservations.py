@@ -1,0 +1,216 @@
+"""The reservation table: where a set of agents' paths are, indexed for the searches.
+
+One :class:`Reservations` serves every search solver: the low levels count (or avoid)
+conflicts with it while they expand states, and the high levels find the conflicts of
+a new path with :meth:`Reservations.conflicts_of` instead of re-scanning every path.
+
+Keys follow the constraints' layout (:mod:`hierplan_opt.search.constraints`): a vertex
+at a time is ``t * N + v`` and a move ``u -> v`` arriving at ``t`` is ``(t * N + u) * N
++ v``, with ``N`` the number of vertex ids.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from hierplan_opt.search.conflicts import EDGE, TARGET, VERTEX, Conflict
+
+#: ``park_t`` of a vertex where nobody parks: later than any timestep.
+NEVER = 1 << 60
+
+Path = tuple[int, ...]
+
+
+class Reservations:
+    """The paths of some agents, indexed by vertex-time, by move and by parked goal.
+
+    Attributes
+    ----------
+    vt : dict[int, list[int]]
+        ``t * N + v`` -> the agents at ``v`` at ``t`` (up to the last step of their paths).
+    et : dict[int, list[int]]
+        ``(t * N + u) * N + v`` -> the agents moving ``u -> v`` and arriving at ``t``.
+    parked : dict[int, tuple[int, int]]
+        ``v -> (agent, T)``: ``agent``'s path ends at ``v`` at ``T``; it stays there.
+    park_t : list[int]
+        ``park_t[v]`` is that ``T`` (:data:`NEVER` where nobody parks), for fast lookups.
+    paths : list[Path | None]
+        The reserved path of every agent (None when absent).
+    horizon : int
+        At least the last timestep of every reserved path.
+
+    Example
+    -------
+    >>> r = Reservations(10)
+    >>> r.add(0, (1, 2, 3))
+    >>> r.vt[1 * 10 + 2], r.et[(1 * 10 + 1) * 10 + 2], r.parked[3]
+    ([0], [0], (0, 2))
+    >>> r.remove(0)
+    >>> r.vt, r.et, r.parked
+    ({}, {}, {})
+    """
+
+    __slots__ = ("n", "vt", "et", "parked", "park_t", "paths", "horizon")
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.vt: dict[int, list[int]] = {}
+        self.et: dict[int, list[int]] = {}
+        self.parked: dict[int, tuple[int, int]] = {}
+        self.park_t: list[int] = [NEVER] * n
+        self.paths: list[Path | None] = []
+        self.horizon = 0
+
+    # ------------------------------------------------------------------ updates
+    def add(self, agent: int, path: Path) -> None:
+        """Reserve ``path`` for ``agent`` (which must hold no reservation)."""
+        n = self.n
+        vt = self.vt
+        et = self.et
+        prev = path[0]
+        for t, v in enumerate(path):
+            k = t * n + v
+            lst = vt.get(k)
+            if lst is None:
+                vt[k] = [agent]
+            else:
+                lst.append(agent)
+            if v != prev:
+                ek = (t * n + prev) * n + v
+                lst = et.get(ek)
+                if lst is None:
+                    et[ek] = [agent]
+                else:
+                    lst.append(agent)
+            prev = v
+        last = len(path) - 1
+        self.parked[path[-1]] = (agent, last)
+        self.park_t[path[-1]] = last
+        if last > self.horizon:
+            self.horizon = last
+        paths = self.paths
+        while len(paths) <= agent:
+            paths.append(None)
+        paths[agent] = path
+
+    def remove(self, agent: int) -> None:
+        """Undo :meth:`add` of ``agent``'s path (nothing if it holds none)."""
+        path = self.paths[agent] if agent < len(self.paths) else None
+        if path is None:
+            return
+        self.paths[agent] = None
+        n = self.n
+        vt = self.vt
+        et = self.et
+        prev = path[0]
+        for t, v in enumerate(path):
+            k = t * n + v
+            lst = vt[k]
+            if len(lst) == 1:
+                del vt[k]
+            else:
+                lst.remove(agent)
+            if v != prev:
+                ek = (t * n + prev) * n + v
+                lst = et[ek]
+                if len(lst) == 1:
+                    del et[ek]
+                else:
+                    lst.remove(agent)
+            prev = v
+        p = self.parked.get(path[-1])
+        if p is not None and p[0] == agent:
+            del self.parked[path[-1]]
+            self.park_t[path[-1]] = NEVER
+
+    def sync(self, paths: Sequence[Path | None]) -> None:
+        """Make the table hold exactly ``paths`` (agent ``i`` on ``paths[i]``).
+
+        Only the paths that changed (by identity) are re-reserved, so keeping one table
+        for a search costs O(changed paths) per step, not O(all paths).
+        """
+        old = self.paths
+        if len(old) != len(paths):
+            self.vt = {}
+            self.et = {}
+            for v in self.parked:
+                self.park_t[v] = NEVER
+            self.parked = {}
+            self.paths = [None] * len(paths)
+            for a, p in enumerate(paths):
+                if p is not None:
+                    self.add(a, p)
+        else:
+            for a, p in enumerate(paths):
+                if old[a] is not p:
+                    self.remove(a)
+                    if p is not None:
+                        self.add(a, p)
+        self.horizon = max((len(p) - 1 for p in paths if p is not None), default=0)
+
+    # ------------------------------------------------------------------ queries
+    def visits(self, v: int) -> list[int]:
+        """Sorted timesteps at which reserved agents are at ``v`` (one entry per agent).
+
+        Example
+        -------
+        >>> r = Reservations(7)
+        >>> r.add(1, (4, 5, 6, 5))
+        >>> r.visits(5)
+        [1, 3]
+        """
+        n = self.n
+        vt = self.vt
+        out: list[int] = []
+        for t in range(self.horizon + 1):
+            lst = vt.get(t * n + v)
+            if lst:
+                out.extend([t] * len(lst))
+        return out
+
+    def conflicts_of(
+        self, r: int, path: Path, skip: set[int] | frozenset[int] = frozenset()
+    ) -> list[Conflict]:
+        """Every conflict of agent ``r`` on ``path`` with the reserved agents not in ``skip``.
+
+        ``r``'s own reservation, if any, is ignored. Vertex and edge conflicts name the
+        reserved agent first (``Conflict.a``); a target conflict names the parked agent
+        first.
+
+        Example
+        -------
+        >>> r = Reservations(3)
+        >>> r.add(0, (0, 1, 2))
+        >>> r.conflicts_of(1, (2, 1, 0))
+        [Conflict(t=1, kind=0, a=0, b=1, u=-1, v=1)]
+        """
+        n = self.n
+        vt = self.vt
+        et = self.et
+        parked = self.parked
+        out: list[Conflict] = []
+        prev = path[0]
+        for t, v in enumerate(path):
+            lst = vt.get(t * n + v)
+            if lst is not None:
+                for b in lst:
+                    if b != r and b not in skip:
+                        out.append(Conflict(t, VERTEX, b, r, -1, v))
+            e = parked.get(v)
+            if e is not None and e[0] != r and t > e[1] and e[0] not in skip:
+                out.append(Conflict(t, TARGET, e[0], r, -1, v))
+            if prev != v:
+                lst = et.get((t * n + v) * n + prev)
+                if lst is not None:
+                    for b in lst:
+                        if b != r and b not in skip:
+                            out.append(Conflict(t, EDGE, b, r, v, prev))
+            prev = v
+        g = path[-1]
+        for t in range(len(path), self.horizon + 1):
+            lst = vt.get(t * n + g)
+            if lst is not None:
+                for b in lst:
+                    if b != r and b not in skip:
+                        out.append(Conflict(t, TARGET, r, b, -1, g))
+        return out
