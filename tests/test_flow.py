@@ -14,10 +14,10 @@ import hierplan_opt as hp
 from hierplan_opt import Graph, Instance, OptionError, Status, validate
 from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.tenet import (
+from hierplan_opt.search.flow_network import (
     SHARED,
     WAIT,
-    TimeExpandedNetwork,
+    TeamFlowNetwork,
     conflict_free_paths,
     multi_source_bfs,
     smallest_horizon,
@@ -135,7 +135,7 @@ def test_swap_gadget_forbids_swaps() -> None:
     # Two robots on a 2-vertex graph, waiting disabled: each would have to cross the
     # one edge in opposite directions at once. The shared gadget arc lets one through.
     g = Graph.grid(2, 1)
-    net = TimeExpandedNetwork(g, [0, 1], [0, 1], 1)
+    net = TeamFlowNetwork(g, [0, 1], [0, 1], 1)
     assert net.max_flow() == 2  # with waiting, both robots simply stay
     caps = net.capacities.copy()
     caps[net.kinds == WAIT] = 0
@@ -149,7 +149,7 @@ def test_swap_gadget_in_two_team_network() -> None:
     # Built by hand: capacities of the shared gadget arcs are 1, so two robots can
     # never cross one edge in one step in opposite directions.
     g = Graph.grid(2, 1)
-    net = TimeExpandedNetwork(g, [0], [1], 1)
+    net = TeamFlowNetwork(g, [0], [1], 1)
     shared = net.kinds == SHARED
     assert shared.sum() == 1
     assert int(net.capacities[shared][0]) == 1
@@ -157,7 +157,7 @@ def test_swap_gadget_in_two_team_network() -> None:
 
 def test_vertex_and_edge_blocks() -> None:
     g = Graph.grid(3, 1)
-    net = TimeExpandedNetwork(g, [0], [2], 3)
+    net = TeamFlowNetwork(g, [0], [2], 3)
     assert net.max_flow() == 1
     v1 = g.vertex((1, 0))
     caps = net.blocked_capacities(vertex_blocks=[(v1, t) for t in range(4)])

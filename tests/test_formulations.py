@@ -232,13 +232,13 @@ def test_network_arrays_are_consistent():
 
 
 def test_backend_error_becomes_error_status():
-    from hierplan_opt.formulations.ladder import Outcome, solve_with
+    from hierplan_opt.formulations.horizon import Outcome, solve_with
 
     class Broken:
         name = "broken"
 
         def __call__(self, net, objective, time_limit, hint, seed):
-            return Outcome("error", stats={"error": "solver crashed"})
+            return Outcome(hp.Status.ERROR, stats={"error": "solver crashed"})
 
     res = solve_with(Broken(), swap_pocket(5, 2)(), objective="soc", time_limit=5)
     assert res.status == hp.Status.ERROR and res.plan is None

@@ -1,10 +1,19 @@
 """Benchmarks that print tables: ``hierplan bench AREA [options]``.
 
 Each area is a module of this package with ``main(argv) -> int``. Speed and memory
-targets live here, not in timed unit tests.
+targets live here, not in timed unit tests. Every area takes the same three flags
+(:class:`BenchParser`): ``--quick`` (a small preset), ``--time-limit S`` (per solve) and
+``--instance SPEC`` (which instances; repeatable), and refuses bad flags with one line.
 """
 
 from __future__ import annotations
+
+import argparse
+import math
+from typing import NoReturn
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.instance import Instance
 
 AREAS = {
     "cbs": "optimal CBS on the MovingAI samples (time, cost, lower bound, nodes)",
@@ -13,3 +22,83 @@ AREAS = {
     "formulations": "MIP and CP-SAT model sizes and time to optimum vs CBS",
     "post": "MAPF-POST: TPG/STN size and time, graph vs LP",
 }
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    return value
+
+
+class BenchParser(argparse.ArgumentParser):
+    """The argument parser of one area: the shared flags, one-line errors.
+
+    Example
+    -------
+    >>> p = BenchParser("demo", "a demo", instance="a name")
+    >>> p.parse_args(["--quick", "--instance", "a", "b"]).instance
+    ['a', 'b']
+    >>> p.parse_args(["--bogus"])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: unrecognized arguments: --bogus (see ...)
+    """
+
+    def __init__(
+        self,
+        area: str,
+        description: str,
+        *,
+        instance: str,
+        quick: str = "a small preset that runs in seconds",
+        time_limit: str = "seconds per solve (default 60, --quick 10)",
+        instance_aliases: tuple[str, ...] = (),
+    ) -> None:
+        super().__init__(prog=f"hierplan bench {area}", description=description)
+        self.add_argument("--quick", action="store_true", help=quick)
+        self.add_argument("--time-limit", type=_seconds, metavar="S", help=time_limit)
+        self.add_argument(
+            "--instance",
+            *instance_aliases,
+            dest="instance",
+            action="extend",
+            nargs="+",
+            metavar="SPEC",
+            help=f"{instance} (repeatable)",
+        )
+
+    def error(self, message: str) -> NoReturn:
+        raise InputError(f"{message} (see '{self.prog} --help')")
+
+
+def time_limit(
+    given: float | None, quick: bool, *, full: float = 60.0, small: float = 10.0
+) -> float:
+    """The per-solve limit: the one given, else ``small`` with --quick, else ``full``."""
+    if given is not None:
+        return given
+    return small if quick else full
+
+
+def scenario(spec: str, agents: int | None = None) -> tuple[str, Instance]:
+    """``"SCEN[:K]"`` (a bundled ``.scen`` name without the suffix) -> (name, instance).
+
+    Example
+    -------
+    >>> name, inst = scenario("empty-8-8-even-1:3")
+    >>> name, inst.num_agents
+    ('empty-8-8-even-1', 3)
+    """
+    from hierplan_opt.experiments.data import movingai_files  # shipped with the package
+    from hierplan_opt.io.movingai import load_movingai
+
+    name, _, k = spec.partition(":")
+    name = name.removesuffix(".scen")
+    if k and not k.isdigit():
+        raise InputError(f"--instance expects SCEN[:K] with K a number of agents, got {spec!r}")
+    mp, scen = movingai_files(name)
+    return name, load_movingai(mp, scen, int(k) if k else agents)

@@ -15,10 +15,11 @@ within 60 s.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import time
 from collections.abc import Iterable, Iterator
+
+from hierplan_opt.bench import BenchParser, time_limit
 
 MAPS = {
     "random-32-32-20": "random-32-32-20-random-1.scen",
@@ -120,9 +121,9 @@ def _print(header: tuple, rows: Iterable[tuple], widths: list[int] | None = None
         rows = cells
     else:
         rows = (tuple(str(c) for c in r) for r in rows)
-    print("  ".join(str(h).ljust(w) for h, w in zip(header, widths, strict=True)), flush=True)  # noqa: T201
+    print("  ".join(str(h).ljust(w) for h, w in zip(header, widths, strict=True)), flush=True)
     for r in rows:
-        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)), flush=True)  # noqa: T201
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)), flush=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -134,19 +135,28 @@ def main(argv: list[str] | None = None) -> int:
     map ...
     0
     """
-    p = argparse.ArgumentParser(prog="hierplan bench formulations", description=__doc__)
-    p.add_argument("--maps", nargs="+", choices=sorted(MAPS), default=sorted(MAPS))
+    p = BenchParser(
+        "formulations",
+        (__doc__ or "").split("\n\n")[0],
+        instance=f"map ({', '.join(sorted(MAPS))}; default both)",
+        instance_aliases=("--maps",),
+        quick="small preset: K = 2 5, 20 s limit",
+        time_limit="seconds per solve (default 60, --quick 20)",
+    )
     p.add_argument(
         "--agents", nargs="+", type=int, help="agent counts (default 2 4 6 8 10 12 15 20)"
     )
     p.add_argument("--solvers", nargs="+", default=["mip", "cpsat", "cbs"])
     p.add_argument("--objective", choices=("soc", "makespan"), default="soc")
-    p.add_argument("--time-limit", type=float, default=60.0, help="per solve, seconds")
-    p.add_argument("--quick", action="store_true", help="small preset: K = 2 5, 20 s limit")
     p.add_argument("--sizes-only", action="store_true", help="only the model-size table")
     args = p.parse_args(argv)
+    maps = args.instance or sorted(MAPS)
+    for m in maps:
+        if m not in MAPS:
+            p.error(f"unknown map {m!r} (use {', '.join(sorted(MAPS))})")
+    args.maps = maps
     agents = args.agents or ([2, 5] if args.quick else [2, 4, 6, 8, 10, 12, 15, 20])
-    limit = 20.0 if args.quick and args.time_limit == 60.0 else args.time_limit
+    limit = time_limit(args.time_limit, args.quick, small=20.0)
 
     _print(
         ("map", "K", "model", "T", "vars", "cons", "vars(no prune)", "cons(no prune)", "ratio"),
@@ -154,8 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     if args.sizes_only:
         return 0
-    print()  # noqa: T201
-    print(f"time to optimum ({args.objective}), limit {limit:g} s per solve")  # noqa: T201
+    print()
+    print(f"time to optimum ({args.objective}), limit {limit:g} s per solve")
     _print(
         ("map", "K", "solver", "status", "cost", "LB", "seconds"),
         time_table(args.maps, agents, args.solvers, args.objective, limit),

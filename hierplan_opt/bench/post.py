@@ -12,13 +12,12 @@ with Pyomo + appsi_highs, and (up to ``--safety-max`` robots) the max-safety LP.
 
 from __future__ import annotations
 
-import argparse
-import heapq
 import logging
 import statistics
 import time
 from pathlib import Path
 
+from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
@@ -35,10 +34,11 @@ def prioritized_plan(
 ) -> Plan | None:
     """A valid plan by prioritized planning (agents in index order), or None.
 
-    Each robot runs a space-time A* (timestep distance heuristic) that avoids the
-    vertices and edge swaps of the robots planned before it and their parked goals;
-    it may park at its goal only if no earlier robot passes there later. Gives up
-    (None) when a robot needs more than ``max_expansions`` A* expansions.
+    Each robot takes a shortest path that avoids every conflict with the robots planned
+    before it (their cells, swaps and parked goals; it parks at its goal only if no
+    earlier robot passes there later): the space-time search of
+    :func:`~hierplan_opt.search.focal.focal_path` with ``avoid=True``. Gives up (None)
+    when a robot needs more than ``max_expansions`` expansions.
 
     Example
     -------
@@ -49,76 +49,38 @@ def prioritized_plan(
     >>> validate(inst, prioritized_plan(inst))
     []
     """
+    from hierplan_opt.search.constraints import AgentConstraints
+    from hierplan_opt.search.focal import focal_path
+    from hierplan_opt.search.reservations import Reservations
+
     g = instance.graph
-    adj = g.adj
+    goals = instance.goals
+    g.precompute_distances(goals)
     if max_time is None:
         max_time = 2 * max(g.dist(a.start, a.goal) for a in instance.agents) + 200
-    vertex_res: dict[tuple[int, int], int] = {}
-    edge_res: set[tuple[int, int, int]] = set()
-    parked: dict[int, int] = {}  # vertex -> time from which an earlier robot parks there
-    last_use: dict[int, int] = {}  # vertex -> last time an earlier robot occupies it
-    paths: list[list[int]] = []
-    for agent in instance.agents:
-        s, goal = agent.start, agent.goal
-        assert goal is not None
-        h = g.dist_list(goal)
-        path = _st_astar(
-            adj,
-            h,
+    res = Reservations(g.n)
+    free = AgentConstraints()
+    paths: list[tuple[int, ...]] = []
+    for i, (s, goal) in enumerate(zip(instance.starts, goals, strict=True)):
+        if res.park_t[s] <= 0 or res.vt.get(s):  # an earlier robot sits on this start
+            return None
+        out = focal_path(
+            g.adj,
             s,
             goal,
-            vertex_res,
-            edge_res,
-            parked,
-            last_use.get(goal, -1),
-            max_time,
-            max_expansions,
+            g.dist_list(goal),
+            free,
+            res,
+            max_t=max_time,
+            budget=-1,
+            avoid=True,
+            limit=max_expansions,
         )
-        if path is None:
+        if out is None:
             return None
-        for t, v in enumerate(path):
-            vertex_res[(v, t)] = 1
-            if v in last_use:
-                last_use[v] = max(last_use[v], t)
-            else:
-                last_use[v] = t
-            if t:
-                edge_res.add((path[t - 1], v, t))
-        parked[path[-1]] = len(path) - 1
-        paths.append(path)
+        res.add(i, out[0])
+        paths.append(out[0])
     return Plan.from_paths(paths)
-
-
-def _st_astar(adj, h, s, goal, vres, eres, parked, goal_busy_until, max_time, max_exp):  # noqa: ANN001, ANN202
-    def blocked(v: int, t: int) -> bool:
-        return (v, t) in vres or (v in parked and t >= parked[v])
-
-    if blocked(s, 0):
-        return None
-    openl = [(h[s], 0, s)]
-    parent: dict[tuple[int, int], tuple[int, int] | None] = {(s, 0): None}
-    expanded = 0
-    while openl:
-        _, t, v = heapq.heappop(openl)
-        expanded += 1
-        if expanded > max_exp:
-            return None
-        if v == goal and t > goal_busy_until:
-            out = []
-            node: tuple[int, int] | None = (v, t)
-            while node is not None:
-                out.append(node[0])
-                node = parent[node]
-            return out[::-1]
-        if t >= max_time:
-            continue
-        for w in (*adj[v], v):
-            nt = t + 1
-            if (w, nt) in parent or blocked(w, nt) or (w, v, nt) in eres:
-                continue
-            parent[(w, nt)] = (v, t)
-            heapq.heappush(openl, (nt + h[w], nt, w))
-    return None
 
 
 def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) -> tuple[Plan, str]:
@@ -142,7 +104,7 @@ def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) 
 
 
 # ---------------------------------------------------------------------- bench
-def _median_time(fn, repeats: int) -> tuple[float, object]:  # noqa: ANN001
+def _median_time(fn, repeats: int) -> tuple[float, object]:
     times = []
     out = None
     for _ in range(repeats):
@@ -157,34 +119,49 @@ def main(argv: list[str] | None = None) -> int:
     from hierplan_opt.io.movingai import load_map, load_scen
     from hierplan_opt.schedule import build_stn, build_tpg, solve_graph, solve_lp
 
-    ap = argparse.ArgumentParser(prog="hierplan bench post", description=__doc__)
-    ap.add_argument("--map", default=DEFAULT_MAP)
-    ap.add_argument("--scen", default=DEFAULT_SCEN)
+    ap = BenchParser(
+        "post",
+        (__doc__ or "").split("\n\n")[0],
+        instance="a bundled MovingAI scenario (default warehouse-10-20-10-2-1-even-1)",
+        quick="50 and 100 robots, one repeat",
+        time_limit="seconds per ECBS plan (default 120)",
+    )
+    ap.add_argument("--map", default=DEFAULT_MAP, help="map file (with --scen)")
+    ap.add_argument("--scen", default=DEFAULT_SCEN, help="scenario file (with --map)")
     ap.add_argument(
         "--agents",
-        default="50,100,200,300,450",
-        help="comma-separated robot counts (the warehouse scenario has 450)",
+        help="comma-separated robot counts (default 50,100,200,300,450; the warehouse "
+        "scenario has 450)",
     )
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, help="repeats per timing (default 3, --quick 1)")
     ap.add_argument("--w", type=float, default=1.5, help="ECBS suboptimality bound")
     ap.add_argument("--pyomo-max", type=int, default=100, help="largest K for the Pyomo LP")
     ap.add_argument(
         "--safety-max", type=int, default=300, help="largest K for the max-safety LP (1 run)"
     )
     ap.add_argument("--planner", choices=("auto", "prioritized"), default="auto")
-    ap.add_argument("--time-limit", type=float, default=120.0, help="ECBS time limit per plan")
     ap.add_argument("--cache", metavar="DIR", help="keep plans in DIR and reuse them")
     ap.add_argument("--fleet", type=int, default=1000, help="robots of the fleet row (0: none)")
     args = ap.parse_args(argv)
+    args.time_limit = time_limit(args.time_limit, False, full=120.0)
+    args.repeats = args.repeats or (1 if args.quick else 3)
+    agents = args.agents or ("50,100" if args.quick else "50,100,200,300,450")
 
-    from hierplan_opt.experiments.data import instances_dir  # shipped with the package
+    from hierplan_opt.experiments.data import instances_dir, movingai_files  # shipped
 
     def shipped(name: str) -> Path:  # DEFAULT_MAP / DEFAULT_SCEN start with "instances/"
         return Path(name) if Path(name).exists() else instances_dir() / name.split("/", 1)[-1]
 
     map_path, scen_path = shipped(args.map), shipped(args.scen)
+    if args.instance:
+        if len(args.instance) != 1:
+            ap.error("--instance takes one scenario")
+        map_path, scen_path = movingai_files(args.instance[0].removesuffix(".scen"))
     graph = load_map(str(map_path))
-    counts = [int(x) for x in args.agents.split(",") if x]
+    try:
+        counts = [int(x) for x in agents.split(",") if x]
+    except ValueError:
+        raise InputError(f"--agents expects comma-separated numbers, got {agents!r}") from None
     header = (
         f"{'K':>4} {'planner':>12} {'SOC':>7} {'nodes':>7} {'arcs':>7} {'type2':>6} "
         f"{'build':>7} {'graph':>7} {'lp':>7} {'lp/gr':>6} {'chains':>7} {'ch/gr':>6} "
@@ -192,13 +169,13 @@ def main(argv: list[str] | None = None) -> int:
         f"{'makespan':>9} {'lp_mk':>9} {'R*':>6}"
     )
     title = f"MAPF-POST on {map_path.name} + {scen_path.name}: medians of {args.repeats} runs, s"
-    print(title)  # noqa: T201
-    print(header)  # noqa: T201
+    print(title)
+    print(header)
     for k in counts:
         try:
             inst = load_scen(str(scen_path), graph, agents=k)
         except InputError as exc:
-            print(f"{k:>4} skipped: {exc}")  # noqa: T201
+            print(f"{k:>4} skipped: {exc}")
             continue
         t0 = time.perf_counter()
         cached = None
@@ -214,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
             plan = prioritized_plan(inst)
             planner = "prioritized"
             if plan is None:
-                print(f"{k:>4} prioritized planning failed")  # noqa: T201
+                print(f"{k:>4} prioritized planning failed")
                 continue
         else:
             plan, planner = make_plan(inst, w=args.w, time_limit=args.time_limit)
@@ -253,7 +230,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             sf, rs = f"{'-':>7}", f"{'-':>6}"
         graph_total = t_build + t_graph
-        print(  # noqa: T201
+        print(
             f"{k:>4} {planner:>12} {plan.sum_of_costs:>7} {stn.num_nodes:>7} {stn.num_arcs:>7} "
             f"{stn.tpg.num_type2:>6} {t_build:7.3f} {t_graph:7.3f} {t_lp:7.3f} "
             f"{(t_build + t_lp) / graph_total:6.1f} {t_ch:7.3f} "
@@ -261,8 +238,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{gsol.makespan:9.3f} {lp.makespan:9.3f} {rs}"
         )
     if args.fleet:
-        print(fleet_row(graph, args.fleet, args.repeats))  # noqa: T201
-    print(  # noqa: T201
+        print(fleet_row(graph, args.fleet, args.repeats))
+    print(
         "build = TPG + STN; graph = earliest schedule + latest times + critical path; "
         "lp = makespan LP via HiGHS direct on the projected STN; lp/gr = (build+lp)/(build+graph); "
         "chains = same LP with chains merged only (the earlier reduction); "

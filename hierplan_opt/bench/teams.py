@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.validate import validate
@@ -137,8 +138,14 @@ def _run(
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark and print one table row per instance."""
-    p = argparse.ArgumentParser(prog="hierplan bench teams", description=__doc__.split("\n\n")[0])
-    p.add_argument("--quick", action="store_true", help="small preset (under a minute)")
+    p = BenchParser(
+        "teams",
+        (__doc__ or "").split("\n\n")[0],
+        instance="a MovingAI .map instead of the generated warehouse (random free cells)",
+        instance_aliases=("--map",),
+        quick="small preset (under a minute)",
+        time_limit="seconds per solve (default 60, --quick 20)",
+    )
     p.add_argument("--teams", help="comma-separated numbers of teams (default 5,10,20; quick 2,4)")
     p.add_argument("--size", type=int, help="robots per team (default 10, quick 3)")
     p.add_argument("--seeds", type=int, help="instances per setting (default 1)")
@@ -150,8 +157,6 @@ def main(argv: list[str] | None = None) -> int:
         choices=["sides", "random"],
         help="where robots start (default random, quick sides)",
     )
-    p.add_argument("--map", help="MovingAI map instead of the generated warehouse")
-    p.add_argument("--time-limit", type=float, help="seconds per solve (default 60, quick 20)")
     p.add_argument("--tie-break", default="auto", help="CBM tie_break option (default auto)")
     p.add_argument(
         "--mapf-solver", default="cbs", help="makespan MAPF solver for fixed assignments (cbs)"
@@ -169,7 +174,10 @@ def main(argv: list[str] | None = None) -> int:
     cols = args.shelf_cols or (3 if q else 14)
     slen = args.shelf_len or (5 if q else 4)
     starts_at = args.starts or ("sides" if q else "random")
-    limit = args.time_limit or (20.0 if q else 60.0)
+    limit = time_limit(args.time_limit, q, small=20.0)
+    if args.instance is not None and len(args.instance) != 1:
+        p.error("--instance takes one map")
+    map_path = args.instance[0] if args.instance else None
     logging.getLogger("hierplan_opt").setLevel(logging.WARNING)
 
     header = (
@@ -180,24 +188,24 @@ def main(argv: list[str] | None = None) -> int:
         header += f" | {'fixed':>11} {'mk':>4} {'time':>7}"
     if args.flow:
         header += f" | {'flow(1 team)':>12} {'mk':>4} {'time':>7}"
-    print(  # noqa: T201
+    print(
         f"teams benchmark: teams {team_counts} x {size} robots, time limit {limit:g} s, "
         f"fixed assignments solved by {args.mapf_solver} (makespan)"
     )
-    print(header)  # noqa: T201
-    print("-" * len(header))  # noqa: T201
+    print(header)
+    print("-" * len(header))
     solved = total = 0
     for teams in team_counts:
         for seed in range(seeds):
-            if args.map:
-                inst = map_tapf(args.map, teams, size, seed)
+            if map_path:
+                inst = map_tapf(map_path, teams, size, seed)
             else:
                 grid = warehouse_grid(rows, cols, slen)
                 inst = warehouse_tapf(grid, teams, size, seed, starts_at)
             total += 1
-            print(_row(inst, args, limit), flush=True)  # noqa: T201
+            print(_row(inst, args, limit), flush=True)
             solved += _LAST["cbm"] == "OPTIMAL"
-    print(f"cbm solved {solved}/{total} optimally within {limit:g} s")  # noqa: T201
+    print(f"cbm solved {solved}/{total} optimally within {limit:g} s")
     return 0
 
 

@@ -23,7 +23,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--agents", metavar="K", type=positive_int, help="use the first K agents (default: all)"
     )
     p.add_argument(
-        "--solvers", action="store_true", help="list the registered solvers and their options"
+        "--solvers",
+        action="store_true",
+        help="list the registered solvers with their options (set with `hierplan solve --set`)",
     )
 
 
@@ -42,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     return OK
 
 
-def instance_lines(instance) -> list[str]:  # noqa: ANN001 - Instance, imported lazily
+def instance_lines(instance) -> list[str]:
     """The report lines for one instance.
 
     Example
@@ -95,7 +97,7 @@ def instance_lines(instance) -> list[str]:  # noqa: ANN001 - Instance, imported 
 
 
 def solver_lines() -> list[str]:
-    """One line per registered solver: name, problems, objectives, kind, options.
+    """Per registered solver: name, problems, objectives, kind, description and options.
 
     Example
     -------
@@ -110,11 +112,11 @@ def solver_lines() -> list[str]:
         problems = "/".join(sorted(p.upper() for p in info.problems))
         objectives = "/".join(sorted(info.objectives))
         kind = "optimal" if info.optimal else "bounded" if info.bounded else "heuristic"
-        try:
-            opts = ", ".join(info.options()) or "none"
-        except (ImportError, AttributeError):
-            opts = "(not installed yet)"
-        out.append(f"{name:10s} {problems:10s} {objectives:13s} {kind:9s} options: {opts}")
+        out.append(f"{name:10s} {problems:10s} {objectives:13s} {kind}")
         if info.description:
             out.append(f"{'':10s} {info.description}")
+        spec = info.load().options
+        out.extend(f"{'':10s}   {o.describe()}" for o in spec)
+        if not len(spec):
+            out.append(f"{'':10s}   (no options)")
     return out

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from typing import Any
 
+from hierplan_opt.api import DEFAULT_TIME_LIMIT
 from hierplan_opt.cli.common import (
     INFEASIBLE,
     INTERNAL,
@@ -16,17 +16,34 @@ from hierplan_opt.cli.common import (
     load_instance_from_args,
     positive_float,
 )
-from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.errors import InputError, UnknownSolverError
+from hierplan_opt.core.options import parse_pairs
 
 HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning layout)"
-
-#: The CLI's default time limit (the library's default is no limit).
-DEFAULT_TIME_LIMIT = 60.0
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
-    p.add_argument("--solver", default="cbs", metavar="NAME", help="solver name (default: cbs)")
+    chosen = ["cbs"]  # the solver whose options --help lists
+
+    class SolverName(argparse.Action):
+        def __call__(
+            self,
+            parser: argparse.ArgumentParser,
+            namespace: argparse.Namespace,
+            values: Any,
+            option_string: str | None = None,
+        ) -> None:
+            chosen[0] = str(values)
+            setattr(namespace, self.dest, values)
+
+    p.add_argument(
+        "--solver",
+        default="cbs",
+        metavar="NAME",
+        action=SolverName,
+        help="solver name (default: cbs); `--solver NAME --help` lists its options",
+    )
     p.add_argument(
         "--objective",
         choices=("soc", "makespan"),
@@ -46,45 +63,37 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="any other solver option; VALUE is read as a YAML scalar (repeatable)",
+        help="a solver option (repeatable); booleans are true/false, yes/no or on/off",
     )
     p.add_argument(
         "--out",
         metavar="PLAN",
         help="write the plan here (.yaml, or .json); only written when a plan is found",
     )
+    base_help = p.format_help
+
+    def format_help() -> str:
+        return base_help() + "\n" + "\n".join(solver_help(chosen[0])) + "\n"
+
+    p.format_help = format_help  # type: ignore[method-assign]
 
 
-def parse_options(pairs: list[str]) -> dict[str, Any]:
-    """``["w=1.5", "bypass=false"]`` -> ``{"w": 1.5, "bypass": False}``.
+def solver_help(name: str) -> list[str]:
+    """The ``--help`` lines listing solver ``name``'s options.
 
     Example
     -------
-    >>> parse_options(["w=1.5", "bypass=false", "mode=fast"])
-    {'w': 1.5, 'bypass': False, 'mode': 'fast'}
+    >>> solver_help("ecbs")[1]
+    '  w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w * optimum'
     """
-    import yaml
+    from hierplan_opt import registry
 
-    out: dict[str, Any] = {}
-    for pair in pairs:
-        key, sep, text = pair.partition("=")
-        key = key.strip()
-        if not sep or not key.isidentifier():
-            raise InputError(f"--set expects KEY=VALUE with a solver option name, got {pair!r}")
-        if key in out:
-            raise InputError(f"--set {key} is given twice")
-        if key in ("time_limit", "seed", "objective"):
-            raise InputError(f"use --{key.replace('_', '-')} instead of --set {key}=...")
-        try:
-            value = yaml.safe_load(text) if text.strip() else ""
-        except yaml.YAMLError:
-            value = text
-        if isinstance(value, (list, dict)):
-            raise InputError(f"--set {key}: the value must be a single number, word or bool")
-        if isinstance(value, float) and not math.isfinite(value):
-            raise InputError(f"--set {key}: the value must be finite, got {text!r}")
-        out[key] = value
-    return out
+    try:
+        spec = registry.get(name).load().options
+    except UnknownSolverError as exc:
+        return [str(exc)]
+    head = f"options of solver {name!r} (--set KEY=VALUE; other solvers: --solver NAME --help):"
+    return [head] + [f"  {o.describe()}" for o in spec] + ([] if len(spec) else ["  none"])
 
 
 def summary(result: Any, instance: Any) -> str:
@@ -133,10 +142,12 @@ def _fmt(x: Any) -> str:
 
 def run(args: argparse.Namespace) -> int:
     import hierplan_opt
+    from hierplan_opt import registry
     from hierplan_opt.core.result import Status
     from hierplan_opt.io import save_plan
 
-    options = parse_options(args.set)
+    texts = parse_pairs(args.set)
+    options = registry.get(args.solver).load().options.parse(texts, args.solver)
     if args.w is not None:
         if "w" in options:
             raise InputError("give w either with --w or with --set w=..., not both")

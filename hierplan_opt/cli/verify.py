@@ -12,6 +12,15 @@ from hierplan_opt.cli.common import (
     load_instance_from_args,
     positive_float,
 )
+from hierplan_opt.core.result import Status
+
+#: Exit code of each verdict: proven optimal, not optimal, invalid plan, undecided.
+EXIT_CODES = {
+    Status.OPTIMAL: OK,
+    Status.FEASIBLE: PLAN_INVALID,
+    Status.INFEASIBLE: PLAN_INVALID,
+    Status.TIME_LIMIT: LIMIT,
+}
 
 HELP = "certify that a plan is optimal with an exact formulation (CP-SAT or MIP), or report the gap"
 
@@ -56,11 +65,6 @@ def run(args: argparse.Namespace) -> int:
         time_limit=args.time_limit,
     )
     print(res.message())
-    if res.status == "invalid":
-        for v in res.violations[1:]:
-            print(f"  {v}")
-    if res.status == "optimal":
-        return OK
-    if res.status == "unknown":
-        return LIMIT
-    return PLAN_INVALID
+    for v in res.violations[1:]:
+        print(f"  {v}")
+    return EXIT_CODES[res.outcome]

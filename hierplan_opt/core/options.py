@@ -187,6 +187,31 @@ class Option:
         return self.check(value, solver)
 
 
+def parse_pairs(pairs: Sequence[str], flag: str = "--set") -> dict[str, str]:
+    """``["w=1.5", "bypass=false"]`` -> ``{"w": "1.5", "bypass": "false"}`` (text, unchecked).
+
+    Dashes in names are read as underscores. The solver's declared options turn the
+    texts into values before any work (:meth:`Options.parse`).
+
+    Example
+    -------
+    >>> parse_pairs(["w=1.5", "disjoint-splitting=off"])
+    {'w': '1.5', 'disjoint_splitting': 'off'}
+    """
+    out: dict[str, str] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        key = key.strip().replace("-", "_")
+        if not sep or not key.isidentifier():
+            raise OptionError(f"{flag} expects KEY=VALUE with a solver option name, got {pair!r}")
+        if key in out:
+            raise OptionError(f"{flag} {key} is given twice")
+        if key in ("time_limit", "seed", "objective"):
+            raise OptionError(f"use --{key.replace('_', '-')} instead of {flag} {key}=...")
+        out[key] = text
+    return out
+
+
 def _yaml_mapping(text: str) -> dict[str, Any] | None:
     import yaml
 

@@ -32,15 +32,19 @@ class Status(StrEnum):
 class Result:
     """What every solver returns.
 
-    ``cost`` is the plan's cost under ``objective``; ``lower_bound`` is a proven lower
-    bound on the optimal cost when the solver knows one (equal to ``cost`` when
-    OPTIMAL). ``stats`` holds solver statistics (expanded nodes, generated nodes, ...).
+    ``cost`` is the plan's cost under ``objective`` (sum of costs, or makespan);
+    ``lower_bound`` is a proven lower bound on the optimal cost under ``objective`` when
+    the solver knows one (equal to ``cost`` when OPTIMAL); :attr:`gap` is
+    ``(cost - lower_bound) / cost``. ``stats`` holds solver statistics (expanded nodes,
+    generated nodes, ...).
 
     Example
     -------
     >>> r = Result(Status.INFEASIBLE, None, solver="cbs", objective="soc")
     >>> r.solved, r.gap
     (False, None)
+    >>> Result(Status.FEASIBLE, None, cost=110, lower_bound=100).gap
+    0.09090909090909091
     """
 
     status: Status
@@ -59,9 +63,22 @@ class Result:
 
     @property
     def gap(self) -> float | None:
-        """``cost / lower_bound`` (1.0 means proven optimal); None when unknown."""
-        if self.cost is None or self.lower_bound is None:
-            return None
-        if self.lower_bound <= 0:
-            return 1.0 if self.cost <= 0 else None
-        return self.cost / self.lower_bound
+        """The relative optimality gap (see :func:`relative_gap`); None when unknown."""
+        return relative_gap(self.cost, self.lower_bound)
+
+
+def relative_gap(cost: float | None, bound: float | None) -> float | None:
+    """``(cost - bound) / cost``, as MIP and CP-SAT users read it: 0.0 is proven optimal.
+
+    None when either number is unknown; 0.0 when the cost is 0 and meets the bound.
+
+    Example
+    -------
+    >>> relative_gap(12, 10), relative_gap(8, 8), relative_gap(None, 3)
+    (0.16666666666666666, 0.0, None)
+    """
+    if cost is None or bound is None:
+        return None
+    if cost <= 0:
+        return 0.0 if bound >= cost else None
+    return max(0.0, (cost - bound) / cost)

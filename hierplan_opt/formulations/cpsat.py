@@ -32,11 +32,15 @@ from typing import Any
 
 import numpy as np
 
+from hierplan_opt import registry
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.core.result import Result
-from hierplan_opt.formulations.ladder import Outcome, solve_with
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.validate import validate
+from hierplan_opt.formulations.horizon import Outcome, solve_with
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
+from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)
 
@@ -186,8 +190,8 @@ class CpSatBackend:
         stats: dict = {"model_time": time.perf_counter() - t0}
         if hint is not None:
             stats["hinted"] = add_hint(model, index, hint)
-        solver = cp_model.CpSolver()
-        p = solver.parameters
+        cp = cp_model.CpSolver()
+        p = cp.parameters
         p.num_workers = self.workers
         p.random_seed = int(seed)
         p.log_search_progress = False
@@ -201,23 +205,43 @@ class CpSatBackend:
             p.cp_model_presolve = False
         if time_limit is not None:
             p.max_time_in_seconds = max(0.01, time_limit - (time.perf_counter() - t0))
-        status = solver.solve(model)
-        stats["cpsat_status"] = solver.status_name(status)
-        stats["conflicts"] = solver.num_conflicts
-        if status == cp_model.INFEASIBLE:
-            return Outcome("infeasible", stats=stats)
-        if status == cp_model.MODEL_INVALID:
+        code = cp.solve(model)
+        stats["cpsat_status"] = cp.status_name(code)
+        stats["conflicts"] = cp.num_conflicts
+        status = _status(code)
+        if status is Status.ERROR:
             stats["error"] = f"CP-SAT model invalid: {model.validate()}"
-            return Outcome("error", stats=stats)
-        bound = solver.best_objective_bound if objective == "soc" else None
-        if status in (cp_model.OPTIMAL, cp_model.FEASIBLE):
-            values = np.array([solver.value(var) for var in index.x], dtype=float)
-            obj = solver.objective_value if objective == "soc" else 0.0
-            optimal = status == cp_model.OPTIMAL or objective != "soc"
-            return Outcome("optimal" if optimal else "feasible", values, obj, bound, stats)
-        return Outcome("unknown", None, None, bound, stats)
+        if status in (Status.INFEASIBLE, Status.ERROR):
+            return Outcome(status, stats=stats)
+        bound = cp.best_objective_bound if objective == "soc" else None
+        if status is Status.TIME_LIMIT:
+            return Outcome(status, None, None, bound, stats)
+        if objective != "soc":
+            status = Status.OPTIMAL  # a feasibility model: any solution decides it
+        values = np.array([cp.value(var) for var in index.x], dtype=float)
+        obj = cp.objective_value if objective == "soc" else 0.0
+        return Outcome(status, values, obj, bound, stats)
 
 
+def _status(code: Any) -> Status:
+    """CP-SAT's solve status in the project's vocabulary (UNKNOWN: stopped undecided)."""
+    from ortools.sat.python import cp_model
+
+    table = {
+        cp_model.OPTIMAL: Status.OPTIMAL,
+        cp_model.FEASIBLE: Status.FEASIBLE,
+        cp_model.INFEASIBLE: Status.INFEASIBLE,
+        cp_model.MODEL_INVALID: Status.ERROR,
+    }
+    return table.get(code, Status.TIME_LIMIT)
+
+
+@solver(
+    "cpsat",
+    Option("workers", "int", "CP-SAT's parallel search workers", low=1),
+    Option("hint", "solver", "solver whose plan seeds the search (none: no hint)", optional=True),
+    Option("max_horizon", "int", "largest horizon tried (none: a safe cap)", low=1, optional=True),
+)
 def solve(
     instance: Instance,
     *,
@@ -244,10 +268,6 @@ def solve(
     >>> r.status.value, r.cost
     ('OPTIMAL', 2)
     """
-    if workers < 1:
-        from hierplan_opt.core.errors import OptionError
-
-        raise OptionError(f"workers must be >= 1, got {workers!r}")
     t0 = time.perf_counter()
     start_plan = _hint_plan(instance, hint, time_limit, seed) if objective == "soc" else None
     used = time.perf_counter() - t0
@@ -268,13 +288,13 @@ def _hint_plan(
     """A plan from the ``hint`` solver within a quarter of the budget, or None."""
     if hint is None:
         return None
-    from hierplan_opt.api import solve as front_door
-
     try:
-        res = front_door(
-            instance, hint, time_limit=None if time_limit is None else time_limit / 4, seed=seed
+        res = registry.run(
+            hint, instance, time_limit=None if time_limit is None else time_limit / 4, seed=seed
         )
     except Exception as exc:  # a missing or failing hint solver only costs the hint
         log.warning("hint solver %r unavailable: %s", hint, exc)
         return None
-    return res.plan if res.solved else None
+    if res.plan is None or not res.solved or validate(instance, res.plan):
+        return None
+    return res.plan

@@ -29,10 +29,12 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.core.result import Result
-from hierplan_opt.formulations.ladder import Outcome, solve_with
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.formulations.horizon import Outcome, solve_with
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
+from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)
 
@@ -172,8 +174,6 @@ class MipBackend:
         hint: Plan | None,
         seed: int,
     ) -> Outcome:
-        from pyomo.contrib.appsi.base import TerminationCondition as TC
-
         t0 = time.perf_counter()
         m = model_of(net, objective)
         stats: dict = {"model_time": time.perf_counter() - t0}
@@ -190,9 +190,9 @@ class MipBackend:
             res = opt.solve(m)
             stats["lp_time"] = time.perf_counter() - t0 - stats["model_time"]
             stats["lp_status"] = res.termination_condition.name
-            if res.termination_condition in (TC.infeasible, TC.infeasibleOrUnbounded):
+            if _status(res.termination_condition) is Status.INFEASIBLE:
                 stats["lp_rejected"] = 1
-                return Outcome("infeasible", stats=stats)
+                return Outcome(Status.INFEASIBLE, stats=stats)
             # Persistent interface: only the domains change, not the model.
             _set_domain(m, relaxed=False)
             for flag in (
@@ -214,23 +214,43 @@ class MipBackend:
         stats["highs_status"] = tc.name
         bound = res.best_objective_bound
         bound = None if bound is None or not math.isfinite(bound) else float(bound)
-        if tc in (TC.infeasible, TC.infeasibleOrUnbounded):
-            return Outcome("infeasible", stats=stats)
-        if tc == TC.error:
+        status = _status(tc)
+        if status is Status.ERROR:
             stats["error"] = "HiGHS reported an error"
-            return Outcome("error", stats=stats)
+        if status in (Status.INFEASIBLE, Status.ERROR):
+            return Outcome(status, stats=stats)
         incumbent = res.best_feasible_objective
-        values = None
-        if incumbent is not None and math.isfinite(incumbent):
-            prim = res.solution_loader.get_primals(list(m.x.values()))
-            values = np.array([prim[v] for v in m.x.values()], dtype=float)
-        if tc == TC.optimal and values is not None:
-            return Outcome("optimal", values, float(incumbent), bound, stats)
-        if values is not None:
-            return Outcome("feasible", values, float(incumbent), bound, stats)
-        return Outcome("unknown", None, None, bound, stats)
+        if incumbent is None or not math.isfinite(incumbent):
+            return Outcome(Status.TIME_LIMIT, None, None, bound, stats)
+        prim = res.solution_loader.get_primals(list(m.x.values()))
+        values = np.array([prim[v] for v in m.x.values()], dtype=float)
+        if status is not Status.OPTIMAL:
+            status = Status.FEASIBLE  # stopped with an incumbent
+        return Outcome(status, values, float(incumbent), bound, stats)
 
 
+def _status(tc: Any) -> Status:
+    """HiGHS' termination condition (Pyomo APPSI) in the project's vocabulary.
+
+    Conditions not in the table stopped the solve without a decision (time limit,
+    interrupt, ...): TIME_LIMIT, or FEASIBLE when there is an incumbent.
+    """
+    from pyomo.contrib.appsi.base import TerminationCondition as TC
+
+    table = {
+        TC.optimal: Status.OPTIMAL,
+        TC.infeasible: Status.INFEASIBLE,
+        TC.infeasibleOrUnbounded: Status.INFEASIBLE,
+        TC.error: Status.ERROR,
+    }
+    return table.get(tc, Status.TIME_LIMIT)
+
+
+@solver(
+    "mip",
+    Option("lp_check", "bool", "reject a horizon when its LP relaxation is infeasible"),
+    Option("max_horizon", "int", "largest horizon tried (none: a safe cap)", low=1, optional=True),
+)
 def solve(
     instance: Instance,
     *,

@@ -15,28 +15,40 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.core.result import Result, Status
+from hierplan_opt.core.result import Result, Status, relative_gap
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.core.validate import Violation, validate
 
 METHODS = ("cpsat", "mip")
 
 
+#: The verdict on a plan in words, for each outcome.
+VERDICTS = {
+    Status.OPTIMAL: "optimal",
+    Status.FEASIBLE: "suboptimal",
+    Status.INFEASIBLE: "invalid",
+    Status.TIME_LIMIT: "unknown",
+}
+
+
 @dataclass(frozen=True)
 class VerifyResult:
     """The verdict on a plan.
 
-    ``status``: "optimal" (proven), "suboptimal" (a cheaper plan exists; ``better_plan``
-    holds one, ``optimum`` the optimal cost when it was found), "invalid" (see
-    ``violations``) or "unknown" (stopped by the time limit; ``lower_bound`` is the best
-    proven bound). ``proof`` says what settled it ("lower bound", "cpsat", "mip").
+    ``outcome`` is in the one status vocabulary: OPTIMAL (proven optimal), FEASIBLE
+    (valid, but a cheaper plan exists; ``better_plan`` holds one, ``optimum`` the optimal
+    cost when it was found), INFEASIBLE (the plan is invalid, see ``violations``) or
+    TIME_LIMIT (stopped by the time limit; ``lower_bound`` is the best proven bound).
+    :attr:`status` says it in words: "optimal", "suboptimal", "invalid", "unknown".
+    ``proof`` says what settled it ("lower bound", "pruning", "cpsat", "mip").
     """
 
-    status: str
+    outcome: Status
     objective: str
     method: str
     cost: int | None = None
@@ -49,13 +61,23 @@ class VerifyResult:
     stats: dict = field(default_factory=dict)
 
     @property
-    def optimal(self) -> bool:
-        """True when the plan is proven optimal."""
-        return self.status == "optimal"
+    def status(self) -> str:
+        """The verdict in words (see :data:`VERDICTS`)."""
+        return VERDICTS[self.outcome]
 
     @property
-    def gap(self) -> int | None:
-        """``cost - lower_bound`` (0 when optimal); None when unknown."""
+    def optimal(self) -> bool:
+        """True when the plan is proven optimal."""
+        return self.outcome is Status.OPTIMAL
+
+    @property
+    def gap(self) -> float | None:
+        """``(cost - lower_bound) / cost`` like :attr:`Result.gap`; None when unknown."""
+        return relative_gap(self.cost, self.lower_bound)
+
+    @property
+    def excess(self) -> int | None:
+        """``cost - lower_bound``: how much the plan may exceed the optimum."""
         if self.cost is None or self.lower_bound is None:
             return None
         return self.cost - self.lower_bound
@@ -63,25 +85,27 @@ class VerifyResult:
     def message(self) -> str:
         """One line for people, as ``hierplan verify`` prints it."""
         obj = "sum of costs" if self.objective == "soc" else "makespan"
-        if self.status == "invalid":
+        if self.outcome is Status.INFEASIBLE:
             return f"invalid plan: {self.violations[0]}" + (
                 f" (and {len(self.violations) - 1} more)" if len(self.violations) > 1 else ""
             )
-        if self.status == "optimal":
+        if self.outcome is Status.OPTIMAL:
             return f"optimal ({obj} {self.cost}, proven by {self.proof} in {self.runtime:.2f} s)"
-        if self.status == "suboptimal":
+        if self.outcome is Status.FEASIBLE:
             best = (
                 f"the optimum is {self.optimum}"
                 if self.optimum is not None
                 else f"a plan of {obj} {self.better_plan.cost(self.objective)} exists"  # type: ignore[union-attr]
             )
             return (
-                f"not optimal: {obj} {self.cost}, {best} (gap {self.gap}, "
+                f"not optimal: {obj} {self.cost}, {best} (excess {self.excess}, "
+                f"gap {self.gap:.4f}, "
                 f"proven by {self.proof} in {self.runtime:.2f} s)"
             )
         return (
             f"unknown: {obj} {self.cost}, proven lower bound {self.lower_bound} "
-            f"(gap at most {self.gap}); time limit reached after {self.runtime:.2f} s"
+            f"(excess at most {self.excess}, gap at most {self.gap:.4f}); "
+            f"time limit reached after {self.runtime:.2f} s"
         )
 
 
@@ -131,55 +155,53 @@ def verify(
     backend = _backend(method)
     deadline = Deadline(time_limit)
 
-    def done(status: str, **kw) -> VerifyResult:
-        return VerifyResult(status, objective, method, runtime=time.perf_counter() - t0, **kw)
+    def done(outcome: Status, **kw: Any) -> VerifyResult:
+        return VerifyResult(outcome, objective, method, runtime=time.perf_counter() - t0, **kw)
 
     violations = validate(instance, plan)
     if violations:
-        return done("invalid", violations=tuple(violations))
+        return done(Status.INFEASIBLE, violations=tuple(violations))
     cost = plan.cost(objective)
     lb = instance.soc_lower_bound() if objective == "soc" else instance.makespan_lower_bound()
     if cost <= lb:
-        return done("optimal", cost=cost, optimum=cost, lower_bound=lb, proof="lower bound")
+        return done(Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=lb, proof="lower bound")
 
-    from hierplan_opt.formulations.ladder import Outcome, solve_with
-    from hierplan_opt.formulations.time_expanded import (
-        TimeExpandedNetwork,
-        commodity_min_deadline,
-    )
+    from hierplan_opt.formulations.horizon import Outcome, detours, solve_with
+    from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 
     remaining = None if time_limit is None else deadline.remaining()
     if objective == "makespan":
         # A small network (little detour) often finds a shorter plan at once; only the
         # full network can prove that none exists.
-        base = commodity_min_deadline(instance)
-        detours = [b + 2 + cost // 10 for b in base]
-        out = Outcome("infeasible")
-        if min(detours) < cost - 1:
-            small = TimeExpandedNetwork.build(instance, cost - 1, detours=detours)
+        small_detours = detours(instance, cost)
+        out = Outcome(Status.INFEASIBLE)
+        if min(small_detours) < cost - 1:
+            small = TimeExpandedNetwork.build(instance, cost - 1, detours=small_detours)
             if not small.infeasible:
                 out = backend(small, "makespan", remaining, None, seed)
                 net = small
-        if out.status == "infeasible":
+        if out.status is Status.INFEASIBLE:
             net = TimeExpandedNetwork.build(instance, cost - 1)
             if net.infeasible:
-                return done("optimal", cost=cost, optimum=cost, lower_bound=cost, proof="pruning")
+                return done(
+                    Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=cost, proof="pruning"
+                )
             remaining = None if time_limit is None else deadline.remaining()
             out = backend(net, "makespan", remaining, None, seed)
         stats = {**net.stats("makespan"), **out.stats}
-        if out.status == "infeasible":
+        if out.status is Status.INFEASIBLE:
             return done(
-                "optimal", cost=cost, optimum=cost, lower_bound=cost, proof=method, stats=stats
+                Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=cost, proof=method, stats=stats
             )
         if out.values is None:
-            return done("unknown", cost=cost, lower_bound=lb, proof=method, stats=stats)
+            return done(Status.TIME_LIMIT, cost=cost, lower_bound=lb, proof=method, stats=stats)
         better = net.plan(out.values)
         # A cheaper plan exists; find the optimum with what is left of the budget.
         res = _solve_rest(backend, instance, objective, deadline, time_limit, seed, solve_with)
         if res is not None and res.status == Status.OPTIMAL and res.plan is not None:
             better = res.plan
             return done(
-                "suboptimal",
+                Status.FEASIBLE,
                 cost=cost,
                 optimum=int(res.cost),
                 lower_bound=int(res.cost),
@@ -189,7 +211,7 @@ def verify(
             )
         low = lb if res is None or res.lower_bound is None else int(res.lower_bound)
         return done(
-            "suboptimal",
+            Status.FEASIBLE,
             cost=cost,
             lower_bound=low,
             better_plan=better,
@@ -210,10 +232,10 @@ def verify(
         assert res.cost is not None
         if res.cost >= cost:
             return done(
-                "optimal", cost=cost, optimum=cost, lower_bound=cost, proof=method, stats=stats
+                Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=cost, proof=method, stats=stats
             )
         return done(
-            "suboptimal",
+            Status.FEASIBLE,
             cost=cost,
             optimum=int(res.cost),
             lower_bound=int(res.cost),
@@ -224,14 +246,14 @@ def verify(
     low = lb if res.lower_bound is None else int(res.lower_bound)
     if res.plan is not None and res.plan.sum_of_costs < cost:
         return done(
-            "suboptimal",
+            Status.FEASIBLE,
             cost=cost,
             lower_bound=low,
             better_plan=res.plan,
             proof=method,
             stats=stats,
         )
-    return done("unknown", cost=cost, lower_bound=low, proof=method, stats=stats)
+    return done(Status.TIME_LIMIT, cost=cost, lower_bound=low, proof=method, stats=stats)
 
 
 def _solve_rest(

@@ -2,13 +2,14 @@
 
 ::
 
-    statistics: {cost: 8, makespan: 4, runtime: 0.012, ...}
+    statistics: {soc: 8, makespan: 4, objective: soc, cost: 8, lower_bound: 8, ...}
     schedule:
       agent0: [{x: 0, y: 0, t: 0}, {x: 1, y: 0, t: 1}]   # z: on 3D grids
       r1: [{v: A, t: 0}, {v: B, t: 1}]                   # roadmaps: vertex name v
 
-``cost`` is always the sum of costs and ``makespan`` the makespan of the written plan
-(trailing waits do not count); ``lower_bound`` refers to ``objective``. Times are
+``soc`` is the sum of costs and ``makespan`` the makespan of the written plan (trailing
+waits do not count); with a solver result, ``cost`` is the plan's cost under the run's
+``objective`` (one of the two) and ``lower_bound`` a proven bound on that. Times are
 consecutive integers from 0 and the agent stays at its last entry afterwards.
 """
 
@@ -277,8 +278,10 @@ def plan_document(instance: Instance, result_or_plan: Result | Plan) -> dict[str
         result, plan = None, result_or_plan
     if plan.num_agents != instance.num_agents:
         raise InputError(f"the plan has {plan.num_agents} paths for {instance.num_agents} agents")
-    stats: dict[str, Any] = {"cost": plan.sum_of_costs, "makespan": plan.makespan}
+    stats: dict[str, Any] = {"soc": plan.sum_of_costs, "makespan": plan.makespan}
     if result is not None:
+        stats["objective"] = result.objective
+        stats["cost"] = plan.cost(result.objective)
         stats["runtime"] = round(float(result.runtime), 6)
         if result.solver:
             stats["solver"] = result.solver
@@ -322,7 +325,7 @@ def save_plan(path: str | Path, instance: Instance, result_or_plan: Result | Pla
     >>> save_plan(f, inst, Plan.from_paths([[0, 1]]))
     >>> print(open(f).read(), end="")
     statistics:
-      cost: 1
+      soc: 1
       makespan: 1
     schedule:
       agent0:

@@ -26,12 +26,12 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import maximum_bipartite_matching
 
+from hierplan_opt import registry
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt import registry
 from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)

@@ -3,7 +3,7 @@
 CBS at the level of teams. Each high-level node holds, for every team, a set of
 constraints (vertex ``(v, t)`` and move ``(u, v, t)``, forbidden to *every* robot of
 the team) and the team's paths. A team's low level works on its time-expanded network
-(:mod:`hierplan_opt.search.tenet`) with the constrained nodes and arcs deleted:
+(:mod:`hierplan_opt.search.flow_network`) with the constrained nodes and arcs deleted:
 
 1. the team's smallest feasible horizon ``T_i`` (max flow = team size), searched up
    from the team's previous value (constraints only ever add) and from the bottleneck
@@ -44,7 +44,7 @@ from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
 from hierplan_opt.search.assignment import team_makespan_bound
-from hierplan_opt.search.tenet import TeamDistances, TimeExpandedNetwork, smallest_horizon
+from hierplan_opt.search.flow_network import TeamDistances, TeamFlowNetwork, smallest_horizon
 
 log = logging.getLogger(__name__)
 
@@ -93,20 +93,20 @@ class _LowLevel:
         self.deadline = deadline
         self.tie_break = tie_break
         self.cost_arcs = cost_arcs
-        self.cache: OrderedDict[tuple[int, int], TimeExpandedNetwork] = OrderedDict()
+        self.cache: OrderedDict[tuple[int, int], TeamFlowNetwork] = OrderedDict()
         self.cache_size = cache
         self.max_flow_solves = 0
         self.min_cost_solves = 0
         self.max_arcs = 0
         self.flow_time = 0.0
 
-    def network(self, ti: int, team: _Team, horizon: int) -> TimeExpandedNetwork:
+    def network(self, ti: int, team: _Team, horizon: int) -> TeamFlowNetwork:
         key = (ti, horizon)
         net = self.cache.get(key)
         if net is not None:
             self.cache.move_to_end(key)
             return net
-        net = TimeExpandedNetwork(
+        net = TeamFlowNetwork(
             team.graph, team.starts, team.targets, horizon, distances=team.distances
         )
         self.max_arcs = max(self.max_arcs, net.num_arcs)

@@ -91,6 +91,7 @@ def split_order(c: Conflict, paths: list[Path]) -> tuple[int, int, int, int, int
 
     Example
     -------
+    >>> from hierplan_opt.search.conflicts import VERTEX
     >>> split_order(Conflict(4, VERTEX, 0, 1, -1, 7), [(7,), (6, 6, 6, 6, 7, 8)])
     (1, 4, 1, 0, 7, -1)
     >>> split_order(Conflict(4, TARGET, 0, 1, -1, 7), [(7,), (6, 6, 6, 6, 7, 8)])

@@ -2,7 +2,7 @@
 
 Yu & LaValle (2013): a team of K exchangeable robots can reach its K targets within T
 timesteps iff the time-expanded network of horizon T (vertex capacities 1, swap
-gadgets, see :mod:`hierplan_opt.search.tenet`) carries a flow of value K. Feasibility
+gadgets, see :mod:`hierplan_opt.search.flow_network`) carries a flow of value K. Feasibility
 is monotone in T (robots can wait), so the smallest such T, searched upward from the
 makespan lower bound, is the optimal makespan. At that horizon a min-cost flow with
 unit cost per move then picks, among all makespan-optimal plans, one with the fewest
@@ -21,7 +21,7 @@ from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
 from hierplan_opt.search.assignment import team_makespan_bound
-from hierplan_opt.search.tenet import TeamDistances, TimeExpandedNetwork, smallest_horizon
+from hierplan_opt.search.flow_network import TeamDistances, TeamFlowNetwork, smallest_horizon
 
 log = logging.getLogger(__name__)
 
@@ -29,7 +29,9 @@ log = logging.getLogger(__name__)
 @solver(
     "flow",
     Option("search", "choice", "horizon search", choices=("doubling", "linear")),
-    Option("min_cost", "bool", "fewest moves at the optimal horizon (none: by size)", optional=True),
+    Option(
+        "min_cost", "bool", "fewest moves at the optimal horizon (none: by size)", optional=True
+    ),
     Option("min_cost_arcs", "int", "largest network for min_cost=none to minimise moves", low=0),
 )
 def solve(
@@ -86,10 +88,10 @@ def solve(
     lb = max(instance.makespan_lower_bound(), team_makespan_bound(g, starts, targets))
     dists = TeamDistances(g, starts, targets)
     stats: dict = {"horizon_checks": 0, "network_nodes": 0, "network_arcs": 0}
-    last: dict[int, TimeExpandedNetwork] = {}
+    last: dict[int, TeamFlowNetwork] = {}
 
     def feasible(t: int) -> bool:
-        net = TimeExpandedNetwork(g, starts, targets, t, distances=dists)
+        net = TeamFlowNetwork(g, starts, targets, t, distances=dists)
         stats["horizon_checks"] += 1
         stats["network_nodes"] = max(stats["network_nodes"], net.num_nodes)
         stats["network_arcs"] = max(stats["network_arcs"], net.num_arcs)
@@ -112,7 +114,7 @@ def solve(
             )
         stats["error"] = f"no plan with makespan <= {upper} on this directed graph"
         return Result(Status.ERROR, None, lower_bound=bound, objective=objective, stats=stats)
-    net = last.get(horizon) or TimeExpandedNetwork(g, starts, targets, horizon, distances=dists)
+    net = last.get(horizon) or TeamFlowNetwork(g, starts, targets, horizon, distances=dists)
     t1 = time.perf_counter()
     if min_cost is None:
         min_cost = net.num_arcs <= min_cost_arcs

@@ -19,8 +19,12 @@ networks to solve and turns the outcomes into one :class:`~hierplan_opt.core.res
   (``upper_bound_plan``) starts the search at ``Δ = U - LB``.
 
 A time-expanded model cannot prove that a MAPF instance has no plan at any horizon: the
-result is INFEASIBLE only when :func:`quick_infeasibility` proves it; otherwise the search
-stops at ``max_horizon`` with TIME_LIMIT and ``stats["stopped_by"] == "max_horizon"``.
+result is INFEASIBLE only when the front door's cheap checks prove it
+(:func:`hierplan_opt.registry.run`); otherwise the search stops at ``max_horizon`` with
+TIME_LIMIT and ``stats["stopped_by"] == "max_horizon"``.
+
+Backends report one :class:`Outcome` per network in the project's one status vocabulary
+(:class:`~hierplan_opt.core.result.Status`), each mapping its native codes by a table.
 """
 
 from __future__ import annotations
@@ -33,7 +37,6 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
@@ -50,13 +53,13 @@ _SUMMED = {"model_time", "lp_time", "lp_rejected", "conflicts"}
 class Outcome:
     """What a backend reports for one network.
 
-    ``status`` is "optimal", "feasible" (stopped with an incumbent), "infeasible",
-    "unknown" (stopped without a decision) or "error" (``stats["error"]`` says why).
-    ``objective`` includes the constant of the sum-of-costs objective; ``bound`` is the
-    backend's proven bound on it.
+    ``status`` is OPTIMAL, FEASIBLE (stopped with an incumbent), INFEASIBLE, TIME_LIMIT
+    (stopped without a decision) or ERROR (``stats["error"]`` says why). ``objective``
+    includes the constant of the sum-of-costs objective; ``bound`` is the backend's
+    proven bound on it.
     """
 
-    status: str
+    status: Status
     values: np.ndarray | None = None
     objective: float | None = None
     bound: float | None = None
@@ -76,6 +79,22 @@ class Backend(Protocol):
         hint: Plan | None,
         seed: int,
     ) -> Outcome: ...
+
+
+def detours(instance: Instance, horizon: int) -> list[int]:
+    """Per commodity, the detour budget of the small first network at ``horizon``.
+
+    Each commodity may spend ``2 + horizon // 10`` steps more than its distance lower
+    bound: small enough to solve fast, large enough to hold a plan most of the time.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> detours(Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)]), 20)
+    [6]
+    """
+    slack = 2 + horizon // 10
+    return [b + slack for b in commodity_min_deadline(instance)]
 
 
 def default_max_horizon(instance: Instance) -> int:
@@ -116,29 +135,26 @@ def _search(
     build: Callable[..., TimeExpandedNetwork] = TimeExpandedNetwork.build,
 ) -> Result:
     deadline = Deadline(time_limit)
-    reason = quick_infeasibility(instance)
-    if reason is not None:
-        return Result(Status.INFEASIBLE, None, stats={"reason": reason})
     cap = default_max_horizon(instance) if max_horizon is None else max_horizon
     stats: dict = {"solves": 0, "build_time": 0.0, "solve_time": 0.0, "horizons": []}
 
     def run(net: TimeExpandedNetwork, hint: Plan | None) -> Outcome:
         if net.num_arcs == 0:  # everyone is at a goal at t = 0: nothing to decide
-            return Outcome("optimal", np.zeros(0), float(net.soc_constant()), 0.0)
+            return Outcome(Status.OPTIMAL, np.zeros(0), float(net.soc_constant()), 0.0)
         stats["solves"] += 1
         t0 = time.perf_counter()
         remaining = deadline.remaining() if time_limit is not None else None
         out = backend(net, objective, remaining, hint, seed)
         stats["solve_time"] += time.perf_counter() - t0
         stats.update(net.stats(objective))
-        stats["horizons"].append((net.horizon, out.status))
+        stats["horizons"].append((net.horizon, str(out.status)))
         for key, value in out.stats.items():
             if key in _SUMMED and key in stats:
                 stats[key] += value  # totals over all solves
             else:
                 stats[key] = value  # the last solve's value
         log.info("%s: horizon %d, %d arcs: %s", backend.name, net.horizon, net.num_arcs, out.status)
-        if out.status == "error":
+        if out.status is Status.ERROR:
             raise _BackendError(out.stats.get("error", "solver error"))
         return out
 
@@ -154,7 +170,6 @@ def _search(
 
     if objective == "makespan":
         horizon = instance.makespan_lower_bound()
-        base = commodity_min_deadline(instance)
         while True:
             if horizon > cap:
                 return limit(horizon, "max_horizon")
@@ -163,15 +178,14 @@ def _search(
             # First a network where each commodity may detour little from its shortest
             # paths (small, fast); any plan in it has makespan <= horizon. Only if it has
             # none does the full network decide the horizon.
-            slack = 2 + horizon // 10
-            detours = [b + slack for b in base]
-            tries: list[dict] = [{"detours": detours}] if min(detours) < horizon else []
+            small = detours(instance, horizon)
+            tries: list[dict] = [{"detours": small}] if min(small) < horizon else []
             for kwargs in [*tries, {}]:
                 net = make(horizon, **kwargs)
-                out = Outcome("infeasible") if net.infeasible else run(net, None)
-                if out.status != "infeasible":
+                out = Outcome(Status.INFEASIBLE) if net.infeasible else run(net, None)
+                if out.status is not Status.INFEASIBLE:
                     break
-            if out.status == "infeasible":
+            if out.status is Status.INFEASIBLE:
                 horizon += 1
                 continue
             if out.values is None:
@@ -192,9 +206,9 @@ def _search(
         if deadline.expired():
             return limit(proven, "time_limit")
         net = make(max(base) + delta, deadlines=[b + delta for b in base])
-        out = Outcome("infeasible") if net.infeasible else run(net, hint)
+        out = Outcome(Status.INFEASIBLE) if net.infeasible else run(net, hint)
         stats["slack"] = delta
-        if out.status == "infeasible":
+        if out.status is Status.INFEASIBLE:
             proven = max(proven, lb + delta + 1)
             delta += 1 + delta // 4
             continue
@@ -204,7 +218,7 @@ def _search(
             return limit(proven, "time_limit")
         plan = net.plan(out.values)
         cost = plan.sum_of_costs
-        if out.status == "optimal":
+        if out.status is Status.OPTIMAL:
             if cost - lb <= delta:
                 return Result(Status.OPTIMAL, plan, cost, cost, stats=stats)
             delta = cost - lb

@@ -155,7 +155,7 @@ class TeamDistances:
         return out
 
 
-class TimeExpandedNetwork:
+class TeamFlowNetwork:
     """The time-expanded flow network of one team for one horizon.
 
     Parameters
@@ -172,10 +172,10 @@ class TimeExpandedNetwork:
     Example
     -------
     >>> g = Graph.grid(3, 1)
-    >>> net = TimeExpandedNetwork(g, [0], [2], horizon=2)
+    >>> net = TeamFlowNetwork(g, [0], [2], horizon=2)
     >>> net.max_flow()
     1
-    >>> TimeExpandedNetwork(g, [0], [2], horizon=1).max_flow()
+    >>> TeamFlowNetwork(g, [0], [2], horizon=1).max_flow()
     0
     """
 
@@ -480,7 +480,7 @@ def conflict_free_paths(
     >>> conflict_free_paths(g, [0, 1], [1, 2], 1)
     [[0, 1], [1, 2]]
     """
-    net = TimeExpandedNetwork(graph, starts, targets, horizon)
+    net = TeamFlowNetwork(graph, starts, targets, horizon)
     res = net.min_cost_flow(len(starts), net.move_cost)
     if res is None:
         return None
