@@ -51,6 +51,9 @@ class Violation:
 def validate(instance: Instance, plan: Plan) -> list[Violation]:
     """All violations of ``plan`` on ``instance``; an empty list means the plan is valid.
 
+    The checks run in the order of :data:`KINDS`; a plan whose shape is wrong (agent
+    count, empty paths, vertices off the map) is not checked further.
+
     Example
     -------
     >>> from hierplan_opt.core.graph import Graph
@@ -59,169 +62,149 @@ def validate(instance: Instance, plan: Plan) -> list[Violation]:
     >>> [v.kind for v in validate(inst, Plan.from_paths([[0, 1, 2], [2, 1, 0]]))]
     ['vertex_conflict']
     """
-    g = instance.graph
-    names = [a.name for a in instance.agents]
-    out: list[Violation] = []
+    check = _Checker(instance, plan)
+    for shape in (check.agent_count, check.empty_paths, check.off_map):
+        out = shape()
+        if out:
+            return out
+    return [
+        *check.starts_and_goals(),
+        *check.team_targets(),
+        *check.moves(),
+        *check.conflicts(),
+    ]
 
-    def loc(v: int) -> str:
+
+class _Checker:
+    """The checks of :func:`validate`, one method per step, sharing names and locations."""
+
+    def __init__(self, instance: Instance, plan: Plan) -> None:
+        self.instance = instance
+        self.plan = plan
+        self.graph = instance.graph
+        self.names = [a.name for a in instance.agents]
+
+    def loc(self, v: int) -> str:
+        g = self.graph
         if not 0 <= v < g.n:
             return f"vertex id {v}"
         x = g.location(v)
         return repr(x) if isinstance(x, str) else str(list(x))
 
-    if plan.num_agents != instance.num_agents:
-        out.append(
-            Violation(
-                "agent_count",
-                (),
-                None,
-                None,
-                f"plan has {plan.num_agents} paths for {instance.num_agents} agents",
-            )
-        )
-        return out
-    for i, p in enumerate(plan.paths):
-        if not p:
-            out.append(Violation("empty_path", (i,), None, None, f"{names[i]} has an empty path"))
-    if out:
-        return out
-    off = False
-    for i, p in enumerate(plan.paths):
-        for t, v in enumerate(p):
-            if not 0 <= v < g.n:
-                out.append(Violation("off_map", (i,), v, t, f"{names[i]} is off the map at t={t}"))
-                off = True
-                break
-    if off:
+    # ------------------------------------------------------------------ shape
+    def agent_count(self) -> list[Violation]:
+        plan, instance = self.plan, self.instance
+        if plan.num_agents == instance.num_agents:
+            return []
+        msg = f"plan has {plan.num_agents} paths for {instance.num_agents} agents"
+        return [Violation("agent_count", (), None, None, msg)]
+
+    def empty_paths(self) -> list[Violation]:
+        return [
+            Violation("empty_path", (i,), None, None, f"{self.names[i]} has an empty path")
+            for i, p in enumerate(self.plan.paths)
+            if not p
+        ]
+
+    def off_map(self) -> list[Violation]:
+        out: list[Violation] = []
+        n = self.graph.n
+        for i, p in enumerate(self.plan.paths):
+            t = next((t for t, v in enumerate(p) if not 0 <= v < n), None)
+            if t is not None:
+                msg = f"{self.names[i]} is off the map at t={t}"
+                out.append(Violation("off_map", (i,), p[t], t, msg))
         return out
 
-    # Starts and goals.
-    for i, (a, p) in enumerate(zip(instance.agents, plan.paths, strict=True)):
-        if p[0] != a.start:
-            out.append(
-                Violation(
-                    "wrong_start",
-                    (i,),
-                    p[0],
-                    0,
-                    f"{names[i]} starts at {loc(p[0])}, not at its start {loc(a.start)}",
-                )
-            )
-        if a.goal is not None and p[-1] != a.goal:
-            out.append(
-                Violation(
-                    "wrong_goal",
-                    (i,),
-                    p[-1],
-                    len(p) - 1,
-                    f"{names[i]} ends at {loc(p[-1])}, not at its goal {loc(a.goal)}",
-                )
-            )
-    for team in instance.teams:
-        ends = Counter(plan.paths[i][-1] for i in team.agents)
-        targets = set(team.targets)
-        for i in team.agents:
-            e = plan.paths[i][-1]
-            if e not in targets:
-                out.append(
-                    Violation(
-                        "wrong_goal",
-                        (i,),
-                        e,
-                        len(plan.paths[i]) - 1,
-                        f"{names[i]} ends at {loc(e)}, which is not a target of team {team.name!r}",
+    # ------------------------------------------------------------------ ends
+    def starts_and_goals(self) -> list[Violation]:
+        out: list[Violation] = []
+        names, loc = self.names, self.loc
+        for i, (a, p) in enumerate(zip(self.instance.agents, self.plan.paths, strict=True)):
+            if p[0] != a.start:
+                msg = f"{names[i]} starts at {loc(p[0])}, not at its start {loc(a.start)}"
+                out.append(Violation("wrong_start", (i,), p[0], 0, msg))
+            if a.goal is not None and p[-1] != a.goal:
+                msg = f"{names[i]} ends at {loc(p[-1])}, not at its goal {loc(a.goal)}"
+                out.append(Violation("wrong_goal", (i,), p[-1], len(p) - 1, msg))
+        return out
+
+    def team_targets(self) -> list[Violation]:
+        """Every robot of a team ends on one of its targets, each target taken once."""
+        out: list[Violation] = []
+        names, loc, paths = self.names, self.loc, self.plan.paths
+        for team in self.instance.teams:
+            ends = Counter(paths[i][-1] for i in team.agents)
+            targets = set(team.targets)
+            for i in team.agents:
+                e = paths[i][-1]
+                if e not in targets:
+                    msg = (
+                        f"{names[i]} ends at {loc(e)}, which is not a target of team {team.name!r}"
                     )
-                )
-        for t in team.targets:
-            if ends[t] == 0:
-                out.append(
-                    Violation(
-                        "target_missed",
-                        (),
-                        t,
-                        None,
-                        f"target {loc(t)} of team {team.name!r} is reached by no robot",
-                    )
-                )
-            elif ends[t] > 1:
-                who = tuple(i for i in team.agents if plan.paths[i][-1] == t)
-                out.append(
-                    Violation(
-                        "target_shared",
-                        who,
-                        t,
-                        None,
+                    out.append(Violation("wrong_goal", (i,), e, len(paths[i]) - 1, msg))
+            for t in team.targets:
+                if ends[t] == 0:
+                    msg = f"target {loc(t)} of team {team.name!r} is reached by no robot"
+                    out.append(Violation("target_missed", (), t, None, msg))
+                elif ends[t] > 1:
+                    who = tuple(i for i in team.agents if paths[i][-1] == t)
+                    msg = (
                         f"target {loc(t)} of team {team.name!r} is taken by "
-                        f"{', '.join(names[i] for i in who)}",
+                        f"{', '.join(names[i] for i in who)}"
                     )
-                )
+                    out.append(Violation("target_shared", who, t, None, msg))
+        return out
 
-    # Blocked cells and moves along edges.
-    for i, p in enumerate(plan.paths):
-        for t, v in enumerate(p):
-            if not g.passable[v]:
-                out.append(
-                    Violation("blocked", (i,), v, t, f"{names[i]} is on blocked {loc(v)} at t={t}")
-                )
-        for t in range(len(p) - 1):
-            u, v = p[t], p[t + 1]
-            if u != v and not g.has_edge(u, v):
-                out.append(
-                    Violation(
-                        "non_edge",
-                        (i,),
-                        u,
-                        t,
-                        f"{names[i]} jumps {loc(u)} -> {loc(v)} at t={t}, which is not an edge",
-                    )
-                )
+    # ------------------------------------------------------------------ moves
+    def moves(self) -> list[Violation]:
+        """No robot on a blocked cell; every step a wait or an edge."""
+        out: list[Violation] = []
+        g, names, loc = self.graph, self.names, self.loc
+        for i, p in enumerate(self.plan.paths):
+            for t, v in enumerate(p):
+                if not g.passable[v]:
+                    msg = f"{names[i]} is on blocked {loc(v)} at t={t}"
+                    out.append(Violation("blocked", (i,), v, t, msg))
+            for t in range(len(p) - 1):
+                u, v = p[t], p[t + 1]
+                if u != v and not g.has_edge(u, v):
+                    msg = f"{names[i]} jumps {loc(u)} -> {loc(v)} at t={t}, which is not an edge"
+                    out.append(Violation("non_edge", (i,), u, t, msg))
+        return out
 
-    # Conflicts, up to the last timestep any path lists (everyone is parked after it).
-    horizon = plan.horizon
-    paths = plan.paths
-    n = len(paths)
-    for t in range(horizon + 1):
-        occupied: dict[int, int] = {}
-        for i in range(n):
-            p = paths[i]
-            v = p[t] if t < len(p) else p[-1]
-            j = occupied.get(v)
-            if j is None:
-                occupied[v] = i
-            else:
-                out.append(
-                    Violation(
-                        "vertex_conflict",
-                        (j, i),
-                        v,
-                        t,
-                        f"{names[j]} and {names[i]} are both at {loc(v)} at t={t}",
-                    )
-                )
-        if t == horizon:
-            break
-        moves: dict[tuple[int, int], int] = {}
-        for i in range(n):
-            p = paths[i]
-            if t + 1 >= len(p):
-                continue
-            u, v = p[t], p[t + 1]
-            if u == v:
-                continue
-            j = moves.get((v, u))
-            if j is not None:
-                out.append(
-                    Violation(
-                        "swap_conflict",
-                        (j, i),
-                        u,
-                        t,
+    # ------------------------------------------------------------------ conflicts
+    def conflicts(self) -> list[Violation]:
+        """Vertex and swap conflicts up to the last timestep any path lists (everyone is
+        parked after it)."""
+        out: list[Violation] = []
+        names, loc = self.names, self.loc
+        paths = self.plan.paths
+        horizon = self.plan.horizon
+        for t in range(horizon + 1):
+            occupied: dict[int, int] = {}
+            for i, p in enumerate(paths):
+                v = p[t] if t < len(p) else p[-1]
+                j = occupied.setdefault(v, i)
+                if j != i:
+                    msg = f"{names[j]} and {names[i]} are both at {loc(v)} at t={t}"
+                    out.append(Violation("vertex_conflict", (j, i), v, t, msg))
+            if t == horizon:
+                break
+            moves: dict[tuple[int, int], int] = {}
+            for i, p in enumerate(paths):
+                if t + 1 >= len(p) or p[t] == p[t + 1]:
+                    continue
+                u, v = p[t], p[t + 1]
+                j = moves.get((v, u))
+                if j is not None:
+                    msg = (
                         f"{names[j]} and {names[i]} swap {loc(v)} <-> {loc(u)} "
-                        f"between t={t} and t={t + 1}",
+                        f"between t={t} and t={t + 1}"
                     )
-                )
-            moves[(u, v)] = i
-    return out
+                    out.append(Violation("swap_conflict", (j, i), u, t, msg))
+                moves[(u, v)] = i
+        return out
 
 
 def is_valid(instance: Instance, plan: Plan) -> bool:

@@ -33,6 +33,7 @@ import time
 from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +45,7 @@ from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
 from hierplan_opt.search.assignment import team_makespan_bound
+from hierplan_opt.search.conflicts import EDGE, VERTEX, Conflict
 from hierplan_opt.search.flow_network import TeamDistances, TeamFlowNetwork, smallest_horizon
 
 log = logging.getLogger(__name__)
@@ -67,7 +69,7 @@ class _Node:
     constraints: list[_Constraints]
     conflicts: int = 0
     depth: int = 0
-    first: tuple | None = field(default=None, repr=False)
+    first: Conflict | None = field(default=None, repr=False)
 
 
 class _Team:
@@ -238,11 +240,11 @@ def _occupancy(
 
 def _find_conflicts(
     paths: Sequence[Sequence[int]], team_of: Sequence[int]
-) -> tuple[int, tuple | None, set[int]]:
+) -> tuple[int, Conflict | None, set[int]]:
     """Colliding robot pairs of different teams: count, earliest conflict, teams involved.
 
-    The conflict is ``("v", a, b, v, t)`` or ``("e", a, b, u, v, t)`` (robot ``a``
-    moves ``u -> v`` while ``b`` moves ``v -> u``).
+    The earliest conflict is a vertex or edge :class:`Conflict` between robots ``a`` and
+    ``b`` (a vertex conflict first when both happen at one step).
     """
     horizon = max(len(p) for p in paths) - 1
     P = _padded(paths, horizon)
@@ -267,7 +269,7 @@ def _find_conflicts(
         involved.update(team[rs[dup + 1]].tolist())
         i = int(dup[0])  # sorted by t first, so the earliest
         t, v = divmod(int(ks[i]), n)
-        found.append((t, 0, ("v", int(rs[i]), int(rs[i + 1]), v, t)))
+        found.append((t, 0, Conflict(t, VERTEX, int(rs[i]), int(rs[i + 1]), -1, v)))
     # Swap conflicts: a move u -> v whose reverse v -> u happens at the same t.
     if horizon > 0:
         a, b = P[:, :-1], P[:, 1:]
@@ -289,14 +291,10 @@ def _find_conflicts(
                 involved.update(team[mine].tolist())
                 j = int(np.argmin(mt[hit]))
                 h = int(hit[j])
-                found.append(
-                    (
-                        int(mt[h]),
-                        1,
-                        ("e", int(mine[j]), int(other[j]), int(mu[h]), int(mvv[h]), int(mt[h])),
-                    )
-                )
-    first = min(found)[2] if found else None
+                t = int(mt[h])  # the move leaves at t, arrives at t + 1
+                c = Conflict(t + 1, EDGE, int(mine[j]), int(other[j]), int(mu[h]), int(mvv[h]))
+                found.append((t, 1, c))
+    first = min(found, key=lambda f: (f[0], f[1]))[2] if found else None
     return count, first, involved
 
 
@@ -349,69 +347,87 @@ def solve(
     >>> r.status.value, r.cost
     ('OPTIMAL', 4)
     """
-    del seed
-    deadline = Deadline(time_limit)
-    started = time.perf_counter()
-    g = instance.graph
-    n_teams = len(instance.teams) if instance.is_tapf else instance.num_agents
-    low = _LowLevel(deadline, tie_break, cost_arcs, cache=2 * n_teams + 4)
-    if instance.is_tapf:
-        members = [list(team.agents) for team in instance.teams]
-        team_targets = [list(team.targets) for team in instance.teams]
-    else:
-        members = [[i] for i in range(instance.num_agents)]
-        team_targets = [[a.goal] for a in instance.agents]  # type: ignore[list-item]
-    teams = [
-        _Team(g, [instance.agents[i].start for i in m], tg, low)
-        for m, tg in zip(members, team_targets, strict=True)
-    ]
-    if any(t.bound >= UNREACHABLE for t in teams):  # quick_infeasibility covers this
-        return Result(Status.INFEASIBLE, None, objective=objective)
-    team_of = [0] * instance.num_agents
-    for ti, m in enumerate(members):
-        for i in m:
-            team_of[i] = ti
-    stats: dict = {
-        "teams": len(teams),
-        "high_level_expanded": 0,
-        "high_level_generated": 0,
-        "low_level_calls": 0,
-        "repair_replans": 0,
-    }
-    repair = repair_rounds > 0 and tie_break != "none"
-    lower_bound = max(t.bound for t in teams)
+    del seed, objective  # deterministic; makespan only
+    return _CBM(instance, Deadline(time_limit), tie_break, cost_arcs, repair_rounds).search()
 
-    def flat(node: _Node) -> list[list[int]]:
-        out: list[list[int]] = [[] for _ in range(instance.num_agents)]
-        for ti, m in enumerate(members):
+
+class _CBM:
+    """One CBM search: CBS over teams, each team's low level a flow problem."""
+
+    def __init__(
+        self,
+        instance: Instance,
+        deadline: Deadline,
+        tie_break: str,
+        cost_arcs: int,
+        repair_rounds: int,
+    ) -> None:
+        self.instance = instance
+        self.deadline = deadline
+        self.started = time.perf_counter()
+        g = instance.graph
+        n_teams = len(instance.teams) if instance.is_tapf else instance.num_agents
+        self.low = _LowLevel(deadline, tie_break, cost_arcs, cache=2 * n_teams + 4)
+        if instance.is_tapf:
+            self.members = [list(team.agents) for team in instance.teams]
+            team_targets = [list(team.targets) for team in instance.teams]
+        else:
+            self.members = [[i] for i in range(instance.num_agents)]
+            team_targets = [[a.goal] for a in instance.agents]  # type: ignore[list-item]
+        self.teams = [
+            _Team(g, [instance.agents[i].start for i in m], tg, self.low)
+            for m, tg in zip(self.members, team_targets, strict=True)
+        ]
+        self.team_of = [0] * instance.num_agents
+        for ti, m in enumerate(self.members):
+            for i in m:
+                self.team_of[i] = ti
+        self.stats: dict[str, Any] = {
+            "teams": len(self.teams),
+            "high_level_expanded": 0,
+            "high_level_generated": 0,
+            "low_level_calls": 0,
+            "repair_replans": 0,
+        }
+        self.repair_rounds = repair_rounds if tie_break != "none" else 0
+        self.lower_bound = max(t.bound for t in self.teams)
+        self.open: list[tuple[int, int, int, _Node]] = []
+        self.counter = itertools.count()
+
+    # ------------------------------------------------------------------ paths
+    def flat(self, node: _Node) -> list[list[int]]:
+        """The node's paths in agent order."""
+        out: list[list[int]] = [[] for _ in range(self.instance.num_agents)]
+        for ti, m in enumerate(self.members):
             for i, p in zip(m, node.paths[ti], strict=True):
                 out[i] = p
         return out
 
-    def others_paths(node: _Node, ti: int) -> list[list[int]]:
+    def others(self, node: _Node, ti: int) -> list[list[int]]:
+        """The paths of every team but ``ti``."""
         return [p for tj, ps in enumerate(node.paths) if tj != ti for p in ps]
 
-    def evaluate(node: _Node) -> None:
+    def evaluate(self, node: _Node) -> None:
         """Count conflicts, then re-plan conflicting teams within the node's constraints.
 
         Re-planning a team at the node's horizon under the same constraints keeps the
         node's lower bound valid; a new set of paths is kept only if it lowers the
         number of collisions. This shrinks the constraint tree a lot on crowded maps.
         """
-        count, first, involved = _find_conflicts(flat(node), team_of)
+        count, first, involved = _find_conflicts(self.flat(node), self.team_of)
         rounds = 0
-        while count and repair and rounds < repair_rounds and not deadline.expired():
+        while count and rounds < self.repair_rounds and not self.deadline.expired():
             rounds += 1
             improved = False
             for ti in sorted(involved):
-                if deadline.expired():
+                if self.deadline.expired():
                     break
                 old = node.paths[ti]
-                node.paths[ti] = low.paths(
-                    ti, teams[ti], node.constraints[ti], node.cost, others_paths(node, ti)
+                node.paths[ti] = self.low.paths(
+                    ti, self.teams[ti], node.constraints[ti], node.cost, self.others(node, ti)
                 )
-                stats["repair_replans"] += 1
-                c2, f2, inv2 = _find_conflicts(flat(node), team_of)
+                self.stats["repair_replans"] += 1
+                c2, f2, inv2 = _find_conflicts(self.flat(node), self.team_of)
                 if c2 < count:
                     count, first, involved = c2, f2, inv2
                     improved = True
@@ -423,92 +439,109 @@ def solve(
                 break
         node.conflicts, node.first = count, first
 
-    def finish(status: Status, plan: Plan | None, bound: int) -> Result:
+    # ------------------------------------------------------------------ tree
+    def push(self, node: _Node) -> None:
+        heapq.heappush(self.open, (node.cost, node.conflicts, next(self.counter), node))
+
+    def root(self) -> _Node | Result:
+        """Every team at its smallest horizon, paths at the largest (or a final result)."""
+        empty = _Constraints()
+        horizons: list[int] = []
+        for ti, team in enumerate(self.teams):
+            h = self.low.min_horizon(ti, team, empty, team.bound)
+            self.stats["low_level_calls"] += 1
+            if h is None:
+                if self.deadline.expired():
+                    return self.finish(Status.TIME_LIMIT, None, max([self.lower_bound, *horizons]))
+                return self.finish(Status.INFEASIBLE, None, self.lower_bound)
+            horizons.append(h)
+        root_cost = max(horizons)
+        root_paths: list[list[list[int]]] = []
+        for ti, team in enumerate(self.teams):
+            if self.deadline.expired():
+                return self.finish(Status.TIME_LIMIT, None, root_cost)
+            others = [p for ps in root_paths for p in ps]
+            root_paths.append(self.low.paths(ti, team, empty, root_cost, others))
+        root = _Node(root_cost, horizons, root_paths, [empty] * len(self.teams))
+        self.evaluate(root)
+        self.stats["high_level_generated"] = 1
+        return root
+
+    def split(self, c: Conflict) -> list[tuple[int, VertexC | None, EdgeC | None]]:
+        """Per child: the team and the vertex or move it may no longer use."""
+        team_of = self.team_of
+        if c.kind == VERTEX:
+            return [(team_of[c.a], (c.v, c.t), None), (team_of[c.b], (c.v, c.t), None)]
+        t = c.t - 1  # moves are keyed by departure time here
+        return [(team_of[c.a], None, (c.u, c.v, t)), (team_of[c.b], None, (c.v, c.u, t))]
+
+    def child(self, node: _Node, ti: int, vc: VertexC | None, ec: EdgeC | None) -> _Node | None:
+        """``node`` with one more constraint on team ``ti`` (None: no plan under it)."""
+        old = node.constraints[ti]
+        cons = _Constraints(
+            old.vertex | {vc} if vc is not None else old.vertex,
+            old.edge | {ec} if ec is not None else old.edge,
+        )
+        h = self.low.min_horizon(ti, self.teams[ti], cons, node.horizons[ti])
+        self.stats["low_level_calls"] += 1
+        if h is None:
+            return None
+        horizons = list(node.horizons)
+        horizons[ti] = h
+        cost = max(horizons)
+        paths = list(node.paths)
+        paths[ti] = self.low.paths(ti, self.teams[ti], cons, cost, self.others(node, ti))
+        constraints = list(node.constraints)
+        constraints[ti] = cons
+        child = _Node(cost, horizons, paths, constraints, depth=node.depth + 1)
+        self.evaluate(child)
+        self.stats["high_level_generated"] += 1
+        return child
+
+    def search(self) -> Result:
+        """Best-first search over the team constraint tree."""
+        if any(t.bound >= UNREACHABLE for t in self.teams):  # the front door's checks
+            return self.finish(Status.INFEASIBLE, None, self.lower_bound)
+        root = self.root()
+        if isinstance(root, Result):
+            return root
+        self.push(root)
+        stats = self.stats
+        last_log = time.perf_counter()
+        while self.open:
+            best = self.open[0][0]
+            if self.deadline.expired():
+                return self.finish(Status.TIME_LIMIT, None, best)
+            node = heapq.heappop(self.open)[3]
+            stats["high_level_expanded"] += 1
+            if node.first is None:
+                stats["conflicts_root"] = root.conflicts
+                return self.finish(Status.OPTIMAL, Plan.from_paths(self.flat(node)), node.cost)
+            if time.perf_counter() - last_log > 5:
+                last_log = time.perf_counter()
+                log.info(
+                    "cbm: expanded %d, bound %d, open %d, conflicts %d",
+                    stats["high_level_expanded"],
+                    best,
+                    len(self.open),
+                    node.conflicts,
+                )
+            for ti, vc, ec in self.split(node.first):
+                child = self.child(node, ti, vc, ec)
+                if child is not None:
+                    self.push(child)
+                elif self.deadline.expired():
+                    return self.finish(Status.TIME_LIMIT, None, best)
+                # else: the team has no plan under these constraints: prune
+        # CBS over teams only runs out of nodes if every branch lost feasibility.
+        return self.finish(Status.INFEASIBLE, None, self.lower_bound)
+
+    def finish(self, status: Status, plan: Plan | None, bound: int) -> Result:
+        low, stats = self.low, self.stats
         stats["max_flow_solves"] = low.max_flow_solves
         stats["min_cost_solves"] = low.min_cost_solves
         stats["max_network_arcs"] = low.max_arcs
         stats["flow_time"] = round(low.flow_time, 3)
-        stats["runtime_internal"] = round(time.perf_counter() - started, 3)
+        stats["runtime_internal"] = round(time.perf_counter() - self.started, 3)
         cost = plan.makespan if plan is not None else None
-        return Result(status, plan, cost=cost, lower_bound=bound, objective=objective, stats=stats)
-
-    # ---------------------------------------------------------------- root
-    empty = _Constraints()
-    horizons: list[int] = []
-    for ti, team in enumerate(teams):
-        h = low.min_horizon(ti, team, empty, team.bound)
-        stats["low_level_calls"] += 1
-        if h is None:
-            if deadline.expired():
-                return finish(Status.TIME_LIMIT, None, max([lower_bound, *horizons]))
-            return finish(Status.INFEASIBLE, None, lower_bound)
-        horizons.append(h)
-    root_cost = max(horizons)
-    root_paths: list[list[list[int]]] = []
-    for ti, team in enumerate(teams):
-        if deadline.expired():
-            return finish(Status.TIME_LIMIT, None, root_cost)
-        others = [p for ps in root_paths for p in ps]
-        root_paths.append(low.paths(ti, team, empty, root_cost, others))
-    root = _Node(root_cost, horizons, root_paths, [empty] * len(teams))
-    evaluate(root)
-    counter = itertools.count()
-    open_list: list[tuple[int, int, int, _Node]] = [
-        (root.cost, root.conflicts, next(counter), root)
-    ]
-    stats["high_level_generated"] = 1
-    last_log = time.perf_counter()
-
-    # ---------------------------------------------------------------- search
-    while open_list:
-        best = open_list[0][0]
-        if deadline.expired():
-            return finish(Status.TIME_LIMIT, None, best)
-        _, _, _, node = heapq.heappop(open_list)
-        stats["high_level_expanded"] += 1
-        if node.first is None:
-            plan = Plan.from_paths(flat(node))
-            stats["conflicts_root"] = root.conflicts
-            return finish(Status.OPTIMAL, plan, node.cost)
-        if time.perf_counter() - last_log > 5:
-            last_log = time.perf_counter()
-            log.info(
-                "cbm: expanded %d, bound %d, open %d, conflicts %d",
-                stats["high_level_expanded"],
-                best,
-                len(open_list),
-                node.conflicts,
-            )
-        c = node.first
-        if c[0] == "v":
-            _, a, b, v, t = c
-            splits = [(team_of[a], (v, t), None), (team_of[b], (v, t), None)]
-        else:
-            _, a, b, u, v, t = c
-            splits = [(team_of[a], None, (u, v, t)), (team_of[b], None, (v, u, t))]
-        for ti, vc, ec in splits:
-            old = node.constraints[ti]
-            cons = _Constraints(
-                old.vertex | {vc} if vc is not None else old.vertex,
-                old.edge | {ec} if ec is not None else old.edge,
-            )
-            h = low.min_horizon(ti, teams[ti], cons, node.horizons[ti])
-            stats["low_level_calls"] += 1
-            if h is None:
-                if deadline.expired():
-                    return finish(Status.TIME_LIMIT, None, best)
-                continue  # the team has no plan under these constraints: prune
-
-            horizons = list(node.horizons)
-            horizons[ti] = h
-            cost = max(horizons)
-            paths = list(node.paths)
-            paths[ti] = low.paths(ti, teams[ti], cons, cost, others_paths(node, ti))
-            constraints = list(node.constraints)
-            constraints[ti] = cons
-            child = _Node(cost, horizons, paths, constraints, depth=node.depth + 1)
-            evaluate(child)
-            stats["high_level_generated"] += 1
-            heapq.heappush(open_list, (child.cost, child.conflicts, next(counter), child))
-    # CBS over teams only runs out of nodes if every branch lost feasibility.
-    return finish(Status.INFEASIBLE, None, lower_bound)
+        return Result(status, plan, cost=cost, lower_bound=bound, objective="makespan", stats=stats)
