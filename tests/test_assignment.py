@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 
 import numpy as np
@@ -15,8 +14,6 @@ import hierplan_opt as hp
 from hierplan_opt import Graph, Instance, OptionError, Status, validate
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.search.assignment import assign, bottleneck_value, distance_matrix
-
-HAVE_CBS = importlib.util.find_spec("hierplan_opt.search.cbs") is not None
 
 
 def _perms(n: int):
@@ -90,7 +87,6 @@ def test_hungarian_can_be_worse_than_cbm() -> None:
     assert not validate(inst, opt.plan) and not validate(inst, fixed.plan)
 
 
-@pytest.mark.skipif(not HAVE_CBS, reason="the CBS module is not in this tree")
 @pytest.mark.parametrize("objective", ["soc", "makespan"])
 def test_hungarian_with_cbs(objective: str) -> None:
     inst = warehouse_like(7)
@@ -101,7 +97,6 @@ def test_hungarian_with_cbs(objective: str) -> None:
     assert r.stats["mapf_solver"] == "cbs"
 
 
-@pytest.mark.skipif(not HAVE_CBS, reason="the CBS module is not in this tree")
 def test_hungarian_soc_bound_is_assignment_sum() -> None:
     g = Graph.grid(6, 1)
     inst = Instance.tapf(g, [([(0, 0), (1, 0)], [(4, 0), (5, 0)])])

@@ -1,8 +1,8 @@
 """Optimality cross-check: every exact solver returns the same optimum on the canned suite.
 
 Which solvers apply comes from the registry (problem kind, objective, ``optimal`` /
-``bounded``); a registered solver whose module does not import yet is left out (see
-``available``). Bounded solvers (ECBS, EECBS) run with ``w = 1.5`` and must stay within
+``bounded``); every registered solver must import (a broken one fails the suite).
+Bounded solvers (ECBS, EECBS) run with ``w = 1.5`` and must stay within
 ``w`` times the optimum. Every plan is checked by the validator.
 """
 
@@ -21,19 +21,13 @@ W = 1.5
 TIME_LIMIT = 120.0
 
 
-def available() -> list[str]:
-    """Registered solvers whose modules import."""
-    out = []
-    for name in registry.names():
-        try:
-            registry.get(name).load()
-        except ImportError:
-            continue
-        out.append(name)
-    return out
+SOLVERS = registry.names()
 
 
-SOLVERS = available()
+@pytest.mark.parametrize("name", SOLVERS)
+def test_every_registered_solver_imports(name: str) -> None:
+    assert registry.get(name).load().options is not None
+
 
 # Narrower than the registry's capabilities: max-flow solves one-team TAPF only.
 APPLIES = {"flow": lambda inst: inst.is_tapf and len(inst.teams) == 1}

@@ -4,7 +4,6 @@ lower bounds, time limits, refused options, infeasible instances."""
 from __future__ import annotations
 
 import heapq
-import importlib.util
 import itertools
 from pathlib import Path
 
@@ -299,9 +298,6 @@ def test_edge_constraint_respected() -> None:
 
 # ---------------------------------------------------------------- against CBS
 @pytest.mark.slow
-@pytest.mark.skipif(
-    importlib.util.find_spec("hierplan_opt.search.cbs") is None, reason="cbs not written yet"
-)
 @pytest.mark.parametrize("solver", SOLVERS)
 @pytest.mark.parametrize("k", [5, 10, 15])
 def test_bound_against_cbs_on_movingai(solver: str, k: int) -> None:
@@ -319,9 +315,6 @@ def test_bound_against_cbs_on_movingai(solver: str, k: int) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(
-    importlib.util.find_spec("hierplan_opt.search.cbs") is None, reason="cbs not written yet"
-)
 @pytest.mark.parametrize("name", sorted(CANNED))
 def test_bound_against_cbs_canned(name: str) -> None:
     inst = canned(name)
