@@ -308,70 +308,35 @@ def names() -> list[str]:
 
 # ---------------------------------------------------------------- built-in solvers
 # Each module registers nothing itself; this table is the single place that names
-# them, so that importing the package stays cheap.
-MAPF, TAPF, SOC, MAKESPAN = "mapf", "tapf", "soc", "makespan"
-register(
-    "cbs",
-    "hierplan_opt.search.cbs:solve",
-    problems={MAPF},
-    objectives={SOC, MAKESPAN},
-    optimal=True,
-    description="Conflict-based search with MDD prioritisation, bypass, WDG heuristic, "
-    "disjoint splitting and symmetry reasoning",
-)
-register(
-    "ecbs",
-    "hierplan_opt.search.ecbs:solve",
-    problems={MAPF},
-    objectives={SOC},
-    bounded=True,
-    description="Enhanced CBS: focal search on both levels, cost <= w * optimal",
-)
-register(
-    "eecbs",
-    "hierplan_opt.search.eecbs:solve",
-    problems={MAPF},
-    objectives={SOC},
-    bounded=True,
-    description="Explicit-estimation CBS: cost <= w * optimal",
-)
-register(
-    "cbm",
-    "hierplan_opt.search.cbm:solve",
-    problems={MAPF, TAPF},
-    objectives={MAKESPAN},
-    optimal=True,
-    description="Conflict-based min-cost flow: optimal makespan for teams (TAPF)",
-)
-register(
-    "flow",
-    "hierplan_opt.search.flow:solve",
-    problems={TAPF},
-    objectives={MAKESPAN},
-    optimal=True,
-    one_team=True,
-    description="Max-flow on the time-expanded network: anonymous MAPF (one team)",
-)
-register(
-    "hungarian",
-    "hierplan_opt.search.assignment:solve",
-    problems={TAPF},
-    objectives={SOC, MAKESPAN},
-    description="Hungarian target assignment by distance, then a MAPF solver",
-)
-register(
-    "mip",
-    "hierplan_opt.formulations.mip:solve",
-    problems={MAPF, TAPF},
-    objectives={SOC, MAKESPAN},
-    optimal=True,
-    description="Time-expanded network MIP (Pyomo + HiGHS)",
-)
-register(
-    "cpsat",
-    "hierplan_opt.formulations.cpsat:solve",
-    problems={MAPF, TAPF},
-    objectives={SOC, MAKESPAN},
-    optimal=True,
-    description="Time-expanded CP-SAT model (OR-Tools)",
-)
+# them, so that importing the package stays cheap. Kind: optimal, bounded (option w),
+# heuristic; "one team": TAPF instances must have a single team.
+_BUILTIN = [
+    ("cbs", "search.cbs", "mapf", "soc makespan", "optimal",
+     "Conflict-based search with MDD prioritisation, bypass, WDG heuristic, disjoint "
+     "splitting and symmetry reasoning"),
+    ("ecbs", "search.ecbs", "mapf", "soc", "bounded",
+     "Enhanced CBS: focal search on both levels, cost <= w * optimal"),
+    ("eecbs", "search.eecbs", "mapf", "soc", "bounded",
+     "Explicit-estimation CBS: cost <= w * optimal"),
+    ("cbm", "search.cbm", "mapf tapf", "makespan", "optimal",
+     "Conflict-based min-cost flow: optimal makespan for teams (TAPF)"),
+    ("flow", "search.flow", "tapf", "makespan", "optimal one team",
+     "Max-flow on the time-expanded network: anonymous MAPF (one team)"),
+    ("hungarian", "search.assignment", "tapf", "soc makespan", "heuristic",
+     "Hungarian target assignment by distance, then a MAPF solver"),
+    ("mip", "formulations.mip", "mapf tapf", "soc makespan", "optimal",
+     "Time-expanded network MIP (Pyomo + HiGHS)"),
+    ("cpsat", "formulations.cpsat", "mapf tapf", "soc makespan", "optimal",
+     "Time-expanded CP-SAT model (OR-Tools)"),
+]  # fmt: skip
+for _name, _module, _problems, _objectives, _kind, _text in _BUILTIN:
+    register(
+        _name,
+        f"hierplan_opt.{_module}:solve",
+        problems=set(_problems.split()),
+        objectives=set(_objectives.split()),
+        optimal=_kind.startswith("optimal"),
+        bounded=_kind == "bounded",
+        one_team=_kind.endswith("one team"),
+        description=_text,
+    )

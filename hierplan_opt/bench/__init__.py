@@ -14,6 +14,7 @@ from typing import NoReturn
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.result import Result
 
 AREAS = {
     "cbs": "optimal CBS on the MovingAI samples (time, cost, lower bound, nodes)",
@@ -73,6 +74,33 @@ class BenchParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         raise InputError(f"{message} (see '{self.prog} --help')")
+
+
+#: Header of the columns :func:`search_columns` fills.
+SEARCH_HEAD = (
+    f"{'status':10} {'time_s':>7} {'cost':>7} {'LB':>7} {'cost/LB':>7} "
+    f"{'HL_exp':>7} {'HL_gen':>7} {'LL_exp':>9}"
+)
+
+
+def search_columns(r: Result) -> str:
+    """Status, time, cost, lower bound, cost / LB and node counts of a search result.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.result import Status
+    >>> search_columns(Result(Status.OPTIMAL, None, cost=12, lower_bound=10)).split()
+    ['OPTIMAL', '0.00', '12', '10', '1.200', '0', '0', '0']
+    """
+    st = r.stats
+    ratio = f"{r.cost / r.lower_bound:.3f}" if r.cost and r.lower_bound else "-"
+    cost = "-" if r.cost is None else f"{r.cost:g}"
+    lb = "-" if r.lower_bound is None else f"{r.lower_bound:g}"
+    return (
+        f"{r.status.value:10} {r.runtime:>7.2f} {cost:>7} {lb:>7} {ratio:>7} "
+        f"{st.get('high_level_expanded', 0):>7} {st.get('high_level_generated', 0):>7} "
+        f"{st.get('low_level_expanded', 0):>9}"
+    )
 
 
 def time_limit(

@@ -13,9 +13,7 @@ reasoning per instance (column ``rect``: rectangle splits).
 
 from __future__ import annotations
 
-import time
-
-from hierplan_opt.bench import BenchParser, scenario, time_limit
+from hierplan_opt.bench import SEARCH_HEAD, BenchParser, scenario, search_columns, time_limit
 from hierplan_opt.core.options import parse_pairs
 
 #: (scenario stem, agents): the optimal-search targets.
@@ -78,28 +76,17 @@ def main(argv: list[str] | None = None) -> int:
             ("-rect", {"rectangle": False}),
         ):
             variants.append((name, {**base, **off}))
-    head = (
-        f"{'instance':32} {'k':>4} {'options':10} {'status':10} {'time':>7} {'cost':>6} "
-        f"{'LB':>6} {'cost/LB':>7} {'HL exp':>7} {'HL gen':>7} {'LL exp':>9} {'rect':>5}"
-    )
+    head = f"{'instance':32} {'k':>4} {'options':10} {SEARCH_HEAD} {'rect':>5}"
     print(head)
     print("-" * len(head))
     for spec in specs:
         stem, inst = scenario(spec)
         k = inst.num_agents
         for label, opts in variants:
-            t0 = time.perf_counter()
             r = hierplan_opt.solve(inst, "cbs", time_limit=tl, objective=args.objective, **opts)
-            dt = time.perf_counter() - t0
-            st = r.stats
-            ratio = f"{r.cost / r.lower_bound:.3f}" if r.cost and r.lower_bound else "-"
-            cost = "-" if r.cost is None else f"{r.cost:g}"
-            lb = "-" if r.lower_bound is None else f"{r.lower_bound:g}"
             print(
-                f"{stem:32} {k:>4} {label:10} {str(r.status):10} {dt:7.2f} {cost:>6} {lb:>6} "
-                f"{ratio:>7} {st.get('high_level_expanded', 0):>7} "
-                f"{st.get('high_level_generated', 0):>7} {st.get('low_level_expanded', 0):>9} "
-                f"{st.get('rectangle_splits', 0):>5}",
+                f"{stem:32} {k:>4} {label:10} {search_columns(r)} "
+                f"{r.stats.get('rectangle_splits', 0):>5}",
                 flush=True,
             )
     return 0

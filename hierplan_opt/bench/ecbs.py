@@ -18,7 +18,7 @@ empty-8-8-even-1 ...
 from __future__ import annotations
 
 import hierplan_opt as hp
-from hierplan_opt.bench import BenchParser, scenario, time_limit
+from hierplan_opt.bench import SEARCH_HEAD, BenchParser, scenario, search_columns, time_limit
 from hierplan_opt.core.errors import InputError
 
 DEFAULT = ["random-32-32-20-random-1:100", "warehouse-10-20-10-2-1-even-1:200"]
@@ -45,10 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:
         raise InputError(f"--w expects comma-separated numbers, got {args.w!r}") from None
 
-    head = (
-        f"{'instance':32} {'agents':>6} {'solver':6} {'w':>4} {'status':10} {'time_s':>7} "
-        f"{'cost':>7} {'LB':>7} {'cost/LB':>7} {'HL_exp':>7} {'HL_gen':>7} {'LL_exp':>9}"
-    )
+    head = f"{'instance':32} {'agents':>6} {'solver':6} {'w':>4} {SEARCH_HEAD}"
     print(head)
     print("-" * len(head))
     for spec in specs:
@@ -60,17 +57,8 @@ def main(argv: list[str] | None = None) -> int:
         for solver in solvers:
             for w in ws:
                 r = hp.solve(inst, solver, time_limit=limit, w=w)
-                st = r.stats
-                ratio = f"{r.cost / r.lower_bound:.3f}" if r.cost and r.lower_bound else "-"
-                cost = "-" if r.cost is None else str(r.cost)
-                lb = "-" if r.lower_bound is None else str(int(r.lower_bound))
-                print(
-                    f"{name:32} {inst.num_agents:>6} {solver:6} {w:>4g} {r.status.value:10} "
-                    f"{r.runtime:>7.2f} {cost:>7} {lb:>7} {ratio:>7} "
-                    f"{st.get('high_level_expanded', 0):>7} {st.get('high_level_generated', 0):>7} "
-                    f"{st.get('low_level_expanded', 0):>9}",
-                    flush=True,
-                )
+                row = f"{name:32} {inst.num_agents:>6} {solver:6} {w:>4g} {search_columns(r)}"
+                print(row, flush=True)
     return 0
 
 

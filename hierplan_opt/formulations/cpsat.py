@@ -15,11 +15,10 @@ Example
 -------
 >>> from hierplan_opt.core.graph import Graph
 >>> from hierplan_opt.core.instance import Instance
->>> g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
->>> inst = Instance.mapf(g, [(0, 0), (1, 0)], [(4, 0), (3, 0)])
->>> r = solve(inst, objective="soc", time_limit=30)
->>> r.status.value, r.cost, r.lower_bound
-('OPTIMAL', 8, 8)
+>>> pocket = Graph.grid(4, 2, obstacles=[(0, 1), (2, 1), (3, 1)])  # one side pocket
+>>> r = solve(Instance.mapf(pocket, [(0, 0), (3, 0)], [(3, 0), (0, 0)]), time_limit=30)
+>>> r.status.value, r.cost == r.lower_bound
+('OPTIMAL', True)
 """
 
 from __future__ import annotations

@@ -154,25 +154,29 @@ def focal_path(
         live[0] = live.get(0, 0) + 1
         n_live += 1
         heappush(focal, (c, 0, 0, tk))
+    out: tuple[tuple[int, ...], int] | None = None  # no path within max_t (or limit)
     expanded = 0
     fallback = False
+    raise_fmin = False  # the last state of f = f_min was expanded
     while True:
-        if not focal:
-            # Every node within the bound is gone: raise f_min to the next live f.
+        if raise_fmin or not focal:
+            # Raise f_min to the next live f and admit the states the new bound allows.
+            raise_fmin = False
             if n_live == 0:
-                if stats is not None:
-                    stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
-                return None
-            while not live.get(fmin):
-                fmin += 1
-            new_bound = int(w * fmin + 1e-9)
-            for f in range(bound + 1, new_bound + 1):
-                b = buckets.pop(f, None)
-                if b:
-                    for e in b:
-                        heappush(focal, e)
-            bound = max(bound, new_bound)
-            continue
+                if not focal:
+                    break
+            else:
+                while not live.get(fmin):
+                    fmin += 1
+                new_bound = int(w * fmin + 1e-9)
+                for f in range(bound + 1, new_bound + 1):
+                    b = buckets.pop(f, None)
+                    if b:
+                        for e in b:
+                            heappush(focal, e)
+                bound = max(bound, new_bound)
+                if not focal:
+                    continue
         x0, x1, f, key = heappop(focal)
         c = x1 if fallback else x0
         if best[key] != c:
@@ -187,9 +191,8 @@ def focal_path(
             path.reverse()
             while len(path) > 1 and path[-2] == goal:
                 path.pop()  # cannot happen (hold logic), kept for safety
-            if stats is not None:
-                stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
-            return tuple(path), fmin
+            out = tuple(path), fmin
+            break
         first = key not in closed
         if first:
             closed.add(key)
@@ -197,9 +200,7 @@ def focal_path(
             n_live -= 1
         expanded += 1
         if expanded == limit:
-            if stats is not None:
-                stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
-            return None
+            break
         if expanded == budget:
             # Too much effort spent avoiding conflicts (typically a late constraint on
             # the goal makes a wide plateau of equal f): finish as plain A* (by f,
@@ -285,14 +286,7 @@ def focal_path(
                             else:
                                 b.append(entry)
         if first and f == fmin and not live[f]:
-            if n_live == 0:
-                continue  # handled at the top of the loop
-            while not live.get(fmin):
-                fmin += 1
-            new_bound = int(w * fmin + 1e-9)
-            for ff in range(bound + 1, new_bound + 1):
-                b = buckets.pop(ff, None)
-                if b:
-                    for e in b:
-                        heappush(focal, e)
-            bound = max(bound, new_bound)
+            raise_fmin = True
+    if stats is not None:
+        stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
+    return out

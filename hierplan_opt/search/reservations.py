@@ -64,25 +64,9 @@ class Reservations:
     # ------------------------------------------------------------------ updates
     def add(self, agent: int, path: Path) -> None:
         """Reserve ``path`` for ``agent`` (which must hold no reservation)."""
-        n = self.n
-        vt = self.vt
-        et = self.et
-        prev = path[0]
-        for t, v in enumerate(path):
-            k = t * n + v
-            lst = vt.get(k)
-            if lst is None:
-                vt[k] = [agent]
-            else:
-                lst.append(agent)
-            if v != prev:
-                ek = (t * n + prev) * n + v
-                lst = et.get(ek)
-                if lst is None:
-                    et[ek] = [agent]
-                else:
-                    lst.append(agent)
-            prev = v
+        vkeys, ekeys = _keys(path, self.n)
+        _put(self.vt, vkeys, agent)
+        _put(self.et, ekeys, agent)
         last = len(path) - 1
         self.parked[path[-1]] = (agent, last)
         self.park_t[path[-1]] = last
@@ -99,25 +83,9 @@ class Reservations:
         if path is None:
             return
         self.paths[agent] = None
-        n = self.n
-        vt = self.vt
-        et = self.et
-        prev = path[0]
-        for t, v in enumerate(path):
-            k = t * n + v
-            lst = vt[k]
-            if len(lst) == 1:
-                del vt[k]
-            else:
-                lst.remove(agent)
-            if v != prev:
-                ek = (t * n + prev) * n + v
-                lst = et[ek]
-                if len(lst) == 1:
-                    del et[ek]
-                else:
-                    lst.remove(agent)
-            prev = v
+        vkeys, ekeys = _keys(path, self.n)
+        _drop(self.vt, vkeys, agent)
+        _drop(self.et, ekeys, agent)
         p = self.parked.get(path[-1])
         if p is not None and p[0] == agent:
             del self.parked[path[-1]]
@@ -214,3 +182,30 @@ class Reservations:
                     if b != r and b not in skip:
                         out.append(Conflict(t, TARGET, r, b, -1, g))
         return out
+
+
+def _keys(path: Path, n: int) -> tuple[list[int], list[int]]:
+    """The vertex-time keys and the move keys of ``path``."""
+    vkeys = [t * n + v for t, v in enumerate(path)]
+    ekeys = [
+        (t * n + path[t - 1]) * n + path[t] for t in range(1, len(path)) if path[t - 1] != path[t]
+    ]
+    return vkeys, ekeys
+
+
+def _put(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
+    for k in keys:
+        lst = table.get(k)
+        if lst is None:
+            table[k] = [agent]
+        else:
+            lst.append(agent)
+
+
+def _drop(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
+    for k in keys:
+        lst = table[k]
+        if len(lst) == 1:
+            del table[k]
+        else:
+            lst.remove(agent)
