@@ -118,11 +118,12 @@ def solver(name: str, *options: Option) -> Callable[[Callable[..., Result]], Sol
 
 def _undeclared(name: str, fn: Callable[..., Result]) -> Solver:
     """A plain function registered without :func:`solver`: options from its signature."""
-    kinds = {bool: "bool", int: "int", float: "float"}
-    opts = [
-        Option(k, kinds.get(type(v), "any"), "(undeclared)", default=v, optional=True)
-        for k, v in _keyword_defaults(fn).items()
-    ]
+    kinds: dict[type, str] = {bool: "bool", int: "int", float: "float"}
+    opts: list[Option] = []
+    for k, v in _keyword_defaults(fn).items():
+        default: object = v
+        kind = kinds.get(type(default), "any")
+        opts.append(Option(k, kind, "(undeclared)", default=default, optional=True))
     return Solver(name, fn, Options(opts))
 
 
@@ -144,7 +145,9 @@ class SolverInfo:
     bounded: bool = False
     description: str = ""
     one_team: bool = False
-    _fn: list[Callable[..., Result]] = field(default_factory=list, compare=False, repr=False)
+    _fn: list[Callable[..., Result]] = field(
+        default_factory=list[Callable[..., Result]], compare=False, repr=False
+    )
 
     def load(self) -> Solver:
         """Import the solver (cached): its function and declared options."""

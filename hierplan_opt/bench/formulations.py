@@ -48,12 +48,14 @@ def size_table(maps: list[str], agents: list[int]) -> list[tuple]:
             inst = _load(m, k)
             lb = inst.makespan_lower_bound()
             dl = [d + 2 for d in commodity_min_deadline(inst)]
-            for label, objective, kwargs in (
-                ("makespan T=LB", "makespan", {}),
-                ("soc slack 2", "soc", {"deadlines": dl}),
+            for label, objective, deadlines in (
+                ("makespan T=LB", "makespan", None),
+                ("soc slack 2", "soc", dl),
             ):
-                p = TimeExpandedNetwork.build(inst, lb, **kwargs).stats(objective)
-                f = TimeExpandedNetwork.build(inst, lb, prune=False, **kwargs).stats(objective)
+                p = TimeExpandedNetwork.build(inst, lb, deadlines=deadlines).stats(objective)
+                f = TimeExpandedNetwork.build(inst, lb, deadlines=deadlines, prune=False).stats(
+                    objective
+                )
                 rows.append(
                     (
                         m,

@@ -15,7 +15,9 @@ from __future__ import annotations
 import logging
 import statistics
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
@@ -23,6 +25,8 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 
 log = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 DEFAULT_MAP = "instances/movingai/warehouse-10-20-10-2-1.map"
 DEFAULT_SCEN = "instances/movingai/warehouse-10-20-10-2-1-even-1.scen"
@@ -57,7 +61,7 @@ def prioritized_plan(
     goals = instance.goals
     g.precompute_distances(goals)
     if max_time is None:
-        max_time = 2 * max(g.dist(a.start, a.goal) for a in instance.agents) + 200
+        max_time = 2 * max(g.dist(s, x) for s, x in zip(instance.starts, goals, strict=True)) + 200
     res = Reservations(g.n)
     free = AgentConstraints()
     paths: list[tuple[int, ...]] = []
@@ -104,14 +108,14 @@ def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) 
 
 
 # ---------------------------------------------------------------------- bench
-def _median_time(fn, repeats: int) -> tuple[float, object]:
-    times = []
-    out = None
-    for _ in range(repeats):
+def _median_time(fn: Callable[[], T], repeats: int) -> tuple[float, T]:
+    times: list[float] = []
+    outs: list[T] = []
+    for _ in range(max(1, repeats)):
         t0 = time.perf_counter()
-        out = fn()
+        outs.append(fn())
         times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
+    return statistics.median(times), outs[-1]
 
 
 def main(argv: list[str] | None = None) -> int:

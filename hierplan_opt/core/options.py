@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, cast
 
 from hierplan_opt.core.errors import OptionError
 
@@ -111,44 +111,37 @@ class Option:
     def refuse(self, solver: str, value: Any) -> OptionError:
         return OptionError(f"{solver} option {self.name} must be {self.allowed()}, got {value!r}")
 
-    def check(self, value: Any, solver: str) -> Any:
+    def check(self, value: object, solver: str) -> Any:
         """``value`` if it is allowed, else :class:`OptionError` naming the allowed values."""
         if value is None and self.optional:
             return None
         kind = self.kind
-        ok = False
-        if kind == "bool":
-            ok = isinstance(value, bool)
-        elif kind == "int":
-            ok = (
-                isinstance(value, int)
-                and not isinstance(value, bool)
-                and (self.low is None or value >= self.low)
-                and (self.high is None or value < self.high)
-            )
-        elif kind == "float":
-            ok = (
-                isinstance(value, (int, float))
-                and not isinstance(value, bool)
-                and math.isfinite(value)
-                and (self.low is None or value >= self.low)
-                and (self.high is None or value < self.high)
-            )
-            if ok:
-                value = float(value)
-        elif kind == "choice":
-            ok = isinstance(value, str) and value in self.choices
-        elif kind == "solver":
-            ok = isinstance(value, str) and bool(value)
-        elif kind == "any":
-            ok = True
-        elif kind == "options":
-            ok = isinstance(value, Mapping) and all(isinstance(k, str) for k in value)  # type: ignore[union-attr]
-            if ok:
-                value = dict(value)  # type: ignore[arg-type]
-        if not ok:
-            raise self.refuse(solver, value)
-        return value
+        if kind == "any":
+            return value
+        if kind == "bool" and isinstance(value, bool):
+            return value
+        number = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if kind in ("int", "float") and number and self._in_range(cast(float, value)):
+            if kind == "float":
+                return float(cast(float, value))
+            if isinstance(value, int):
+                return value
+        if kind == "choice" and isinstance(value, str) and value in self.choices:
+            return value
+        if kind == "solver" and isinstance(value, str) and value:
+            return value
+        if kind == "options" and isinstance(value, Mapping):
+            items = cast(Mapping[object, object], value)
+            if all(isinstance(k, str) for k in items):
+                return {str(k): v for k, v in items.items()}
+        raise self.refuse(solver, value)
+
+    def _in_range(self, value: float) -> bool:
+        return (
+            math.isfinite(value)
+            and (self.low is None or value >= self.low)
+            and (self.high is None or value < self.high)
+        )
 
     def parse(self, text: str, solver: str) -> Any:
         """The value of ``text`` as given on the command line, checked.

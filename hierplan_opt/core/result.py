@@ -54,7 +54,7 @@ class Result:
     runtime: float = 0.0
     solver: str = ""
     objective: str = "soc"
-    stats: dict[str, Any] = field(default_factory=dict)
+    stats: dict[str, Any] = field(default_factory=dict[str, Any])
 
     @property
     def solved(self) -> bool:

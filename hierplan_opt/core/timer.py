@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import cast
 
 from hierplan_opt.core.errors import OptionError
 
@@ -24,12 +25,13 @@ def check_time_limit(time_limit: float | None, *, allow_zero: bool = False) -> f
     """
     if time_limit is None:
         return None
+    given = cast(object, time_limit)  # callers may pass anything: check at run time
     if (
-        isinstance(time_limit, bool)
-        or not isinstance(time_limit, (int, float))
-        or not math.isfinite(time_limit)
-        or time_limit < 0
-        or (time_limit == 0 and not allow_zero)
+        isinstance(given, bool)
+        or not isinstance(given, (int, float))
+        or not math.isfinite(given)
+        or given < 0
+        or (given == 0 and not allow_zero)
     ):
         what = "a number of seconds >= 0" if allow_zero else "a positive number of seconds"
         raise OptionError(f"time_limit must be {what}, got {time_limit!r}")

@@ -24,7 +24,7 @@ import logging
 import math
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -69,9 +69,9 @@ def model_of(net: TimeExpandedNetwork, objective: str) -> Any:
     import pyomo.environ as pyo
     from pyomo.core.expr.numeric_expr import LinearExpression
 
-    m = pyo.ConcreteModel(name=f"mapf_te_T{net.horizon}")
+    m: Any = pyo.ConcreteModel(name=f"mapf_te_T{net.horizon}")  # components as attributes
     # x[i] = 1 iff arc i (commodity arc_k[i], arc_u[i] -> arc_v[i] at arc_t[i]) is used.
-    m.x = pyo.Var(range(net.num_arcs), domain=pyo.Binary)
+    m.x = cast(Any, pyo.Var(range(net.num_arcs), domain=pyo.Binary))
     x = m.x
     xs = list(m.x.values())
 
@@ -82,21 +82,21 @@ def model_of(net: TimeExpandedNetwork, objective: str) -> Any:
         return LinearExpression(terms)
 
     # ---- flow conservation, sources and sinks
-    m.flow = pyo.ConstraintList()
+    m.flow = cast(Any, pyo.ConstraintList())
     for ins, outs in net.conservation:
         m.flow.add(total(ins, outs) == 0)
-    m.source = pyo.ConstraintList()
+    m.source = cast(Any, pyo.ConstraintList())
     for outs in net.source_out:
         m.source.add(total(outs) == 1)
-    m.sink = pyo.ConstraintList()
+    m.sink = cast(Any, pyo.ConstraintList())
     for ins in net.sink_in:
         m.sink.add(total(ins) == 1)
 
     # ---- collisions: one robot per vertex and time, no swaps
-    m.vertex = pyo.ConstraintList()
+    m.vertex = cast(Any, pyo.ConstraintList())
     for arcs in net.vertex_groups:
         m.vertex.add(total(arcs) <= 1)
-    m.swap = pyo.ConstraintList()
+    m.swap = cast(Any, pyo.ConstraintList())
     for arcs in net.swap_groups:
         m.swap.add(total(arcs) <= 1)
 
@@ -112,8 +112,8 @@ def model_of(net: TimeExpandedNetwork, objective: str) -> Any:
                         break
                     pairs.append((int(row[t]), nxt))
                     nxt = len(pairs) - 1
-        m.y = pyo.Var(range(len(pairs)), bounds=(0, 1))
-        m.goal = pyo.ConstraintList()
+        m.y = cast(Any, pyo.Var(range(len(pairs)), bounds=(0, 1)))
+        m.goal = cast(Any, pyo.ConstraintList())
         for j, (arc, nxt) in enumerate(pairs):
             m.goal.add(m.y[j] <= x[arc])
             if nxt is not None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
@@ -23,6 +23,9 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status, relative_gap
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.core.validate import Violation, validate
+
+if TYPE_CHECKING:
+    from hierplan_opt.formulations.horizon import Backend
 
 METHODS = ("cpsat", "mip")
 
@@ -109,7 +112,7 @@ class VerifyResult:
         )
 
 
-def _backend(method: str):
+def _backend(method: str) -> Backend:
     if method == "cpsat":
         from hierplan_opt.formulations.cpsat import CpSatBackend
 
@@ -197,8 +200,9 @@ def verify(
             return done(Status.TIME_LIMIT, cost=cost, lower_bound=lb, proof=method, stats=stats)
         better = net.plan(out.values)
         # A cheaper plan exists; find the optimum with what is left of the budget.
-        res = _solve_rest(backend, instance, objective, deadline, time_limit, seed, solve_with)
+        res = _solve_rest(backend, instance, objective, deadline, time_limit, seed)
         if res is not None and res.status == Status.OPTIMAL and res.plan is not None:
+            assert res.cost is not None  # an OPTIMAL result has a cost
             better = res.plan
             return done(
                 Status.FEASIBLE,
@@ -257,8 +261,15 @@ def verify(
 
 
 def _solve_rest(
-    backend, instance, objective, deadline, time_limit, seed, solve_with
+    backend: Backend,
+    instance: Instance,
+    objective: str,
+    deadline: Deadline,
+    time_limit: float | None,
+    seed: int,
 ) -> Result | None:
+    from hierplan_opt.formulations.horizon import solve_with
+
     if time_limit is not None and deadline.expired():
         return None
     return solve_with(

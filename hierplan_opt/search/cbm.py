@@ -253,7 +253,7 @@ def _find_conflicts(
     n = int(P.max()) + 1
     robots = np.broadcast_to(np.arange(R)[:, None], P.shape)
     ts = np.broadcast_to(np.arange(horizon + 1), P.shape)
-    found: list[tuple[int, int, tuple]] = []  # (t, kind order, conflict)
+    found: list[tuple[int, int, Conflict]] = []  # (t, kind order, conflict)
     count = 0
     involved: set[int] = set()
     # Vertex conflicts: equal (t, v) keys next to each other after sorting.
@@ -373,7 +373,7 @@ class _CBM:
             team_targets = [list(team.targets) for team in instance.teams]
         else:
             self.members = [[i] for i in range(instance.num_agents)]
-            team_targets = [[a.goal] for a in instance.agents]  # type: ignore[list-item]
+            team_targets = [[g] for g in instance.goals]
         self.teams = [
             _Team(g, [instance.agents[i].start for i in m], tg, self.low)
             for m, tg in zip(self.members, team_targets, strict=True)

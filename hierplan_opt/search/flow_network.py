@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from ortools.graph.python import max_flow, min_cost_flow
@@ -406,11 +407,11 @@ class TeamFlowNetwork:
         """A maximum flow: ``(value, flow per arc)``."""
         caps = self.capacities if capacities is None else capacities
         mf = max_flow.SimpleMaxFlow()
-        mf.add_arcs_with_capacity(self.tails, self.heads, caps)
+        mf.add_arcs_with_capacity(_arr(self.tails), _arr(self.heads), _arr(caps))
         status = mf.solve(self.source, self.sink)
         if status != mf.OPTIMAL:
             raise RuntimeError(f"OR-Tools max flow failed with status {status}")
-        return int(mf.optimal_flow()), np.asarray(mf.flows(np.arange(self.num_arcs)))
+        return int(mf.optimal_flow()), np.asarray(mf.flows(_arr(np.arange(self.num_arcs))))
 
     def min_cost_flow(
         self, amount: int, costs: np.ndarray, capacities: np.ndarray | None = None
@@ -418,15 +419,17 @@ class TeamFlowNetwork:
         """A min-cost flow of value ``amount``: ``(cost, flows)`` or None if infeasible."""
         caps = self.capacities if capacities is None else capacities
         mcf = min_cost_flow.SimpleMinCostFlow()
-        mcf.add_arcs_with_capacity_and_unit_cost(self.tails, self.heads, caps, costs)
+        mcf.add_arcs_with_capacity_and_unit_cost(
+            _arr(self.tails), _arr(self.heads), _arr(caps), _arr(costs)
+        )
         supplies = np.zeros(self.num_nodes, dtype=np.int64)
         supplies[self.source] = amount
         supplies[self.sink] = -amount
-        mcf.set_nodes_supplies(np.arange(self.num_nodes, dtype=np.int32), supplies)
+        mcf.set_nodes_supplies(_arr(np.arange(self.num_nodes, dtype=np.int32)), _arr(supplies))
         status = mcf.solve()
         if status != mcf.OPTIMAL:
             return None
-        return int(mcf.optimal_cost()), np.asarray(mcf.flows(np.arange(self.num_arcs)))
+        return int(mcf.optimal_cost()), np.asarray(mcf.flows(_arr(np.arange(self.num_arcs))))
 
     def extract_paths(self, flows: np.ndarray) -> list[list[int]]:
         """Vertex paths (index = timestep, length ``T + 1``) in the order of ``starts``.
@@ -460,6 +463,12 @@ class TeamFlowNetwork:
                 node = nxt[node]
             paths.append(path)
         return paths
+
+
+def _arr(a: np.ndarray) -> Any:
+    """An integer array for OR-Tools' flow classes, whose stubs spell the dtype where
+    numpy's stubs put the shape (``ndarray[int32, ...]``); the values pass as they are."""
+    return a
 
 
 def conflict_free_paths(
