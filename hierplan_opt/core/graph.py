@@ -13,7 +13,7 @@ geometric edge lengths matter only to scheduling (MAPF-POST).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import cached_property
 from typing import Any
 
@@ -77,6 +77,7 @@ class Graph:
         )
         self._dist_cache: dict[int, np.ndarray] = {}
         self._dist_list_cache: dict[int, list[int]] = {}
+        self._dist_from_cache: dict[int, np.ndarray] = {}
 
     # ------------------------------------------------------------------ builders
     @classmethod
@@ -362,9 +363,34 @@ class Graph:
             return self.names[v]
         return tuple(int(x) for x in self.coords[v])
 
+    def label(self, v: int, quote: Callable[[str], str] = repr) -> str:
+        """``v`` as people read it: ``[x, y]`` (``[x, y, z]``), the quoted vertex name, or
+        ``vertex id v`` for an id outside the graph. The one formatter of locations.
+
+        Example
+        -------
+        >>> g = Graph.grid(3, 2)
+        >>> g.label(4), g.label(99)
+        ('[1, 1]', 'vertex id 99')
+        """
+        if not 0 <= v < self.n:
+            return f"vertex id {v}"
+        loc = self.location(v)
+        return quote(loc) if isinstance(loc, str) else str(list(loc))
+
+    def plain_location(self, v: int) -> list[int] | str:
+        """:meth:`location` as plain data (a list, or the name) for files and statistics."""
+        loc = self.location(v)
+        return loc if isinstance(loc, str) else list(loc)
+
+    @property
+    def scale(self) -> float:
+        """Metres per coordinate unit: :attr:`cell_size` on grids, 1 on roadmaps."""
+        return self.cell_size if self.kind == "grid" else 1.0
+
     def position(self, v: int) -> np.ndarray:
         """Geometric position of ``v`` (grid cells scaled by :attr:`cell_size`)."""
-        return self.coords[v] * (self.cell_size if self.kind == "grid" else 1.0)
+        return self.coords[v] * self.scale
 
     # ------------------------------------------------------------------ distances
     def dist_to(self, target: int) -> np.ndarray:
@@ -375,6 +401,27 @@ class Graph:
         d = self._dist_cache.get(target)
         if d is None:
             d = self.precompute_distances([target])[0]
+        return d
+
+    def dist_from(self, source: int) -> np.ndarray:
+        """Timestep distance from ``source`` to every vertex (cached; :meth:`dist_to` on
+        undirected graphs).
+
+        Example
+        -------
+        >>> g = Graph.roadmap({"A": (0, 0), "B": (1, 0)}, [("A", "B")], directed=True)
+        >>> a = g.vertex("A")
+        >>> g.dist_from(a).tolist()[1], g.dist_to(a).tolist()[1] == UNREACHABLE
+        (1, True)
+        """
+        if not self.directed:
+            return self.dist_to(source)
+        d = self._dist_from_cache.get(source)
+        if d is None:
+            row = shortest_path(self._csgraph, directed=True, unweighted=True, indices=[source])
+            d = np.where(np.isfinite(row[0]), row[0], UNREACHABLE).astype(np.int64)
+            d.setflags(write=False)
+            self._dist_from_cache[source] = d
         return d
 
     def dist_list(self, target: int) -> list[int]:

@@ -294,18 +294,19 @@ class Instance:
 
     def soc_lower_bound(self) -> int:
         """Sum over agents of the distance to the nearest admissible goal."""
-        return sum(self._min_dist(i) for i in range(self.num_agents))
+        return sum(self.min_distance(i) for i in range(self.num_agents))
 
     def makespan_lower_bound(self) -> int:
         """Max over agents (and, for teams, over targets) of the nearest distance."""
-        lb = max(self._min_dist(i) for i in range(self.num_agents))
+        lb = max(self.min_distance(i) for i in range(self.num_agents))
         for team in self.teams:
             for t in team.targets:
                 d = self.graph.dist_to(t)
                 lb = max(lb, min(int(d[self.agents[i].start]) for i in team.agents))
         return lb
 
-    def _min_dist(self, i: int) -> int:
+    def min_distance(self, i: int) -> int:
+        """Timestep distance from agent ``i``'s start to its nearest admissible goal."""
         s = self.agents[i].start
         return min(int(self.graph.dist_to(t)[s]) for t in self.goal_set(i))
 
@@ -315,8 +316,7 @@ class Instance:
 
 
 def _loc(g: Graph, v: int) -> str:
-    loc = g.location(v)
-    return repr(loc) if isinstance(loc, str) else str(list(loc))
+    return g.label(v)
 
 
 def _kinematics_list(

@@ -85,11 +85,7 @@ class _Checker:
         self.names = [a.name for a in instance.agents]
 
     def loc(self, v: int) -> str:
-        g = self.graph
-        if not 0 <= v < g.n:
-            return f"vertex id {v}"
-        x = g.location(v)
-        return repr(x) if isinstance(x, str) else str(list(x))
+        return self.graph.label(v)
 
     # ------------------------------------------------------------------ shape
     def agent_count(self) -> list[Violation]:

@@ -23,10 +23,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import shortest_path
 
-from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 
@@ -52,38 +49,16 @@ def commodities_of(instance: Instance) -> list[tuple[tuple[int, ...], tuple[int,
     return [((i,), (a.goal,)) for i, a in enumerate(instance.agents)]  # type: ignore[misc]
 
 
-def min_distances(instance: Instance) -> list[int]:
-    """Per agent: timestep distance from its start to its nearest admissible goal.
+def commodity_min_deadline(instance: Instance) -> list[int]:
+    """Per commodity: the largest distance bound of its agents (deadline at slack 0).
 
     Example
     -------
     >>> from hierplan_opt.core.graph import Graph
-    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
-    >>> min_distances(inst)
+    >>> commodity_min_deadline(Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)]))
     [2]
     """
-    g = instance.graph
-    return [
-        min(int(g.dist_to(t)[a.start]) for t in instance.goal_set(i))
-        for i, a in enumerate(instance.agents)
-    ]
-
-
-def commodity_min_deadline(instance: Instance) -> list[int]:
-    """Per commodity: the largest of its agents' :func:`min_distances` (deadline at slack 0)."""
-    d = min_distances(instance)
-    return [max(d[i] for i in agents) for agents, _ in commodities_of(instance)]
-
-
-def _dist_from(graph: Graph, source: int) -> np.ndarray:
-    """Timestep distance from ``source`` to every vertex."""
-    if not graph.directed:
-        return graph.dist_to(source)
-    mat = csr_matrix(
-        (np.ones(len(graph.indices)), graph.indices, graph.indptr), shape=(graph.n, graph.n)
-    )
-    row = shortest_path(mat, directed=True, unweighted=True, indices=[source])[0]
-    return np.where(np.isfinite(row), row, UNREACHABLE).astype(np.int64)
+    return [max(instance.min_distance(i) for i in agents) for agents, _ in commodities_of(instance)]
 
 
 class TimeExpandedNetwork:
@@ -192,7 +167,7 @@ class TimeExpandedNetwork:
         infeasible: str | None = None
         for k, c in enumerate(commodities):
             T = c.deadline
-            d_src = np.min(np.stack([_dist_from(g, s) for s in c.sources]), axis=0)
+            d_src = np.min(np.stack([g.dist_from(s) for s in c.sources]), axis=0)
             d_snk = np.min(np.stack([g.dist_to(v) for v in c.sinks]), axis=0)
             for s in c.sources:
                 if d_snk[s] > T:

@@ -531,8 +531,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
 
 
 def _loc(g: Graph, v: int) -> str:
-    loc = g.location(v)
-    return yaml_scalar(loc) if isinstance(loc, str) else str(list(loc))
+    return g.label(v, quote=yaml_scalar)
 
 
 def _type_names(instance: Instance) -> dict[Kinematics, str]:

@@ -135,7 +135,7 @@ def postprocess(
         crit,
         objective=objective,
         method=method,
-        scale=g.cell_size if g.kind == "grid" else 1.0,
+        scale=g.scale,
         safety_distance=req.guaranteed_distance(),
         margin=req.margin,
         clearance=req.report(),

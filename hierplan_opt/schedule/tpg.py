@@ -233,7 +233,7 @@ def _wrap(a: np.ndarray) -> np.ndarray:
 def _visits(instance: Instance, plan: Plan) -> _Visits:
     g = instance.graph
     K = plan.num_agents
-    scale = g.cell_size if g.kind == "grid" else 1.0
+    scale = g.scale
     verts_l, steps_l = [], []
     for p in plan.paths:
         vv, ss = _compress(p)

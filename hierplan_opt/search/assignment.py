@@ -181,7 +181,7 @@ def solve(
     stats["mapf_solver"] = mapf_solver
     stats["mapf_status"] = str(inner.status)
     stats["assignment"] = {
-        a.name: _loc(g.location(goal)) for a, goal in zip(instance.agents, goals, strict=True)
+        a.name: g.plain_location(goal) for a, goal in zip(instance.agents, goals, strict=True)
     }
     if inner.plan is None:
         if inner.status == Status.INFEASIBLE:
@@ -194,7 +194,3 @@ def solve(
     return Result(
         status, inner.plan, cost=cost, lower_bound=bound, objective=objective, stats=stats
     )
-
-
-def _loc(loc: object) -> object:
-    return list(loc) if isinstance(loc, tuple) else loc

@@ -138,7 +138,7 @@ def solve(
     stats["sum_of_costs"] = plan.sum_of_costs
     stats["min_cost"] = res is not None
     stats["assignment"] = {
-        instance.agents[i].name: _loc(g.location(p[-1]))
+        instance.agents[i].name: g.plain_location(p[-1])
         for i, p in zip(team.agents, team_paths, strict=True)
     }
     return Result(
@@ -149,7 +149,3 @@ def solve(
         objective=objective,
         stats=stats,
     )
-
-
-def _loc(loc: object) -> object:
-    return list(loc) if isinstance(loc, tuple) else loc

@@ -125,10 +125,9 @@ class TeamDistances:
         self.starts = [int(s) for s in starts]
         self.targets = [int(g) for g in targets]
         self.to_target = np.stack(graph.precompute_distances(self.targets)).astype(np.int64)
-        if graph.directed:
-            self.from_start = np.stack([multi_source_bfs(graph, [s]) for s in self.starts])
-        else:
-            self.from_start = np.stack(graph.precompute_distances(self.starts)).astype(np.int64)
+        if not graph.directed:
+            graph.precompute_distances(self.starts)  # one batch
+        self.from_start = np.stack([graph.dist_from(s) for s in self.starts]).astype(np.int64)
         self.pair = self.to_target[:, self.starts].T.copy()
 
     def active(self, horizon: int) -> np.ndarray:
