@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import importlib
 import logging
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hierplan_opt.api import solve
 from hierplan_opt.core.errors import HierplanError, InputError, OptionError, UnknownSolverError
@@ -23,6 +23,11 @@ from hierplan_opt.core.instance import Agent, Instance, Kinematics, Team
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import Violation, validate
+
+if TYPE_CHECKING:  # the lazily loaded names below, for type checkers and readers
+    from hierplan_opt.formulations.verify import verify
+    from hierplan_opt.io import load_instance, load_plan, save_instance, save_plan
+    from hierplan_opt.schedule import Schedule, postprocess
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
@@ -62,5 +67,12 @@ __all__ = [
     "Violation",
     "solve",
     "validate",
-    *_LAZY,
+    # lazy (see _LAZY)
+    "load_instance",
+    "load_plan",
+    "save_plan",
+    "save_instance",
+    "postprocess",
+    "Schedule",
+    "verify",
 ]

@@ -50,14 +50,14 @@ def _tapf_lmrp() -> tuple[Instance, Plan]:
 
 
 @pytest.mark.parametrize("make", [_corridor, _drones, _roadmap, _tapf_lmrp])
-def test_sample_plans_are_valid(make) -> None:  # noqa: ANN001
+def test_sample_plans_are_valid(make) -> None:
     inst, plan = make()
     assert validate(inst, plan) == []
 
 
 @pytest.mark.parametrize("make", [_corridor, _drones, _roadmap, _tapf_lmrp])
 @pytest.mark.parametrize("suffix", [".yaml", ".json"])
-def test_plan_round_trip(tmp_path: Path, make, suffix: str) -> None:  # noqa: ANN001
+def test_plan_round_trip(tmp_path: Path, make, suffix: str) -> None:
     inst, plan = make()
     path = tmp_path / f"plan{suffix}"
     save_plan(path, inst, plan)

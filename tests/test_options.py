@@ -135,7 +135,7 @@ def test_declaration_must_match_the_signature() -> None:
     with pytest.raises(TypeError, match="do not match the signature"):
 
         @registry.solver("demo", Option("w", "float", "bound"))
-        def solve(instance, *, time_limit=None, seed=0, objective="soc", v=1.0):  # noqa: ANN001, ANN202
+        def solve(instance, *, time_limit=None, seed=0, objective="soc", v=1.0):
             return None
 
 

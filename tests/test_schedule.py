@@ -33,7 +33,7 @@ from hierplan_opt.schedule.tpg import ENTER, LEAVE, TYPE2, VERTEX
 PLUS = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
 
 
-def plus_instance(kinematics=None, graph: Graph = PLUS) -> tuple[Instance, Plan]:  # noqa: ANN001
+def plus_instance(kinematics=None, graph: Graph = PLUS) -> tuple[Instance, Plan]:
     """agent0 crosses west->east at t=1; agent1 waits, then crosses south->north at t=2."""
     v = graph.vertex
     inst = Instance.mapf(graph, [(0, 1), (1, 0)], [(2, 1), (1, 2)], kinematics=kinematics)

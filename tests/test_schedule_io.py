@@ -17,7 +17,7 @@ from hierplan_opt.viz.gantt import plot_gantt
 PLUS = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
 
 
-def plus_schedule(**kw):  # noqa: ANN003, ANN201
+def plus_schedule(**kw):
     v = PLUS.vertex
     kin = [
         Kinematics("youbot", v_max=1.0),

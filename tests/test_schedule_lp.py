@@ -90,7 +90,7 @@ def test_pyomo_and_highs_agree_on_safety() -> None:
     assert a.makespan == pytest.approx(b.makespan, rel=1e-6)
 
 
-def _slowest_piece_speed(s) -> float:  # noqa: ANN001
+def _slowest_piece_speed(s) -> float:
     stn = s.stn
     p = (stn.arc_kind == PIECE) & (stn.arc_length > 0)
     dur = s.times[stn.arc_dst[p]] - s.times[stn.arc_src[p]]

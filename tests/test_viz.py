@@ -6,16 +6,16 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-from pathlib import Path  # noqa: E402
+from pathlib import Path
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pytest  # noqa: E402
-from matplotlib.collections import LineCollection, PathCollection  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.collections import LineCollection, PathCollection
 
-import hierplan_opt as hp  # noqa: E402
-from hierplan_opt.core.result import Status  # noqa: E402
-from hierplan_opt.viz.plots import (  # noqa: E402
+import hierplan_opt as hp
+from hierplan_opt.core.result import Status
+from hierplan_opt.viz.plots import (
     agent_colors,
     format_table,
     plot_instance,
@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(autouse=True)
-def _close_figures():  # noqa: ANN202
+def _close_figures():
     yield
     plt.close("all")
 
@@ -43,7 +43,7 @@ def corridor_plan() -> hp.Plan:
     return hp.Plan.from_paths([[0, 1, 2, 3, 4], [1, 2, 7, 2, 3]])
 
 
-def scatter_offsets(ax) -> list[np.ndarray]:  # noqa: ANN001
+def scatter_offsets(ax) -> list[np.ndarray]:
     return [c.get_offsets() for c in ax.collections if isinstance(c, PathCollection)]
 
 
@@ -128,7 +128,7 @@ def test_plan_time_window_and_positions() -> None:
 
 
 @pytest.mark.parametrize("times", [(3, 1), (-1, 2), 1.5, "2", (1, 2, 3)])
-def test_bad_time_windows_are_refused(times) -> None:  # noqa: ANN001
+def test_bad_time_windows_are_refused(times) -> None:
     with pytest.raises(ValueError, match="times"):
         plot_plan(corridor(), corridor_plan(), times=times)
 

@@ -38,12 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMANDS:
-        try:
-            mod = importlib.import_module(f"hierplan_opt.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"hierplan_opt.cli.{name}":
-                continue  # that part of the toolkit is not installed yet
-            raise
+        mod = importlib.import_module(f"hierplan_opt.cli.{name}")
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         one_line_errors(p, f"hierplan {name}")
         mod.add_arguments(p)

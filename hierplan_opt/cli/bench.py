@@ -6,7 +6,6 @@ import argparse
 import importlib
 
 from hierplan_opt.bench import AREAS
-from hierplan_opt.core.errors import InputError
 
 HELP = "run a benchmark and print a table (areas: " + ", ".join(AREAS) + ")"
 
@@ -19,10 +18,5 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        mod = importlib.import_module(f"hierplan_opt.bench.{args.area}")
-    except ModuleNotFoundError as exc:
-        if exc.name == f"hierplan_opt.bench.{args.area}":
-            raise InputError(f"benchmark {args.area!r} is not available yet") from None
-        raise
+    mod = importlib.import_module(f"hierplan_opt.bench.{args.area}")
     return int(mod.main(list(args.args)))

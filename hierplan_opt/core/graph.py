@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import cached_property
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import scipy.sparse as sp
@@ -103,7 +103,7 @@ class Graph:
         """
         dims = (width, height) if depth is None else (width, height, depth)
         for d in dims:
-            if not isinstance(d, (int, np.integer)) or d <= 0:
+            if not isinstance(cast(object, d), (int, np.integer)) or d <= 0:
                 raise InputError(f"grid dimensions must be positive integers, got {list(dims)}")
         if not math.isfinite(cell_size) or cell_size <= 0:
             raise InputError(f"cell_size must be a positive number, got {cell_size!r}")
@@ -252,7 +252,7 @@ class Graph:
             if pos not in data:
                 raise InputError(f"networkx node {node!r} has no {pos!r} attribute")
             vertices[str(node)] = data[pos]
-        edges = []
+        edges: list[tuple[str, ...] | tuple[str, str, float]] = []
         for u, v, data in g.edges(data=True):
             edges.append((str(u), str(v), data[length]) if length in data else (str(u), str(v)))
         return cls.roadmap(vertices, edges, directed=bool(g.is_directed()))
@@ -348,11 +348,11 @@ class Graph:
         assert self.shape is not None
         if isinstance(loc, str) or not hasattr(loc, "__len__") or len(loc) != len(self.shape):
             raise InputError(f"location {loc!r} must have {len(self.shape)} integer coordinates")
-        c = []
-        for x in loc:
-            if isinstance(x, bool) or not isinstance(x, (int, np.integer, float)) or x != int(x):
+        c: list[int] = []
+        for x in cast(Sequence[object], loc):
+            if isinstance(x, bool) or not isinstance(x, _NUMBER) or x != int(cast(float, x)):
                 raise InputError(f"location {list(loc)} has a non-integer coordinate")
-            c.append(int(x))
+            c.append(int(cast(float, x)))
         if any(not 0 <= c[i] < self.shape[i] for i in range(len(c))):
             raise InputError(f"location {c} is outside the {'x'.join(map(str, self.shape))} map")
         return _cell_index(tuple(c), self.shape)
@@ -461,6 +461,10 @@ class Graph:
             size = "x".join(map(str, self.shape or ()))
             return f"Graph(grid {size}, {self.num_vertices} free cells)"
         return f"Graph(roadmap, {self.n} vertices, {self.num_edges} edges)"
+
+
+#: Types accepted as grid coordinates (whole numbers only).
+_NUMBER: tuple[type, ...] = (int, np.integer, float)
 
 
 def _cell_index(c: tuple[int, ...], dims: Sequence[int]) -> int:

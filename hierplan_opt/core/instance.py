@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph, Location
@@ -56,7 +57,7 @@ class Kinematics:
             _positive(who, "a_max", self.a_max)
         if (
             isinstance(self.radius, bool)
-            or not isinstance(self.radius, (int, float))
+            or not isinstance(cast(object, self.radius), (int, float))
             or not math.isfinite(self.radius)
             or self.radius < 0
         ):
@@ -121,7 +122,7 @@ class Instance:
     teams: tuple[Team, ...] = ()
     highways: frozenset[tuple[int, int]] | None = None
     name: str = "instance"
-    meta: dict = field(default_factory=dict, compare=False, hash=False)
+    meta: dict[str, Any] = field(default_factory=dict[str, Any], compare=False, hash=False)
 
     def __post_init__(self) -> None:
         g = self.graph
@@ -178,7 +179,7 @@ class Instance:
 
     def _check_vertex(self, v: int, what: str) -> None:
         g = self.graph
-        if not isinstance(v, int) or not 0 <= v < g.n:
+        if not isinstance(cast(object, v), int) or not 0 <= v < g.n:
             raise InputError(f"{what} is outside the map")
         if not g.passable[v]:
             raise InputError(f"{what} {_loc(g, v)} is on an obstacle")
@@ -238,7 +239,7 @@ class Instance:
         agents: list[Agent] = []
         team_objs: list[Team] = []
         for ti, (starts, targets) in enumerate(teams):
-            idx = []
+            idx: list[int] = []
             for s in starts:
                 idx.append(len(agents))
                 agents.append(Agent(f"agent{len(agents)}", graph.vertex(s), None, ti, kins[ti]))

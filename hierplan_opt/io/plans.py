@@ -99,11 +99,11 @@ def _plan_from_data(data: Any, path: str | Path, instance: Instance) -> Plan:
         entries = ctx.sequence(entries, f"schedule of {name!r}", ctx.line_of(sched, raw_name))
         if not entries:
             raise ctx.error(f"schedule of {name!r} is empty", ctx.line_of(sched, raw_name))
-        path: list[int] = []
+        walk: list[int] = []
         for t, e in enumerate(entries):
             v = _quick_vertex(e, t, keys, g) if fast_grid else -1
             if v >= 0:
-                path.append(v)
+                walk.append(v)
                 continue
             eline = ctx.line_of(entries, t)
             e = ctx.mapping(e, f"entry {t} of {name!r}", eline)
@@ -124,8 +124,8 @@ def _plan_from_data(data: Any, path: str | Path, instance: Instance) -> Plan:
                     v = g.vertex(tuple(c))
                 except InputError as exc:
                     raise ctx.error(f"{name!r} at t={t}: {exc}", eline) from None
-            path.append(v)
-        paths[index[name]] = tuple(path)
+            walk.append(v)
+        paths[index[name]] = tuple(walk)
     missing = [instance.agents[i].name for i, p in enumerate(paths) if p is None]
     if missing:
         more = f" (and {len(missing) - 3} more)" if len(missing) > 3 else ""
@@ -303,7 +303,7 @@ def plan_document(instance: Instance, result_or_plan: Result | Plan) -> dict[str
                 entries.append({"v": g.location(v), "t": t})
             else:
                 loc = g.location(v)
-                e = dict(zip(("x", "y", "z"), loc, strict=False))
+                e: dict[str, Any] = dict(zip(("x", "y", "z"), loc, strict=False))
                 e["t"] = t
                 entries.append(e)
         schedule[a.name] = entries

@@ -717,7 +717,7 @@ def _check_acyclic(tpg: TPG, g, room: str) -> None:  # noqa: ANN001
     )
 
 
-def _edge_lengths(g, a: np.ndarray, b: np.ndarray) -> np.ndarray:  # noqa: ANN001
+def _edge_lengths(g, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``g.edge_length`` of many moves at once (binary search in the sorted CSR)."""
     n = g.n
     keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(g.indptr)) * n + g.indices
@@ -768,7 +768,7 @@ def _fill_headings(head: np.ndarray, move_agent: np.ndarray) -> np.ndarray:
 class _LocationNames:
     """Lazy ``vertex id -> printable location`` (grids are large; names are rare)."""
 
-    def __init__(self, graph) -> None:  # noqa: ANN001
+    def __init__(self, graph) -> None:
         self._g = graph
 
     def __getitem__(self, v: int) -> str:

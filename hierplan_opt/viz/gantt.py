@@ -14,7 +14,7 @@ import numpy as np
 from hierplan_opt.schedule.output import Schedule
 
 
-def plot_gantt(schedule: Schedule, path: str | Path | None = None, *, max_agents: int = 60):  # noqa: ANN201
+def plot_gantt(schedule: Schedule, path: str | Path | None = None, *, max_agents: int = 60):
     """Draw the Gantt chart; save it to ``path`` (PNG by extension) when given.
 
     Returns the matplotlib ``Figure``. Only the first ``max_agents`` robots are shown.

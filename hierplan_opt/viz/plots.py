@@ -30,7 +30,7 @@ from hierplan_opt.core.plan import Plan
 
 
 # ---------------------------------------------------------------------------- helpers
-def _pyplot():  # noqa: ANN202
+def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
