@@ -325,14 +325,10 @@ def _solvers(
                 info = registry.get(name)
             except InputError as exc:
                 raise ctx.error(f"{what}.name: {exc}", d.lines.get("name", d.line)) from None
-            known = info.options()
-            for key in options:
-                if key not in known:
-                    raise ctx.error(
-                        f"{what}.options: solver {name!r} has no option {key!r} "
-                        f"(its options: {', '.join(known) or 'none'})",
-                        d.lines.get("options", d.line),
-                    )
+            try:  # names and values, before any run (the solver's declared options)
+                info.check_options(options)
+            except InputError as exc:
+                raise ctx.error(f"{what}.options: {exc}", d.lines.get("options", d.line)) from None
             problems = tuple(sorted(info.problems))
         obj = objective
         if "objective" in d:
