@@ -87,12 +87,16 @@ def space_time_astar(
     minf = cons.min_finish
     maxf = cons.max_finish
     lms = cons.landmarks
+    vc = cons.vertex
+    ec = cons.edge
+    ff = cons.forbid_from
     moves = Moves(adj, goal, dist, cons, dist_of)
+    nxt = moves.nxt
+    n_lm = len(nxt)
     if lms and 0 in lms and lms[0] != start:
         return None, 0
-    tcap = max(cons.tmax, minf, len(moves.nxt)) + 1
-    tfree = moves.tfree
-    free = moves.free
+    tcap = max(cons.tmax, minf, n_lm) + 1
+    succ = moves.succ
 
     # Final arrival at time 0: every landmark must then be at the goal.
     if start == goal and minf <= 0 and all(v == goal for v in lms.values()):
@@ -137,16 +141,33 @@ def space_time_astar(
         t1 = t + 1
         if t1 > maxf:
             continue
-        if t1 >= tfree:
-            mv = free.get(v)
-            if mv is None:
-                mv = moves.at(v, t1)
-        else:
-            mv = moves.at(v, t1)
         base = t1 * n
         keyt1 = (t1 if t1 < tcap else tcap) * n
         negt1 = -t1
-        for u, hu in mv:
+        lm_need = lms.get(t1) if lms else None
+        nl = nxt[t1] if t1 < n_lm else None
+        for u in succ[v]:
+            # The rule of constraints.Moves (which the MDDs use), written out: a call per
+            # expansion made CBS about 25 % slower on `hierplan bench cbs`.
+            if lm_need is not None and u != lm_need:
+                continue
+            if base + u in vc:
+                continue
+            if ec and u != v and ((base + v) * n + u) in ec:
+                continue
+            if ff and u in ff and t1 >= ff[u]:
+                continue
+            hu = dist[u]
+            if hu >= UNREACHABLE:
+                continue
+            if nl is not None:
+                tl, _, dl, hb = nl
+                if dl[u] > tl - t1:
+                    continue
+                if hb - t1 > hu:
+                    hu = hb - t1
+            if minf - t1 > hu:
+                hu = minf - t1
             fu = t1 + hu
             if fu > maxf:
                 continue

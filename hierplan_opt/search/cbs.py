@@ -187,7 +187,7 @@ class _CBS:
         # Two tables of the node's paths: one for conflict detection (patched per child,
         # its lists ordered as the paths were added) and one the low level uses as its
         # conflict-avoidance table (without the agent being replanned).
-        self._occ = Reservations(g.n)
+        self._occ = Reservations(g.n, moves=False)
         self._cat = Reservations(g.n)
         # MDDs keyed by the constraint object's version (unique per agent and set);
         # shared with the two-agent sub-searches of WDG.
@@ -258,8 +258,9 @@ class _CBS:
             # Paths already optimal under the root constraints (WDG sub-searches).
             paths = list(self.init_paths)
         res = Reservations(self.n)
-        for a, p in enumerate(paths):
-            res.add(a, p)
+        if len(paths) < self.k:
+            for a, p in enumerate(paths):
+                res.add(a, p)
         for a in range(len(paths), self.k):
             if self.deadline.expired():
                 return None

@@ -60,27 +60,34 @@ def find_conflicts(paths: Sequence[tuple[int, ...]], n: int) -> list[Conflict]:
     """
     # Every conflicting pair is reported (CBS children keep their parent's conflicts
     # among agents they did not replan, so a pair missing here would never be seen again).
-    from hierplan_opt.search.reservations import Reservations
-
-    res = Reservations(n)
+    # One pass that fills the occupancy as it goes (cheaper than a full Reservations
+    # table: find_conflicts runs at every root, also the small ones of WDG).
+    occ: dict[int, list[int]] = {}
+    goal_at: dict[int, tuple[int, int]] = {}
     for a, p in enumerate(paths):
-        res.add(a, p)
-    vt, et, parked = res.vt, res.et, res.parked
+        goal_at[p[-1]] = (a, len(p) - 1)
     out: list[Conflict] = []
     for a, p in enumerate(paths):
         prev = p[0]
         for t, v in enumerate(p):
-            for b in vt[t * n + v]:  # agents by index: the earlier ones first
-                if b >= a:
-                    break
-                out.append(Conflict(t, VERTEX, b, a, -1, v))
-            ga = parked.get(v)
+            key = t * n + v
+            lst = occ.get(key)
+            if lst is None:
+                occ[key] = [a]
+            else:
+                for b in lst:
+                    out.append(Conflict(t, VERTEX, b, a, -1, v))
+                lst.append(a)
+            ga = goal_at.get(v)
             if ga is not None and ga[0] != a and t > ga[1]:
                 out.append(Conflict(t, TARGET, ga[0], a, -1, v))
-            if prev != v:  # a swap with an earlier agent b moving v -> prev
-                for b in et.get((t * n + v) * n + prev, ()):
-                    if b >= a:
-                        break
-                    out.append(Conflict(t, EDGE, b, a, v, prev))
+            if t and prev != v:
+                # a swap with an agent b that was at v at t-1 and is at prev at t
+                l1 = occ.get((t - 1) * n + v)
+                l2 = occ.get(t * n + prev)
+                if l1 is not None and l2 is not None:
+                    for b in l1:
+                        if b != a and b in l2:
+                            out.append(Conflict(t, EDGE, b, a, v, prev))
             prev = v
     return out

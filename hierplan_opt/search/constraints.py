@@ -318,7 +318,21 @@ class Moves:
     [(0, 2)]
     """
 
-    __slots__ = ("succ", "goal", "dist", "cons", "n", "nxt", "free", "tfree")
+    __slots__ = (
+        "succ",
+        "goal",
+        "dist",
+        "cons",
+        "n",
+        "nxt",
+        "free",
+        "tfree",
+        "vc",
+        "ec",
+        "ff",
+        "lms",
+        "minf",
+    )
 
     def __init__(
         self,
@@ -333,6 +347,8 @@ class Moves:
         self.dist = dist
         self.cons = cons
         self.n = len(adj)
+        self.vc, self.ec, self.ff = cons.vertex, cons.edge, cons.forbid_from
+        self.lms, self.minf = cons.landmarks, cons.min_finish
         # Next landmark after each time: (t_L, v_L, dist-to-v_L list, h_L = dist(v_L, goal)).
         nxt: list[tuple[int, int, Sequence[int], int]] = []
         lms = cons.landmarks
@@ -355,45 +371,52 @@ class Moves:
 
     def at(self, v: int, t: int) -> list[tuple[int, int]]:
         """The allowed moves out of ``v`` arriving at ``t``: ``[(u, h_u), ...]``."""
-        if t >= self.tfree:
-            out = self.free.get(v)
-            if out is None:
-                out = self.free[v] = self._moves(v, t)
-            return out
-        return self._moves(v, t)
+        return self.layer((v,), t)[0]
 
-    def _moves(self, v: int, t: int) -> list[tuple[int, int]]:
-        cons = self.cons
-        vc = cons.vertex
-        ec = cons.edge
-        ff = cons.forbid_from
-        lms = cons.landmarks
-        minf = cons.min_finish
+    def layer(self, vs: Sequence[int], t: int) -> list[list[tuple[int, int]]]:
+        """:meth:`at` for every vertex of ``vs`` (one call per layer of an MDD)."""
+        if t >= self.tfree:
+            free = self.free
+            out = [free.get(v) for v in vs]
+            if all(m is not None for m in out):
+                return out  # type: ignore[return-value]
+            todo = [v for v, m in zip(vs, out, strict=True) if m is None]
+            for v, m in zip(todo, self._moves(todo, t), strict=True):
+                free[v] = m
+            return [free[v] for v in vs]
+        return self._moves(vs, t)
+
+    def _moves(self, vs: Sequence[int], t: int) -> list[list[tuple[int, int]]]:
+        vc, ec, ff, lms, minf = self.vc, self.ec, self.ff, self.lms, self.minf
         dist = self.dist
         n = self.n
+        succ = self.succ
         need = lms.get(t) if lms else None
         nl = self.nxt[t] if t < len(self.nxt) else None
         base = t * n
-        out: list[tuple[int, int]] = []
-        for u in self.succ[v]:
-            if need is not None and u != need:
-                continue
-            if base + u in vc:
-                continue
-            if ec and u != v and ((base + v) * n + u) in ec:
-                continue
-            if ff and u in ff and t >= ff[u]:
-                continue
-            hu = dist[u]
-            if hu >= UNREACHABLE:
-                continue
-            if nl is not None:
-                tl, _, dl, hb = nl
-                if dl[u] > tl - t:
+        layer: list[list[tuple[int, int]]] = []
+        for v in vs:
+            out: list[tuple[int, int]] = []
+            for u in succ[v]:
+                if need is not None and u != need:
                     continue
-                if hb - t > hu:
-                    hu = hb - t
-            if minf - t > hu:
-                hu = minf - t
-            out.append((u, hu))
-        return out
+                if base + u in vc:
+                    continue
+                if ec and u != v and ((base + v) * n + u) in ec:
+                    continue
+                if ff and u in ff and t >= ff[u]:
+                    continue
+                hu = dist[u]
+                if hu >= UNREACHABLE:
+                    continue
+                if nl is not None:
+                    tl, _, dl, hb = nl
+                    if dl[u] > tl - t:
+                        continue
+                    if hb - t > hu:
+                        hu = hb - t
+                if minf - t > hu:
+                    hu = minf - t
+                out.append((u, hu))
+            layer.append(out)
+        return layer

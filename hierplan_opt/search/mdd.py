@@ -85,8 +85,9 @@ def build_mdd(
     for t in range(1, cost + 1):
         cur: dict[int, list[int]] = {}
         last = t == cost
-        for v, kids in fwd[t - 1].items():
-            for u, hu in moves.at(v, t):
+        prev = fwd[t - 1]
+        for (v, kids), mv in zip(prev.items(), moves.layer(list(prev), t), strict=True):
+            for u, hu in mv:
                 if last and (u != goal or v == goal):
                     continue
                 if t + hu > cost:

@@ -50,10 +50,12 @@ class Reservations:
     ({}, {}, {})
     """
 
-    __slots__ = ("n", "vt", "et", "parked", "park_t", "paths", "horizon")
+    __slots__ = ("n", "moves", "vt", "et", "parked", "park_t", "paths", "horizon")
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, *, moves: bool = True) -> None:
         self.n = n
+        #: Whether ``et`` is kept (a table used only for conflicts_of can do without).
+        self.moves = moves
         self.vt: dict[int, list[int]] = {}
         self.et: dict[int, list[int]] = {}
         self.parked: dict[int, tuple[int, int]] = {}
@@ -64,17 +66,35 @@ class Reservations:
     # ------------------------------------------------------------------ updates
     def add(self, agent: int, path: Path) -> None:
         """Reserve ``path`` for ``agent`` (which must hold no reservation)."""
-        vkeys, ekeys = _keys(path, self.n)
-        _put(self.vt, vkeys, agent)
-        _put(self.et, ekeys, agent)
+        # One pass over the path for both tables (the low levels call this per replan).
+        n = self.n
+        vt = self.vt
+        et = self.et
+        moves = self.moves
+        prev = path[0]
+        for t, v in enumerate(path):
+            k = t * n + v
+            lst = vt.get(k)
+            if lst is None:
+                vt[k] = [agent]
+            else:
+                lst.append(agent)
+            if moves and v != prev:
+                k = (t * n + prev) * n + v
+                lst = et.get(k)
+                if lst is None:
+                    et[k] = [agent]
+                else:
+                    lst.append(agent)
+            prev = v
         last = len(path) - 1
         self.parked[path[-1]] = (agent, last)
         self.park_t[path[-1]] = last
         if last > self.horizon:
             self.horizon = last
         paths = self.paths
-        while len(paths) <= agent:
-            paths.append(None)
+        if agent >= len(paths):
+            paths.extend([None] * (agent + 1 - len(paths)))
         paths[agent] = path
 
     def remove(self, agent: int) -> None:
@@ -83,9 +103,26 @@ class Reservations:
         if path is None:
             return
         self.paths[agent] = None
-        vkeys, ekeys = _keys(path, self.n)
-        _drop(self.vt, vkeys, agent)
-        _drop(self.et, ekeys, agent)
+        n = self.n
+        vt = self.vt
+        et = self.et
+        moves = self.moves
+        prev = path[0]
+        for t, v in enumerate(path):
+            k = t * n + v
+            lst = vt[k]
+            if len(lst) == 1:
+                del vt[k]
+            else:
+                lst.remove(agent)
+            if moves and v != prev:
+                k = (t * n + prev) * n + v
+                lst = et[k]
+                if len(lst) == 1:
+                    del et[k]
+                else:
+                    lst.remove(agent)
+            prev = v
         p = self.parked.get(path[-1])
         if p is not None and p[0] == agent:
             del self.parked[path[-1]]
@@ -155,6 +192,7 @@ class Reservations:
         n = self.n
         vt = self.vt
         et = self.et
+        moves = self.moves
         parked = self.parked
         out: list[Conflict] = []
         prev = path[0]
@@ -167,8 +205,13 @@ class Reservations:
             e = parked.get(v)
             if e is not None and e[0] != r and t > e[1] and e[0] not in skip:
                 out.append(Conflict(t, TARGET, e[0], r, -1, v))
-            if prev != v:
-                lst = et.get((t * n + v) * n + prev)
+            if prev != v:  # a swap with an agent b moving v -> prev
+                if moves:
+                    lst = et.get((t * n + v) * n + prev)
+                else:  # from the vertex table: b at v at t - 1 and at prev at t
+                    l1 = vt.get((t - 1) * n + v)
+                    l2 = vt.get(t * n + prev)
+                    lst = [b for b in l1 if b in l2] if l1 is not None and l2 is not None else None
                 if lst is not None:
                     for b in lst:
                         if b != r and b not in skip:
@@ -182,30 +225,3 @@ class Reservations:
                     if b != r and b not in skip:
                         out.append(Conflict(t, TARGET, r, b, -1, g))
         return out
-
-
-def _keys(path: Path, n: int) -> tuple[list[int], list[int]]:
-    """The vertex-time keys and the move keys of ``path``."""
-    vkeys = [t * n + v for t, v in enumerate(path)]
-    ekeys = [
-        (t * n + path[t - 1]) * n + path[t] for t in range(1, len(path)) if path[t - 1] != path[t]
-    ]
-    return vkeys, ekeys
-
-
-def _put(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
-    for k in keys:
-        lst = table.get(k)
-        if lst is None:
-            table[k] = [agent]
-        else:
-            lst.append(agent)
-
-
-def _drop(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
-    for k in keys:
-        lst = table[k]
-        if len(lst) == 1:
-            del table[k]
-        else:
-            lst.remove(agent)
