@@ -43,7 +43,7 @@ def plus_instance(kinematics=None, graph: Graph = PLUS) -> tuple[Instance, Plan]
     return inst, plan
 
 
-def type2(tpg) -> list[tuple[str, str]]:  # noqa: ANN001
+def type2(tpg) -> list[tuple[str, str]]:
     return sorted(
         (tpg.label(int(a)), tpg.label(int(b)))
         for a, b, t in zip(tpg.arc_src, tpg.arc_dst, tpg.arc_type, strict=True)
@@ -511,7 +511,7 @@ def test_frozen() -> None:
         ),
     ],
 )
-def test_non_finite_numbers_refused(graph: Graph, kin, match: str) -> None:  # noqa: ANN001
+def test_non_finite_numbers_refused(graph: Graph, kin, match: str) -> None:
     # Issue 21: huge cells, tiny speeds and huge coordinates gave .nan/.inf schedules.
     last = graph.n - 1
     inst = Instance.mapf(graph, [graph.location(0)], [graph.location(last)], kinematics=kin)

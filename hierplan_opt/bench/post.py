@@ -205,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
             save_plan(cached, inst, plan)
         log.info("plan for %d robots by %s in %.1f s", k, planner, time.perf_counter() - t0)
 
-        def build(inst=inst, plan=plan):  # noqa: ANN001, ANN202
+        def build(inst=inst, plan=plan):
             tpg = build_tpg(inst, plan)  # MovingAI agents: point robots
             return build_stn(inst, tpg)
 

@@ -69,7 +69,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _clearance(schedule) -> str:  # noqa: ANN001
+def _clearance(schedule) -> str:
     """``youbot/youbot 0.7 m, pioneer/youbot 0.65 m guaranteed`` (or not)."""
     parts = [f"{a}/{b} {c.required:.4g} m" for c in schedule.clearance for a, b in [c.types]]
     held = all(c.guaranteed for c in schedule.clearance)

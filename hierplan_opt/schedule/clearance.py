@@ -144,7 +144,7 @@ class Requirement:
         r = np.sort(self.radius)
         return float(r[0] + r[1] + self.margin)
 
-    def regime(self, graph) -> str:  # noqa: ANN001
+    def regime(self, graph) -> str:
         """``none`` (point robots or not enforced), ``tight`` or ``general``."""
         if not self.enforced or self.point_robots:
             return "none"
@@ -321,7 +321,7 @@ def claim_precedences(
     extra: np.ndarray,
     req: Requirement,
     *,
-    describe,  # noqa: ANN001 - callable(kind, (agent, agent), lock, distance) -> message
+    describe,
 ) -> Claims:
     """Claims of every robot on every lock point and the precedences between them."""
     reach = base.max(initial=0.0) + extra[seg.agent]
@@ -398,7 +398,7 @@ def _claim_distance(c: Claims, seg: Segments, p: int, q: int, ends: str = "") ->
 
 def _order_claims(
     c: Claims, tau_out: np.ndarray, seg: Segments, req: Requirement, describe
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Precedences between the claims of every lock (see the module docstring)."""
     n = len(c.agent)
     level = np.where(c.start, 0, np.where(c.final, 2, 1))
@@ -444,7 +444,7 @@ def _order_group(
     seg: Segments,
     req: Requirement,
     g: np.ndarray,
-    describe,  # noqa: ANN001
+    describe,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Precedences of one lock with several start or goal claims.
 

@@ -57,7 +57,7 @@ class ReplayReport:
     by_type: dict[tuple[str, str], tuple[float, float]] = field(default_factory=dict)
 
 
-def _pair_min(ta: np.ndarray, pa: np.ndarray, tb: np.ndarray, pb: np.ndarray):  # noqa: ANN202
+def _pair_min(ta: np.ndarray, pa: np.ndarray, tb: np.ndarray, pb: np.ndarray):
     """Exact minimum distance of two piecewise-linear trajectories, and when."""
     tau = np.union1d(ta, tb)
     ra = np.stack([np.interp(tau, ta, pa[:, k]) for k in range(pa.shape[1])], axis=1)

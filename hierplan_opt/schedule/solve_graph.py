@@ -283,7 +283,7 @@ def solve_graph(stn: STN) -> GraphSolution:
     return GraphSolution(earliest, latest, makespan, critical_path(stn, earliest))
 
 
-def bellman_ford(stn: STN):  # noqa: ANN201
+def bellman_ford(stn: STN):
     """Earliest times of a general STN and a function ``horizon -> latest times``.
 
     Kept for callers of the earlier networkx version; :func:`earliest_times` and

@@ -670,14 +670,14 @@ def _vertex_positions(vis: _Visits, verts: np.ndarray) -> np.ndarray:
     return vis.pos[first[np.searchsorted(uniq, verts)]]
 
 
-def _room(g, geo: np.ndarray) -> str:  # noqa: ANN001
+def _room(g, geo: np.ndarray) -> str:
     """``cells of 1 m`` / ``roadmap edges of up to 2.5 m``, for error messages."""
     if g.kind == "grid":
         return f"cells of {g.cell_size:g} m"
     return f"roadmap edges of up to {float(geo.max(initial=0.0)):g} m"
 
 
-def _check_acyclic(tpg: TPG, g, room: str) -> None:  # noqa: ANN001
+def _check_acyclic(tpg: TPG, g, room: str) -> None:
     """Refuse, in one line, a TPG whose precedences wait for each other in a cycle."""
     topo = topo_order(tpg.num_nodes, tpg.arc_src, tpg.arc_dst)
     if topo.is_dag:
@@ -775,7 +775,7 @@ class _LocationNames:
         return _loc(self._g, v)
 
 
-def _loc(g, v: int) -> str:  # noqa: ANN001
+def _loc(g, v: int) -> str:
     loc = g.location(v)
     return loc if isinstance(loc, str) else "(" + ", ".join(map(str, loc)) + ")"
 
