@@ -1,3 +1,6 @@
+# pyright: basic
+# (Basic, not strict like the rest of core/: its integer-state tuples from numpy/scipy
+# are untyped; typing them is left to the module's owner.)
 """Exact reachability of agent arrangements: pebble motion on graphs with rotations.
 
 The problem class is this project's MAPF: on an undirected graph every agent waits or
