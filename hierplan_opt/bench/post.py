@@ -145,7 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--planner", choices=("auto", "prioritized"), default="auto")
     ap.add_argument("--cache", metavar="DIR", help="keep plans in DIR and reuse them")
-    ap.add_argument("--fleet", type=int, default=1000, help="robots of the fleet row (0: none)")
+    ap.add_argument(
+        "--fleet", type=int, help="robots of the fleet row (0: none; default 1000, --quick 0)"
+    )
     args = ap.parse_args(argv)
     args.time_limit = time_limit(args.time_limit, False, full=120.0)
     args.repeats = args.repeats or (1 if args.quick else 3)
@@ -241,8 +243,9 @@ def main(argv: list[str] | None = None) -> int:
             f"{(t_build + t_ch) / graph_total:6.1f} {py} {sf} "
             f"{gsol.makespan:9.3f} {lp.makespan:9.3f} {rs}"
         )
-    if args.fleet:
-        print(fleet_row(graph, args.fleet, args.repeats))
+    fleet = args.fleet if args.fleet is not None else (0 if args.quick else 1000)
+    if fleet:
+        print(fleet_row(graph, fleet, args.repeats))
     print(
         "build = TPG + STN; graph = earliest schedule + latest times + critical path; "
         "lp = makespan LP via HiGHS direct on the projected STN; lp/gr = (build+lp)/(build+graph); "
