@@ -66,27 +66,9 @@ class Reservations:
     # ------------------------------------------------------------------ updates
     def add(self, agent: int, path: Path) -> None:
         """Reserve ``path`` for ``agent`` (which must hold no reservation)."""
-        # One pass over the path for both tables (the low levels call this per replan).
-        n = self.n
-        vt = self.vt
-        et = self.et
-        moves = self.moves
-        prev = path[0]
-        for t, v in enumerate(path):
-            k = t * n + v
-            lst = vt.get(k)
-            if lst is None:
-                vt[k] = [agent]
-            else:
-                lst.append(agent)
-            if moves and v != prev:
-                k = (t * n + prev) * n + v
-                lst = et.get(k)
-                if lst is None:
-                    et[k] = [agent]
-                else:
-                    lst.append(agent)
-            prev = v
+        vkeys, ekeys = self._keys(path)
+        _put(self.vt, vkeys, agent)
+        _put(self.et, ekeys, agent)
         last = len(path) - 1
         self.parked[path[-1]] = (agent, last)
         self.park_t[path[-1]] = last
@@ -97,32 +79,24 @@ class Reservations:
             paths.extend([None] * (agent + 1 - len(paths)))
         paths[agent] = path
 
+    def _keys(self, path: Path) -> tuple[list[int], list[int]]:
+        """The vertex-time keys and (if kept) the move keys of ``path``."""
+        n = self.n
+        vkeys = [t * n + v for t, v in enumerate(path)]
+        if not self.moves:
+            return vkeys, []
+        pairs = enumerate(zip(path, path[1:], strict=False), 1)
+        return vkeys, [(t * n + u) * n + v for t, (u, v) in pairs if u != v]
+
     def remove(self, agent: int) -> None:
         """Undo :meth:`add` of ``agent``'s path (nothing if it holds none)."""
         path = self.paths[agent] if agent < len(self.paths) else None
         if path is None:
             return
         self.paths[agent] = None
-        n = self.n
-        vt = self.vt
-        et = self.et
-        moves = self.moves
-        prev = path[0]
-        for t, v in enumerate(path):
-            k = t * n + v
-            lst = vt[k]
-            if len(lst) == 1:
-                del vt[k]
-            else:
-                lst.remove(agent)
-            if moves and v != prev:
-                k = (t * n + prev) * n + v
-                lst = et[k]
-                if len(lst) == 1:
-                    del et[k]
-                else:
-                    lst.remove(agent)
-            prev = v
+        vkeys, ekeys = self._keys(path)
+        _drop(self.vt, vkeys, agent)
+        _drop(self.et, ekeys, agent)
         p = self.parked.get(path[-1])
         if p is not None and p[0] == agent:
             del self.parked[path[-1]]
@@ -225,3 +199,21 @@ class Reservations:
                     if b != r and b not in skip:
                         out.append(Conflict(t, TARGET, r, b, -1, g))
         return out
+
+
+def _put(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
+    for k in keys:
+        lst = table.get(k)
+        if lst is None:
+            table[k] = [agent]
+        else:
+            lst.append(agent)
+
+
+def _drop(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
+    for k in keys:
+        lst = table[k]
+        if len(lst) == 1:
+            del table[k]
+        else:
+            lst.remove(agent)
