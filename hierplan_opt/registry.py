@@ -243,7 +243,7 @@ def run(
     >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0), (2, 0)], [(2, 0), (0, 0)])
     >>> r = run("ecbs", inst)
     >>> r.status, r.stats["reason"][:30]
-    (<Status.INFEASIBLE: 'INFEASIBLE'>, 'agents on a path-shaped part o')
+    (<Status.INFEASIBLE: 'INFEASIBLE'>, "agent 'agent0' cannot get from")
     """
     info = get(name)
     objective = info.objective_for(instance, objective)
