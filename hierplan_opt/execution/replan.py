@@ -1,0 +1,290 @@
+"""The re-planning layer: a MAPF re-plan from the robots' current positions.
+
+When the STN cannot absorb a disturbance (inconsistent with deadlines) or a broken-down
+robot blocks others, the running schedule is cut at a *frontier* and a new plan is made:
+
+1. **Frontier** (:func:`restrict_to_frontier`): every working robot finishes its
+   current move to the next vertex of its path under the old TPG; a robot whose next
+   events depend on a broken robot stops at its last event it can still reach. The
+   frontier is closed under the TPG's predecessors (a robot's frontier is pushed on to
+   the next vertex when another one needs its later events), so the robots reach it
+   without waiting for each other for ever. Unaffected robots keep moving.
+2. **Start vertices**: a robot at a vertex starts there; one held between vertices
+   starts at the vertex whose surroundings it has claimed (it passed the claim's
+   *enter* marker: the next vertex; else the previous one) and moves there first.
+3. **MAPF**: the same map with the broken robots as obstacles (every vertex closer to
+   one than ``r_b + r_max + margin``), each robot to its old goal (or staying where it
+   is if its goal is blocked), solved by a registered solver (ECBS by default) and
+   validated; then MAPF-POST again.
+4. **Hand-over**: the new STN's start nodes are fixed at the times the robots reach
+   their start vertices; a robot whose new path comes within ``r_i + r_j + margin``
+   of another robot's way to its start vertex waits until that robot has got there.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hierplan_opt import registry
+from hierplan_opt.core.errors import HierplanError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Agent, Instance
+from hierplan_opt.core.validate import validate
+from hierplan_opt.schedule.output import Schedule, build_schedule
+from hierplan_opt.schedule.post import postprocess
+from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
+from hierplan_opt.schedule.stn import STN
+from hierplan_opt.schedule.tpg import ENTER
+
+if TYPE_CHECKING:
+    from hierplan_opt.execution.simulate import _Sim
+
+log = logging.getLogger(__name__)
+
+#: Sampling step (metres) of a robot's way to its start vertex in the hand-over check.
+SAMPLE = 0.05
+
+
+def _last_happened(sim: _Sim, j: int) -> int:
+    nodes = sim.S.tpg.agent_nodes(j)
+    done = np.flatnonzero(~np.isnan(sim.t[nodes.start : nodes.stop]))
+    return nodes.start + int(done[-1]) if len(done) else nodes.start - 1
+
+
+def restrict_to_frontier(sim: _Sim, now: float) -> None:
+    """Deactivate every node beyond the frontier (see the module text)."""
+    from hierplan_opt.execution.simulate import _descendants
+
+    S = sim.S
+    tpg = S.tpg
+    K = tpg.num_agents
+    stn = sim.stn
+    ends = tpg.agent_ptr
+    broken_nodes: list[int] = []
+    last = [_last_happened(sim, j) for j in range(K)]
+    for j in range(K):
+        if sim.broken[sim.gid[j]]:
+            broken_nodes += list(range(last[j] + 1, int(ends[j + 1])))
+    blocked = _descendants(stn, broken_nodes) if broken_nodes else set()
+    first_blocked = []
+    for j in range(K):
+        fb = int(ends[j + 1])
+        for v in range(last[j] + 1, int(ends[j + 1])):
+            if v in blocked:
+                fb = v
+                break
+        first_blocked.append(fb)
+    front = []
+    for j in range(K):
+        h = last[j]
+        if sim.broken[sim.gid[j]] or h >= int(ends[j + 1]) - 1:
+            front.append(h)
+            continue
+        f = int(min(S.next_vertex[h + 1], ends[j + 1] - 1))
+        front.append(min(f, first_blocked[j] - 1))
+    changed = True
+    while changed:
+        changed = False
+        for j in range(K):
+            for v in range(last[j] + 1, front[j] + 1):
+                arcs = stn.in_arcs(v)
+                for u in stn.arc_src[arcs].tolist():
+                    k = int(tpg.node_agent[u])
+                    if k != j and u > front[k]:
+                        nf = int(min(S.next_vertex[u], ends[k + 1] - 1))
+                        nf = max(min(nf, first_blocked[k] - 1), u)
+                        if nf > front[k]:
+                            front[k] = nf
+                            changed = True
+    for j in range(K):
+        sim.active[front[j] + 1 : int(ends[j + 1])] = False
+    sim.front = front
+
+
+def _start_vertex(sim: _Sim, h: int) -> int:
+    """The vertex a robot held at node ``h`` starts the new plan from."""
+    S = sim.S
+    tpg = S.tpg
+    if S.is_vertex[h]:
+        return int(tpg.node_vertex[h])
+    lv = int(S.last_vertex[h])
+    if np.any(tpg.node_kind[lv + 1 : h + 1] == ENTER):
+        return int(tpg.node_vertex[int(S.next_vertex[h])])
+    return int(tpg.node_vertex[lv])
+
+
+def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.ndarray] | None:
+    """A new plan and schedule from the current positions (None when impossible)."""
+    inst = sim.instance
+    g = inst.graph
+    S = sim.S
+    tpg = S.tpg
+    reason = sim.replan_reason
+    if g.kind != "grid":
+        sim._log(t_r, "-", "replan", "none", 0.0, "re-planning needs a grid map")
+        return None
+    K = tpg.num_agents
+    margin = sim.schedule0.margin
+    radius = np.array([a.kinematics.radius for a in inst.agents], dtype=float)
+    r_max = float(radius.max())
+    pos_v = g.coords * (g.cell_size if g.kind == "grid" else 1.0)
+    extra_blocked = np.zeros(g.n, dtype=bool)
+    starts: dict[int, int] = {}
+    holds: dict[int, tuple[float, np.ndarray, float]] = {}
+    goals: dict[int, int] = {}
+    for j in range(K):
+        gid = sim.gid[j]
+        h = _last_happened(sim, j)
+        if sim.broken[gid]:
+            p = sim.traj[gid][-1][1] * sim.scale
+            near = np.linalg.norm(pos_v - p, axis=1) < radius[gid] + r_max + margin
+            extra_blocked |= near & g.passable
+            extra_blocked[_start_vertex(sim, h)] = True
+            continue
+        s = _start_vertex(sim, h)
+        starts[gid] = s
+        t_h = float(np.nanmax([sim.t[h], sim.traj[gid][-1][0]]))
+        p_h = sim.traj[gid][-1][1]
+        v_max = inst.agents[gid].kinematics.v_max
+        dist = float(np.linalg.norm((g.coords[s] - p_h) * sim.scale))
+        holds[gid] = (max(t_h, t_r), p_h, dist / v_max)
+        goals[gid] = int(tpg.node_vertex[int(tpg.agent_ptr[j + 1]) - 1])
+    for s in starts.values():
+        extra_blocked[s] = False  # never block a robot's own start
+    gid2 = tuple(sorted(starts))
+    if not gid2:
+        return None
+    if len(set(starts.values())) < len(starts):
+        sim._log(t_r, "-", "replan", "none", 0.0, "two robots would start at one vertex")
+        return None
+    for gid in gid2:
+        if extra_blocked[goals[gid]]:
+            sim._log(t_r, sim.names[gid], "replan", "replan", 0.0, "its goal is blocked: it stays")
+            goals[gid] = starts[gid]
+    dims = g.shape
+    assert dims is not None
+    blocked = (~g.passable | extra_blocked).reshape(tuple(reversed(dims)))
+    graph = Graph.grid(*dims, blocked=blocked, cell_size=g.cell_size)
+    agents = tuple(
+        Agent(inst.agents[k].name, starts[k], goals[k], None, inst.agents[k].kinematics)
+        for k in gid2
+    )
+    try:
+        inst2 = Instance(graph, agents, (), None, f"{inst.name}-replan")
+        fn = registry.get(sim.solver).load()
+        res = fn(inst2, time_limit=sim.replan_time_limit, seed=0, objective="soc")
+    except HierplanError as exc:
+        sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan failed: {exc}")
+        return None
+    if res.plan is None:
+        sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan found no plan ({res.status})")
+        return None
+    bad = validate(inst2, res.plan)
+    if bad:
+        sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan invalid: {bad[0]}")
+        return None
+    try:
+        sched = postprocess(inst2, res.plan, margin=margin, check_plan=False)
+    except HierplanError as exc:
+        sim._log(t_r, "-", "replan", "none", 0.0, f"MAPF-POST of the re-plan failed: {exc}")
+        return None
+    sim.replans.append((inst2, res.plan))
+    assert sched.stn is not None
+    stn = sched.stn
+    tpg2 = stn.tpg
+    release = np.array(stn.release, dtype=float)
+    deadline = np.array(stn.deadline, dtype=float)
+    # Hand-over: robots first reach their start vertices (in index order when two
+    # ways to a start vertex come close), then new paths wait for nearby hand-overs.
+    ready: dict[int, float] = {}
+    ways: dict[int, np.ndarray] = {}
+    for k, gid in enumerate(gid2):
+        t_h, p_h, move = holds[gid]
+        ways[gid] = _way(sim, gid, t_r, g.coords[starts[gid]]) * sim.scale
+        depart = t_h
+        for gid_a in gid2[:k]:
+            need = radius[gid] + radius[gid_a] + margin
+            if _close(ways[gid_a], ways[gid][-2:], need):
+                depart = max(depart, ready[gid_a])
+        if depart > t_h + 1e-12:
+            sim._record(gid, depart, p_h)
+        ready[gid] = depart + move
+    for j, gid in enumerate(gid2):
+        v0 = int(tpg2.agent_ptr[j])
+        release[v0] = deadline[v0] = ready[gid]
+    for j, gid in enumerate(gid2):
+        nodes = np.arange(int(tpg2.agent_ptr[j]), int(tpg2.agent_ptr[j + 1]))
+        pts = tpg2.node_pos[nodes]
+        for gid_a in gid2:
+            if gid_a == gid:
+                continue
+            need = radius[gid] + radius[gid_a] + margin
+            for i in range(len(nodes)):
+                seg = pts[i : i + 2]
+                if _close(ways[gid_a], seg, need):
+                    v = int(nodes[i])
+                    release[v] = max(release[v], ready[gid_a])
+                    break
+    new_stn = stn.with_bounds(release=release, deadline=deadline)
+    times = earliest_times(new_stn)
+    early, late = windows(new_stn, times)
+    sched = build_schedule(
+        new_stn,
+        times,
+        early,
+        late,
+        critical_path(new_stn, times),
+        objective="makespan",
+        method="graph",
+        scale=sched.scale,
+        safety_distance=sched.safety_distance,
+        margin=sched.margin,
+        clearance=sched.clearance,
+        stats=dict(sched.stats),
+    )
+    sim._log(
+        t_r,
+        "-",
+        "replan",
+        "replan",
+        0.0,
+        f"{reason}: new plan for {len(gid2)} robots ({sim.solver}, cost {res.cost}, "
+        f"{res.runtime:.3g} s)",
+    )
+    return sched, new_stn, gid2, times
+
+
+def _way(sim: _Sim, gid: int, t_r: float, start: np.ndarray) -> np.ndarray:
+    """A robot's positions from ``t_r`` to its start vertex (instance coordinates)."""
+    tr = sim.traj[gid]
+    ts = np.array([t for t, _ in tr])
+    ps = np.array([p for _, p in tr])
+    keep = ts >= t_r
+    at = np.array([np.interp(t_r, ts, ps[:, k]) for k in range(ps.shape[1])])
+    pts = np.vstack([at[None, :], ps[keep], start[None, :]])
+    return pts
+
+
+def _close(way: np.ndarray, seg: np.ndarray, need: float) -> bool:
+    """Whether polyline ``way`` comes within ``need`` (+ sampling) of ``seg``."""
+    if need <= 0:
+        return False
+    samples = [way[:1]]
+    for a, b in zip(way[:-1], way[1:], strict=True):
+        n = max(1, int(math.ceil(np.linalg.norm(b - a) / SAMPLE)))
+        f = np.linspace(0, 1, n + 1)[1:, None]
+        samples.append(a + f * (b - a))
+    pts = np.vstack(samples)
+    if len(seg) == 1:
+        d = np.linalg.norm(pts - seg[0], axis=1)
+    else:
+        a, b = seg[0], seg[1]
+        ab = b - a
+        L = float(ab @ ab)
+        s = np.clip(((pts - a) @ ab) / L, 0, 1) if L > 0 else np.zeros(len(pts))
+        d = np.linalg.norm(pts - (a + s[:, None] * ab), axis=1)
+    return bool(d.min() < need + SAMPLE)

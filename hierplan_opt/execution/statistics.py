@@ -1,0 +1,166 @@
+"""Statistics of an execution: distances over continuous time, arrivals, layers.
+
+The executed trajectories are piecewise linear in time, so the minimum distance of two
+robots is exact (the closed form of :mod:`hierplan_opt.schedule.replay`, with its
+exact pruning of pairs that stay far apart). ``collisions`` counts pairs whose centres
+came closer than ``r_i + r_j`` (their footprints overlapped); ``distance_kept`` says
+whether every pair kept the guaranteed ``r_i + r_j + margin``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.schedule.output import Schedule, Waypoints
+from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min
+
+if TYPE_CHECKING:
+    from hierplan_opt.execution.simulate import Execution, _Sim
+
+#: Distance tolerance (metres, relative).
+TOL = 1e-9
+
+
+def executed_schedule(
+    names: tuple[str, ...], traj: list[np.ndarray], base: Schedule, policy: str
+) -> Schedule:
+    """The executed way-points as a :class:`Schedule` (``hierplan post`` layout)."""
+    wps = []
+    for tr in traj:
+        coords = tr[:, 1:]
+        t = tr[:, 0]
+        d = np.diff(coords, axis=0)
+        theta = np.zeros(len(t))
+        moving = np.linalg.norm(d, axis=1) > 1e-12
+        if len(d):
+            ang = np.arctan2(d[:, 1], d[:, 0])
+            last = 0.0
+            for k in range(len(d)):
+                if moving[k]:
+                    last = float(ang[k])
+                theta[k + 1] = last
+            theta[0] = float(ang[int(np.argmax(moving))]) if moving.any() else 0.0
+        for x in (coords, t, theta):
+            x.setflags(write=False)
+        node = np.full(len(t), -1)
+        wps.append(Waypoints(coords, theta, t, t, t, node, ("executed",) * len(t)))
+    finals = np.array([w.arrival[-1] for w in wps])
+    return Schedule(
+        agent_names=names,
+        waypoints=tuple(wps),
+        makespan=float(finals.max()) if len(finals) else 0.0,
+        flowtime=float(finals.sum()),
+        safety_distance=base.safety_distance,
+        objective="executed",
+        method=policy,
+        delta=base.margin,
+        earliest=np.zeros(0),
+        latest=np.zeros(0),
+        times=np.zeros(0),
+        critical_path=(),
+        scale=base.scale,
+        stats={},
+        stn=None,
+        margin=base.margin,
+        clearance=base.clearance,
+    )
+
+
+def distances(schedule: Schedule, instance: Instance) -> tuple[float, int, bool, float]:
+    """``(min distance, collisions, distance kept, worst gap)`` over every pair.
+
+    Example
+    -------
+    >>> from hierplan_opt import Graph, Plan
+    >>> from hierplan_opt.schedule import postprocess
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (0, 1)], [(2, 0), (2, 1)])
+    >>> distances(postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]])), inst)
+    (1.0, 0, True, 1.0)
+    """
+    K = schedule.num_agents
+    radius = np.array([a.kinematics.radius for a in instance.agents], dtype=float)
+    m = float(schedule.margin)
+    times = [np.asarray(w.arrival, dtype=float) for w in schedule.waypoints]
+    pos = [np.asarray(w.coords, dtype=float) * schedule.scale for w in schedule.waypoints]
+    if K < 2:
+        return math.inf, 0, True, math.inf
+    horizon = max(float(max(t[-1] for t in times)), 1e-9)
+    n_win = int(min(4096, max(1, sum(len(t) for t in times) // K)))
+    lo, hi = _boxes(times, pos, n_win, horizon / n_win * (1 + 1e-12))
+    pairs = _candidate_pairs(lo, hi, radius + m / 2 + schedule.scale / 2)
+    best, worst, collisions = math.inf, math.inf, 0
+    for a, b in pairs.tolist():
+        d, _ = _pair_min(times[a], pos[a], times[b], pos[b])
+        best = min(best, d)
+        body = radius[a] + radius[b]
+        worst = min(worst, float(d - (body + m)))
+        if d < body - TOL * max(1.0, body):
+            collisions += 1
+    kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
+    return float(best), collisions, kept, float(worst)
+
+
+def finish(
+    sim: _Sim, instance: Instance, schedule: Schedule, policy: str, mode: str, seed: int, dt: float
+) -> Execution:
+    """Build the :class:`Execution` of a finished simulation."""
+    from hierplan_opt.execution.simulate import Execution
+
+    traj = []
+    for g in range(sim.K):
+        pts = sim.traj[g]
+        t = np.array([p[0] for p in pts], dtype=float)
+        xy = np.array([p[1] for p in pts], dtype=float).reshape(len(pts), -1)
+        # Drop repeated time stamps (keep the last position at each time).
+        keep = np.ones(len(t), dtype=bool)
+        keep[:-1] = t[1:] > t[:-1] + 1e-12
+        traj.append(np.column_stack([t[keep], xy[keep]]))
+    for tr in traj:
+        tr.setflags(write=False)
+    exe = executed_schedule(sim.names, traj, schedule, policy)
+    d_min, collisions, kept, worst = distances(exe, instance)
+    arrival = sim.arrival.copy()
+    done = ~np.isnan(arrival)
+    handled = Counter(e.layer for e in sim.log)
+    stats: dict[str, Any] = {
+        "policy": policy,
+        "mode": mode,
+        "collisions": collisions,
+        "min_distance": d_min,
+        "guaranteed_distance": schedule.safety_distance,
+        "distance_kept": bool(kept),
+        "worst_gap": worst,
+        "makespan": float(arrival[done].max()) if done.any() else math.nan,
+        "planned_makespan": schedule.makespan,
+        "arrival_avg": float(arrival[done].mean()) if done.any() else math.nan,
+        "arrival_max": float(arrival[done].max()) if done.any() else math.nan,
+        "arrival_sum": float(arrival[done].sum()),
+        "finished": int(done.sum()),
+        "unfinished": [sim.names[g] for g in np.flatnonzero(~done).tolist()],
+        "broken": [sim.names[g] for g in np.flatnonzero(sim.broken).tolist()],
+        "disturbances": len(sim.log),
+        "stn_resolves": sim.counts["stn_resolves"],
+        "reorders": sim.counts["reorders"],
+        "replans": sim.counts["replans"],
+        "handled": {k: handled.get(k, 0) for k in ("slack", "stn", "replan", "reorder", "none")},
+        "runtime": dict(sim.runtime),
+    }
+    arrival.setflags(write=False)
+    return Execution(
+        policy=policy,
+        mode=mode,
+        seed=seed,
+        agent_names=sim.names,
+        trajectories=tuple(traj),
+        schedule=exe,
+        phases=tuple(sim.phases),
+        log=tuple(sim.log),
+        statistics=stats,
+        arrival=arrival,
+        replans=tuple(sim.replans),
+    )
