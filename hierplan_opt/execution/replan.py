@@ -215,7 +215,8 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         ready[gid] = depart + move
     for j, gid in enumerate(gid2):
         v0 = int(tpg2.agent_ptr[j])
-        release[v0] = deadline[v0] = ready[gid]
+        release[v0] = ready[gid]
+        deadline[v0] = np.inf
     for j, gid in enumerate(gid2):
         nodes = np.arange(int(tpg2.agent_ptr[j]), int(tpg2.agent_ptr[j + 1]))
         pts = tpg2.node_pos[nodes]

@@ -1,0 +1,251 @@
+"""Execution under disturbances: the layers (slack, STN re-solve, re-plan), the TPG
+rule (no collisions), the baselines, determinism and the disturbance files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import hierplan_opt as hp
+from hierplan_opt import Graph, Instance, Plan
+from hierplan_opt.core.errors import InputError, OptionError
+from hierplan_opt.core.instance import Kinematics
+from hierplan_opt.execution import (
+    Breakdown,
+    RandomDelays,
+    Slow,
+    Stop,
+    load_disturbances,
+    simulate,
+)
+from hierplan_opt.schedule import check_bounds, postprocess
+
+ROOT = Path(__file__).resolve().parent.parent
+WAREHOUSE = ROOT / "instances" / "paper" / "warehouse-part1.yaml"
+
+
+@pytest.fixture(scope="module")
+def warehouse():
+    inst = hp.load_instance(WAREHOUSE)
+    plan = hp.solve(inst, "cbm", time_limit=60).plan
+    assert plan is not None
+    return inst, postprocess(inst, plan, check_plan=False)
+
+
+def _slack_point(schedule, min_slack: float):
+    """(robot name, a time inside its move, next node) with at least ``min_slack``."""
+    tpg = schedule.stn.tpg
+    for j in range(tpg.num_agents):
+        nodes = list(tpg.agent_nodes(j))
+        for a, b in zip(nodes[:-1], nodes[1:], strict=True):
+            if schedule.times[b] - schedule.times[a] > 0.2 and schedule.slack[b] > min_slack:
+                t = float(schedule.times[a] + 0.1)
+                return tpg.agent_names[j], t, b
+    raise AssertionError("no node with that much slack")
+
+
+def test_delay_within_slack_triggers_nothing(warehouse):
+    inst, s = warehouse
+    name, t, n = _slack_point(s, 3.0)
+    ex = simulate(inst, s, disturbances=[Stop(name, 1.0, at_time=t)], policy="replan")
+    assert [e.layer for e in ex.log] == ["slack"]
+    st = ex.statistics
+    assert st["stn_resolves"] == st["replans"] == 0
+    assert st["makespan"] == pytest.approx(s.makespan)
+    # No other robot's event moved: the order and times of the plan are kept.
+    tpg = s.stn.tpg
+    j = tpg.agent_names.index(name)
+    other = tpg.node_agent != j
+    assert np.allclose(ex.event_times[other], s.times[other])
+    assert st["collisions"] == 0 and st["distance_kept"]
+
+
+def test_larger_delay_triggers_stn_resolve_that_meets_every_bound(warehouse):
+    inst, s = warehouse
+    name, t, n = _slack_point(s, 1.0)
+    d = float(s.slack[n]) + 4.0
+    ex = simulate(inst, s, disturbances=[Stop(name, d, at_time=t)], policy="stn")
+    assert [e.layer for e in ex.log] == ["stn"]
+    assert ex.statistics["stn_resolves"] == 1
+    phase = ex.phases[0]
+    assert check_bounds(phase.stn, phase.targets) == []  # the re-solved schedule
+    assert check_bounds(phase.stn, phase.times) == []  # what was executed
+    assert phase.targets[n] >= s.times[n] + d - s.slack[n] - 1e-6
+    assert ex.statistics["makespan"] > s.makespan
+    assert ex.statistics["collisions"] == 0 and ex.statistics["distance_kept"]
+    # The slack policy keeps the old targets and lets the TPG hold the others.
+    ex2 = simulate(inst, s, disturbances=[Stop(name, d, at_time=t)], policy="slack")
+    assert ex2.statistics["stn_resolves"] == 0
+    assert ex2.statistics["collisions"] == 0
+
+
+def _blocking_breakdown(inst, s):
+    for name in s.agent_names:
+        ex = simulate(inst, s, disturbances=[Breakdown(name, 6.0)], policy="stn")
+        if ex.statistics["unfinished"] != [name] and len(ex.statistics["unfinished"]) > 1:
+            return name, ex
+    raise AssertionError("no breakdown blocks another robot")
+
+
+def test_breakdown_on_a_path_triggers_a_valid_replan(warehouse):
+    inst, s = warehouse
+    name, stuck = _blocking_breakdown(inst, s)
+    assert stuck.log[0].layer == "none"  # the stn policy cannot help
+    ex = simulate(inst, s, disturbances=[Breakdown(name, 6.0)], policy="replan")
+    st = ex.statistics
+    assert st["replans"] == 1 and "replan" in [e.layer for e in ex.log]
+    assert st["unfinished"] == [name] and st["finished"] == inst.num_agents - 1
+    ((inst2, plan),) = ex.replans
+    assert hp.validate(inst2, plan) == []
+    assert st["collisions"] == 0 and st["distance_kept"]
+    # The broken robot is an obstacle of the new plan.
+    g = inst2.graph
+    where = ex.trajectories[s.agent_names.index(name)][-1, 1:]
+    near = np.linalg.norm(g.coords - where, axis=1) < 0.5
+    assert not g.passable[near].any()
+
+
+def test_deadline_escalates_to_replan(warehouse):
+    inst, s = warehouse
+    last = s.agent_names[int(np.argmax([w.arrival[-1] for w in s.waypoints]))]
+    tight = postprocess(inst, _plan(inst), deadlines={last: s.makespan + 0.5})
+    name, t, n = _slack_point(tight, 0.0)
+    stop = Stop(last, 30.0, at_time=1.0)
+    ex = simulate(inst, tight, disturbances=[stop], policy="stn")
+    assert ex.log[0].layer == "none" and "inconsistent" in ex.log[0].detail
+    ex = simulate(inst, tight, disturbances=[stop], policy="replan")
+    assert ex.log[0].layer == "replan" and ex.statistics["replans"] == 1
+    assert ex.statistics["collisions"] == 0 and ex.statistics["distance_kept"]
+
+
+def _plan(inst):
+    return hp.solve(inst, "cbm", time_limit=60).plan
+
+
+@pytest.mark.parametrize("policy", ["slack", "stn", "replan", "adg"])
+def test_monte_carlo_batch_has_no_collisions(warehouse, policy):
+    inst, s = warehouse
+    for seed in range(6):
+        dist = [
+            RandomDelays(0.15, "exponential", 2.0),
+            Stop(s.agent_names[seed], 5.0, at_time=3.0 + seed),
+            Slow(0.4, cells=((8, 9), (9, 9), (10, 9))),
+        ]
+        if seed % 3 == 0:
+            dist.append(Breakdown(s.agent_names[(seed + 4) % len(s.agent_names)], 8.0))
+        ex = simulate(inst, s, disturbances=dist, policy=policy, seed=seed)
+        st = ex.statistics
+        assert st["collisions"] == 0, (policy, seed)
+        assert st["distance_kept"], (policy, seed, st["min_distance"])
+        assert st["min_distance"] >= st["guaranteed_distance"] - 1e-9
+
+
+def _corridor():
+    kin = Kinematics("disc", v_max=1.0, radius=0.3)
+    inst = Instance.mapf(Graph.grid(6, 1), [(1, 0), (0, 0)], [(5, 0), (4, 0)], kinematics=kin)
+    s = postprocess(inst, Plan.from_paths([[1, 2, 3, 4, 5], [0, 1, 2, 3, 4]]))
+    return inst, s
+
+
+def test_naive_collides_where_the_tpg_waits():
+    inst, s = _corridor()
+    stop = [Stop("agent0", 3.0, at_time=0.5)]
+    naive = simulate(inst, s, disturbances=stop, policy="naive")
+    assert naive.statistics["collisions"] == 1
+    assert naive.statistics["min_distance"] < 0.6
+    for policy in ("slack", "stn", "adg"):
+        st = simulate(inst, s, disturbances=stop, policy=policy).statistics
+        assert st["collisions"] == 0 and st["min_distance"] >= 0.6 - 1e-9
+
+
+def test_identical_seeds_identical_results(warehouse):
+    inst, s = warehouse
+    dist = [RandomDelays(0.3, "uniform", 0.5, 3.0)]
+    a = simulate(inst, s, disturbances=dist, seed=3)
+    b = simulate(inst, s, disturbances=dist, seed=3)
+    c = simulate(inst, s, disturbances=dist, seed=4)
+    assert all(np.array_equal(x, y) for x, y in zip(a.trajectories, b.trajectories, strict=True))
+    assert a.log == b.log
+    assert a.statistics["makespan"] == b.statistics["makespan"]
+    assert not all(
+        x.shape == y.shape and np.array_equal(x, y)
+        for x, y in zip(a.trajectories, c.trajectories, strict=True)
+    )
+
+
+def test_slow_region_and_waypoint_stop(warehouse):
+    inst, s = warehouse
+    base = simulate(inst, s)
+    assert base.log == () and base.statistics["makespan"] == pytest.approx(s.makespan)
+    # Executed trajectories of an undisturbed run pass the planned way-points on time.
+    for wp, tr in zip(s.waypoints, base.trajectories, strict=True):
+        assert tr[-1, 0] == pytest.approx(wp.arrival[-1])
+    ex = simulate(inst, s, disturbances=[Slow(0.1, cells=tuple((x, 9) for x in range(21)))])
+    assert ex.statistics["makespan"] > s.makespan
+    ex = simulate(inst, s, disturbances=[Stop("pioneer1", 7.0, at_waypoint=2)])
+    assert ex.log[0].kind == "stop" and ex.statistics["collisions"] == 0
+
+
+def test_options_refused(warehouse):
+    inst, s = warehouse
+    with pytest.raises(OptionError, match="unknown policy"):
+        simulate(inst, s, policy="magic")
+    with pytest.raises(InputError, match="not in the schedule"):
+        simulate(inst, s, disturbances=[Stop("nobody", 1.0, at_time=1.0)])
+    with pytest.raises(InputError):
+        Stop("a", 1.0)
+
+
+EXAMPLE = """disturbances:
+  - {kind: stop, agent: youbot3, at_time: 4.0, duration: 6.0}
+  - {kind: stop, agent: youbot4, at_waypoint: 2, duration: 1.0}
+  - {kind: breakdown, agent: youbot7, at_time: 10.0}
+  - {kind: slow, cells: [[3, 4], [3, 5]], factor: 0.3, from: 0.0, to: 30.0}
+  - {kind: slow, edges: [[[0, 0], [1, 0]]], factor: 0.5}
+  - {kind: random, probability: 0.1, duration: {exponential: 2.0}, seed: 1}
+  - {kind: random, probability: 0.1, duration: {uniform: [1, 2]}}
+"""
+
+
+def test_disturbance_file(tmp_path):
+    f = tmp_path / "d.yaml"
+    f.write_text(EXAMPLE)
+    ds = load_disturbances(f)
+    assert [type(d).__name__ for d in ds] == [
+        "Stop",
+        "Stop",
+        "Breakdown",
+        "Slow",
+        "Slow",
+        "RandomDelays",
+        "RandomDelays",
+    ]
+    assert ds[3] == Slow(0.3, ((3, 4), (3, 5)), (), 0.0, 30.0)
+    assert ds[5] == RandomDelays(0.1, "exponential", 2.0, 0.0, 1)
+
+
+BAD = [
+    ("disturbances: [{kind: stop, agent: a, duration: 1}]", ":1:", "exactly one of"),
+    ("disturbances:\n  - {kind: jump, agent: a}", ":2:", "unknown kind 'jump'"),
+    ("disturbances:\n  - {kind: stop, agent: a, at_time: -1, duration: 1}", ":2:", "negative"),
+    ("disturbances:\n  - {kind: slow, cells: [[1, 2]], factor: 2}", ":2:", "(0, 1]"),
+    ("disturbances:\n  - {kind: slow, factor: 0.5}", ":2:", "cells or edges"),
+    ("disturbances:\n  - {kind: random, probability: 1.5, duration: 1}", ":2:", "[0, 1]"),
+    ("disturbances:\n  - {kind: random, probability: 0.5, duration: {gauss: 1}}", ":2:", "gauss"),
+    ("disturbances:\n  - {kind: breakdown, agent: a, at_time: 1, x: 2}", ":2:", "unknown key"),
+    ("disturbances:\n  - {kind: stop, agent: zz, at_time: 1, duration: 1}", ":2:", "no robot"),
+    ("stops: []", "", "unknown key 'stops'"),
+    ("disturbances: [", "", "YAML syntax error"),
+]
+
+
+@pytest.mark.parametrize(("text", "where", "what"), BAD)
+def test_bad_disturbance_files_refused_with_one_line(tmp_path, text, where, what):
+    f = tmp_path / "bad.yaml"
+    f.write_text(text + "\n")
+    with pytest.raises(InputError) as exc:
+        load_disturbances(f, agents=("a", "b"))
+    msg = str(exc.value)
+    assert "\n" not in msg and msg.startswith(str(f) + where) and what in msg
