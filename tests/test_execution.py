@@ -249,3 +249,23 @@ def test_bad_disturbance_files_refused_with_one_line(tmp_path, text, where, what
         load_disturbances(f, agents=("a", "b"))
     msg = str(exc.value)
     assert "\n" not in msg and msg.startswith(str(f) + where) and what in msg
+
+
+def test_pictures(tmp_path, warehouse):
+    import matplotlib
+
+    from hierplan_opt.viz.animation import animate, plot_distance, plot_layers
+
+    backend = matplotlib.get_backend()
+    inst, s = warehouse
+    ex = simulate(inst, s, disturbances=[Stop("youbot3", 6.0, at_time=4.0)])
+    fig = plot_distance(ex, inst, tmp_path / "d.png")
+    assert (tmp_path / "d.png").stat().st_size > 0 and fig.axes
+    plot_layers([("one", ex.statistics["handled"])], tmp_path / "l.png")
+    gif = animate(ex, inst, tmp_path / "run.gif", max_frames=6)
+    from PIL import Image
+
+    assert Image.open(gif).n_frames == 6
+    assert matplotlib.get_backend() == backend  # the library never switches it
+    with pytest.raises(InputError, match="gif or .mp4"):
+        animate(ex, inst, tmp_path / "run.avi")

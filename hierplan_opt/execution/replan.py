@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -161,14 +162,11 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     if len(set(starts.values())) < len(starts):
         sim._log(t_r, "-", "replan", "none", 0.0, "two robots would start at one vertex")
         return None
-    for gid in gid2:
-        if extra_blocked[goals[gid]]:
-            sim._log(t_r, sim.names[gid], "replan", "replan", 0.0, "its goal is blocked: it stays")
-            goals[gid] = starts[gid]
     dims = g.shape
     assert dims is not None
     blocked = (~g.passable | extra_blocked).reshape(tuple(reversed(dims)))
     graph = Graph.grid(*dims, blocked=blocked, cell_size=g.cell_size)
+    _substitute_goals(sim, t_r, g, graph, gid2, starts, goals)
     agents = tuple(
         Agent(inst.agents[k].name, starts[k], goals[k], None, inst.agents[k].kinematics)
         for k in gid2
@@ -176,7 +174,9 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     try:
         inst2 = Instance(graph, agents, (), None, f"{inst.name}-replan")
         fn = registry.get(sim.solver).load()
+        t0 = time.perf_counter()
         res = fn(inst2, time_limit=sim.replan_time_limit, seed=0, objective="soc")
+        solve_time = time.perf_counter() - t0
     except HierplanError as exc:
         sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan failed: {exc}")
         return None
@@ -254,9 +254,48 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         "replan",
         0.0,
         f"{reason}: new plan for {len(gid2)} robots ({sim.solver}, cost {res.cost}, "
-        f"{res.runtime:.3g} s)",
+        f"{solve_time:.3g} s)",
     )
     return sched, new_stn, gid2, times
+
+
+def _substitute_goals(
+    sim: _Sim,
+    t_r: float,
+    g: Graph,
+    graph: Graph,
+    gid2: tuple[int, ...],
+    starts: dict[int, int],
+    goals: dict[int, int],
+) -> None:
+    """A robot whose goal is blocked by a broken robot, or cut off from its start,
+    heads for the nearest vertex it can reach instead (logged)."""
+    from hierplan_opt.core.graph import UNREACHABLE
+
+    taken = {goals[k] for k in gid2}
+    for gid in gid2:
+        goal = goals[gid]
+        reach = graph.dist_to(starts[gid]) < UNREACHABLE
+        if graph.passable[goal] and reach[goal]:
+            continue
+        closeness = np.where(reach & graph.passable, g.dist_to(goal), UNREACHABLE).astype(float)
+        for v in taken - {goal}:
+            closeness[v] = np.inf
+        closeness[~(reach & graph.passable)] = np.inf
+        v = int(np.argmin(closeness))
+        if not np.isfinite(closeness[v]):
+            v = starts[gid]
+        taken.discard(goal)
+        taken.add(v)
+        goals[gid] = v
+        sim._log(
+            t_r,
+            sim.names[gid],
+            "replan",
+            "replan",
+            0.0,
+            f"its goal {g.location(goal)} is blocked or cut off: it heads for {g.location(v)}",
+        )
 
 
 def _way(sim: _Sim, gid: int, t_r: float, start: np.ndarray) -> np.ndarray:

@@ -337,23 +337,23 @@ class _Sim:
         if self.policy == "adg":
             targets = np.zeros_like(targets)
         stn = sched.stn
-        start = 0.0
-        while True:
-            self._phase(sched, stn, gid, targets, start)
-            if self.replan_at is None or self.counts["replans"] >= MAX_REPLANS:
-                break
+        self._phase(sched, stn, gid, targets, 0.0)
+        attempts = 0
+        while self.replan_at is not None and attempts < MAX_REPLANS:
             from hierplan_opt.execution.replan import replan
 
+            attempts += 1
             t_r = self.replan_at
             tr = time.perf_counter()
             out = replan(self, t_r)
             self.runtime["replan"] += time.perf_counter() - tr
             self.replan_at = None
             if out is None:
-                break
+                self._resume()
+                continue
             sched, stn, gid, targets = out
-            start = t_r
             self.counts["replans"] += 1
+            self._phase(sched, stn, gid, targets, t_r)
         self.runtime["simulation"] = time.perf_counter() - t0 - self.runtime["replan"]
 
     def _phase(
@@ -391,6 +391,33 @@ class _Sim:
         for d in pend:
             self._push_disturbance(d)
         self.timed = []
+        self._loop()
+        self.phases[-1] = Phase(sched, gid, start, self.t.copy(), self.T.copy(), self.stn)
+
+    def _resume(self) -> None:
+        """A re-plan failed: the robots go on with the running schedule (those that
+        wait for a broken robot wait for good)."""
+        S = self.S
+        self.active[:] = True
+        for j, g in enumerate(self.gid):
+            nodes = S.tpg.agent_nodes(j)
+            if self.broken[g]:
+                continue
+            done = np.flatnonzero(~np.isnan(self.t[nodes.start : nodes.stop]))
+            if not len(done) or int(done[-1]) == len(nodes) - 1:
+                continue
+            last = nodes.start + int(done[-1])
+            if np.isnan(self.phys[last + 1]):
+                self._depart(last + 1, float(self.t[last]), 0.0)
+            else:
+                self._try_push(last + 1)
+        ph = self.phases[-1]
+        self._loop()
+        self.phases[-1] = Phase(
+            ph.schedule, ph.agents, ph.start, self.t.copy(), self.T.copy(), self.stn
+        )
+
+    def _loop(self) -> None:
         while self.heap:
             when, order, _, key, ver = heapq.heappop(self.heap)
             if order == 0:
@@ -399,7 +426,6 @@ class _Sim:
                 self._happen(key, when)
             else:
                 self._disturb(self._dist[key], when)
-        self.phases[-1] = Phase(sched, gid, start, self.t.copy(), self.T.copy(), self.stn)
 
     # ------------------------------------------------------------ heap
     def _push_disturbance(self, d: Stop | Breakdown) -> None:

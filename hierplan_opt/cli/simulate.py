@@ -1,0 +1,136 @@
+"""``hierplan simulate``: execute a plan's schedule under disturbances."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, positive_int
+
+HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
+
+POLICY_HELP = (
+    "slack (absorb by slack), stn (+ incremental STN re-solve), replan (default: "
+    "slack -> stn -> MAPF re-plan), adg (no schedule), naive (ignore the TPG)"
+)
+
+
+def add_execution_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by ``simulate`` and ``run``."""
+    from hierplan_opt.execution.simulate import POLICIES
+
+    p.add_argument("--disturbances", metavar="FILE", help="disturbances YAML file")
+    p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
+    p.add_argument("--mode", choices=("agent",), default="agent", help="agent: constant velocity")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
+    p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
+    p.add_argument("--workers", type=positive_int, metavar="W", help="Monte Carlo processes")
+    p.add_argument(
+        "--replan-solver", default="ecbs", metavar="NAME", help="MAPF solver of re-plans (ecbs)"
+    )
+    p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
+    p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_instance_arguments(p)
+    p.add_argument(
+        "plan",
+        metavar="PLAN|SCHEDULE",
+        help="a plan file (post-processed here) or a schedule file from 'hierplan post'",
+    )
+    p.add_argument("--margin", type=float, default=None, help="extra clearance (m) for a plan")
+    add_execution_arguments(p)
+    p.add_argument("--out", required=True, metavar="REPORT", help="report YAML")
+
+
+def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any, str]:
+    """The schedule to execute: MAPF-POST of a plan file, or of the plan recovered from
+    a schedule file (same objective and margin)."""
+    from hierplan_opt.core.errors import InputError
+    from hierplan_opt.execution.report import plan_from_schedule
+    from hierplan_opt.io import load_plan
+    from hierplan_opt.io._yaml import read_yaml
+    from hierplan_opt.schedule import postprocess
+
+    data = read_yaml(args.plan)
+    rows = data.get("schedule") if isinstance(data, dict) else None
+    first = next(iter(rows.values()), None) if isinstance(rows, dict) and rows else None
+    if isinstance(first, list) and first and isinstance(first[0], dict) and "arrival" in first[0]:
+        stats = data.get("statistics") or {}
+        plan = plan_from_schedule(instance, args.plan, data)
+        margin = float(stats.get("margin", 0.0) or 0.0)
+        if args.margin is not None:
+            margin = args.margin
+        objective = str(stats.get("objective", "makespan"))
+        method = str(stats.get("method", "graph"))
+        try:
+            return postprocess(instance, plan, objective, margin=margin, method=method), "schedule"
+        except InputError as exc:
+            raise InputError(f"{args.plan}: {exc}") from None
+    plan = load_plan(args.plan, instance)
+    return postprocess(instance, plan, margin=args.margin or 0.0), "plan"
+
+
+def execute(args: argparse.Namespace, instance: Any, schedule: Any, title: str) -> int:
+    """Simulate (or Monte Carlo), print the readable report, write REPORT and pictures."""
+    from hierplan_opt.execution import load_disturbances, simulate
+    from hierplan_opt.execution.report import text_report, write_report
+
+    dist = (
+        load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
+        if args.disturbances
+        else []
+    )
+    ex = simulate(
+        instance,
+        schedule,
+        disturbances=dist,
+        policy=args.policy,
+        mode=args.mode,
+        seed=args.seed,
+        solver=args.replan_solver,
+    )
+    report: dict[str, Any] = ex.report()
+    print(text_report(ex, title))
+    if args.runs:
+        from hierplan_opt.execution.montecarlo import monte_carlo
+
+        mc = monte_carlo(
+            instance,
+            schedule,
+            dist,
+            runs=args.runs,
+            workers=args.workers,
+            seed=args.seed,
+            policy=args.policy,
+        )
+        s = mc.summary()
+        report = {"statistics": report["statistics"], "monte_carlo": s, **report}
+        p5, p50, p95 = s["makespan_p5_p50_p95"]
+        print(
+            f"monte carlo: {mc.runs} runs ({s['runs_per_second']:.3g}/s), {mc.collisions} "
+            f"collisions, makespan p5/p50/p95 {p5:.4g}/{p50:.4g}/{p95:.4g} s, on time "
+            f"(min over locations) {s['on_time_min']:.2f}"
+        )
+    if args.out:
+        write_report(args.out, report)
+        print(f"report -> {args.out}")
+    if args.plot:
+        from hierplan_opt.viz.animation import plot_distance
+
+        plot_distance(ex, instance, args.plot)
+    if args.animate:
+        from hierplan_opt.viz.animation import animate
+
+        animate(ex, instance, args.animate)
+    st = ex.statistics
+    return OK if st["collisions"] == 0 and st["distance_kept"] else PLAN_INVALID
+
+
+def run(args: argparse.Namespace) -> int:
+    from hierplan_opt.cli.common import load_instance_from_args
+
+    instance = load_instance_from_args(args)
+    schedule, kind = load_plan_or_schedule(args, instance)
+    return execute(args, instance, schedule, f"{args.plan} ({kind}), {instance.num_agents} robots")

@@ -1,0 +1,152 @@
+"""Readable and YAML reports of executions, and plans recovered from schedule files."""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
+from hierplan_opt.execution.simulate import Execution
+
+
+def text_report(ex: Execution, title: str = "") -> str:
+    """A few readable lines: statistics, then the events and the layer of each."""
+    st = ex.statistics
+    lines = []
+    if title:
+        lines.append(title)
+    lines.append(
+        f"execution ({ex.policy}, {ex.mode} mode): makespan {_f(st['makespan'])} s "
+        f"(planned {_f(st['planned_makespan'])} s), arrivals avg {_f(st['arrival_avg'])} s "
+        f"max {_f(st['arrival_max'])} s, {st['finished']}/{len(ex.agent_names)} robots "
+        "at their goals"
+    )
+    kept = "kept" if st["distance_kept"] else "NOT kept"
+    lines.append(
+        f"safety: {st['collisions']} collisions, min distance {_f(st['min_distance'])} m "
+        f"vs guaranteed {_f(st['guaranteed_distance'])} m ({kept})"
+    )
+    h = st["handled"]
+    rt = st["runtime"]
+    lines.append(
+        f"layers: {len(ex.log)} events; slack {h['slack']}, stn {h['stn']} "
+        f"({st['stn_resolves']} re-solves, {rt['stn'] * 1e3:.3g} ms), replan {h['replan']} "
+        f"({st['replans']} re-plans, {rt['replan']:.3g} s), unhandled {h['none']}"
+    )
+    shown = [e for e in ex.log if e.kind != "random"][:12]
+    randoms = sum(e.kind == "random" for e in ex.log)
+    for e in shown:
+        delay = f", {e.delay:.3g} s late" if math.isfinite(e.delay) and e.delay > 0 else ""
+        lines.append(
+            f"  t={e.time:7.2f} {e.agent:>10} {e.kind:<9} -> {e.layer:<6} {e.detail}{delay}"
+        )
+    if randoms:
+        lines.append(f"  ({randoms} random delays: see the report's events)")
+    if st["unfinished"]:
+        lines.append("not at goal: " + ", ".join(st["unfinished"]))
+    return "\n".join(lines)
+
+
+def _f(x: Any) -> str:
+    return f"{x:.4g}" if isinstance(x, (int, float)) and math.isfinite(x) else str(x)
+
+
+def write_report(path: str | Path, data: dict[str, Any]) -> Path:
+    """Write YAML atomically (a temporary file renamed): never a half-written file."""
+    import yaml
+
+    path = Path(path)
+    text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any]) -> Plan:
+    """A discrete plan with the order of a ``hierplan post`` schedule file.
+
+    Way-points at vertices (integral coordinates on the map) are kept; every distinct
+    arrival time becomes a timestep, so each robot moves at most one edge per step and
+    every location keeps its order of visits. The plan must pass the validator.
+
+    Example
+    -------
+    >>> import tempfile, os
+    >>> from hierplan_opt import Graph
+    >>> from hierplan_opt.schedule import postprocess, read_schedule, write_schedule
+    >>> inst = Instance.mapf(Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
+    >>> f = os.path.join(tempfile.mkdtemp(), "s.yaml")
+    >>> _ = write_schedule(postprocess(inst, Plan.from_paths([[1, 2, 3], [0, 1, 2]])), f)
+    >>> plan_from_schedule(inst, f, read_schedule(f)).paths
+    ((1, 2, 3), (0, 1, 2))
+    """
+    g = instance.graph
+    sched = data.get("schedule")
+    if not isinstance(sched, dict):
+        raise InputError(f"{path}: not a schedule file (no 'schedule' mapping)")
+    visits: list[list[tuple[float, int]]] = []
+    for a in instance.agents:
+        rows = sched.get(a.name)
+        if not isinstance(rows, list) or not rows:
+            raise InputError(f"{path}: the schedule has no way-points for robot {a.name!r}")
+        seq: list[tuple[float, int]] = []
+        for row in rows:
+            try:
+                coords = [row["x"], row["y"]] + ([row["z"]] if "z" in row else [])
+                t = float(row["arrival"])
+            except (KeyError, TypeError, ValueError):
+                raise InputError(
+                    f"{path}: a way-point of {a.name!r} lacks x, y or arrival"
+                ) from None
+            if not all(float(c) == int(float(c)) for c in coords):
+                continue
+            try:
+                v = g.vertex(tuple(int(float(c)) for c in coords))
+            except InputError:
+                raise InputError(
+                    f"{path}: {a.name} passes {coords}, not a vertex of the map"
+                ) from None
+            if not seq or seq[-1][1] != v:
+                seq.append((t, v))
+        visits.append(seq)
+    stamps = np.unique(np.array([t for seq in visits for t, _ in seq]))
+    paths = []
+    for seq in visits:
+        times = np.array([t for t, _ in seq])
+        verts = [v for _, v in seq]
+        idx = np.searchsorted(times, stamps, side="right") - 1
+        paths.append([verts[max(int(i), 0)] for i in idx])
+    plan = Plan.from_paths(paths).trimmed()
+    bad = validate(instance, plan)
+    if bad:
+        raise InputError(
+            f"{path}: the schedule's order is not a valid plan ({bad[0]}); give the plan"
+        )
+    return plan
+
+
+def summary_table(rows: Sequence[Sequence[Any]], header: Sequence[str]) -> str:
+    """A plain aligned text table."""
+    cells = [[str(h) for h in header]] + [
+        [_f(x) if isinstance(x, float) else str(x) for x in r] for r in rows
+    ]
+    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells)
