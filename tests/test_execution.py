@@ -269,3 +269,24 @@ def test_pictures(tmp_path, warehouse):
     assert matplotlib.get_backend() == backend  # the library never switches it
     with pytest.raises(InputError, match="gif or .mp4"):
         animate(ex, inst, tmp_path / "run.avi")
+
+
+def test_bench_resolve_row_matches_a_full_pass():
+    from hierplan_opt.bench.execution import resolve_row
+    from hierplan_opt.io.movingai import load_map, load_scen
+
+    g = load_map(str(ROOT / "instances/movingai/warehouse-10-20-10-2-1.map"))
+    inst = load_scen(str(ROOT / "instances/movingai/warehouse-10-20-10-2-1-even-1.scen"), g, 20)
+    plan = hp.solve(inst, "ecbs", w=1.5, time_limit=60).plan
+    s = postprocess(inst, plan, check_plan=False)
+    row = resolve_row(inst, plan, s, 1.5, 1)  # asserts incremental == full pass
+    assert row["pushed"] >= 1 and row["replan_ok"]
+
+
+@pytest.mark.slow
+def test_bench_execution_quick(capsys):
+    from hierplan_opt.bench.execution import main
+
+    assert main(["--quick"]) == 0
+    out = capsys.readouterr().out
+    assert "STN re-solve" in out and "runs/s" in out and "replan" in out

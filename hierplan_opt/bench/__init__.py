@@ -22,6 +22,7 @@ AREAS = {
     "teams": "CBM and max-flow on warehouse-like TAPF instances",
     "formulations": "MIP and CP-SAT model sizes and time to optimum vs CBS",
     "post": "MAPF-POST: TPG/STN size and time, graph vs LP",
+    "execution": "execution: STN re-solve vs re-plan, Monte Carlo runs/s, layers per delay rate",
 }
 
 

@@ -1,0 +1,198 @@
+"""``hierplan bench execution``: what each execution layer costs and buys.
+
+Three tables:
+
+1. **STN re-solve after one delay** (MovingAI warehouse, ECBS plans, point robots):
+   one robot's next event in the middle of the plan is made late by its slack plus 5 s;
+   the incremental re-solve (``rebound`` + ``fix_and_propagate``, as the ``stn`` layer
+   runs it) is timed against a full earliest-times pass on the same STN and against a
+   MAPF re-plan (ECBS, same ``w``) from the robots' plan positions at that moment to
+   their goals. Target: re-solve under 50 ms at 300 robots.
+2. **Monte Carlo throughput**: runs per second of :func:`monte_carlo` (random delays,
+   policy ``replan``) at 50 and 300 robots, in one process and in ``--workers``.
+3. **Layers on the paper's warehouse** (``warehouse-part1.yaml``): share of random
+   delays handled by slack, STN re-solve and re-plan at three delay rates, with
+   delivery windows (each robot due 10 % after its planned arrival) so that large
+   delays make the STN inconsistent and escalate to a re-plan.
+
+Figures are medians over ``--repeats``; plans are made once per robot count.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hierplan_opt.core.instance import Instance
+
+
+def _say(line: str) -> None:
+    print(line)  # noqa: T201
+
+
+def _median(fn, repeats: int) -> float:  # noqa: ANN001
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def _delay_point(schedule) -> tuple[int, float]:  # noqa: ANN001
+    """A node in the middle of the plan on the robot with the most nodes, and its delay."""
+    tpg = schedule.stn.tpg
+    lengths = np.diff(tpg.agent_ptr)
+    j = int(np.argmax(lengths))
+    nodes = tpg.agent_nodes(j)
+    v = nodes.start + len(nodes) // 2
+    return v, float(schedule.slack[v]) + 5.0
+
+
+def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> dict:  # noqa: ANN001
+    """Times of the incremental re-solve, a full pass and a MAPF re-plan (seconds)."""
+    import hierplan_opt as hp
+    from hierplan_opt.execution.simulate import rebound
+    from hierplan_opt.schedule import earliest_times, fix_and_propagate
+
+    stn = schedule.stn
+    v, delay = _delay_point(schedule)
+    times = np.array(schedule.times)
+    release = np.array(stn.release)
+    release[v] = times[v] + delay
+    _ = stn.topo  # built once with the schedule
+
+    def incremental():  # noqa: ANN202
+        new = rebound(stn, release=release)
+        return fix_and_propagate(new, times, {v - 1: float(times[v - 1])}, changed=[v])
+
+    t_inc = _median(incremental, repeats)
+    new_times = incremental()
+    pushed = int(np.count_nonzero(new_times > times + 1e-9))
+    full_stn = stn.with_bounds(release=release)
+    full_stn.__dict__["topo"] = stn.topo
+    t_full = _median(lambda: earliest_times(full_stn), repeats)
+    assert np.allclose(earliest_times(full_stn), new_times)  # the same schedule
+    # The same moment as a MAPF problem: plan positions at the node's step.
+    step = int(stn.tpg.node_step[v])
+    starts = [plan.position(j, step) for j in range(instance.num_agents)]
+    inst2 = Instance(
+        instance.graph,
+        tuple(
+            type(a)(a.name, s, a.goal, None, a.kinematics)
+            for a, s in zip(instance.agents, starts, strict=True)
+        ),
+        (),
+        None,
+        "replan",
+    )
+    t0 = time.perf_counter()
+    res = hp.solve(inst2, "ecbs", w=w, time_limit=120)
+    t_replan = time.perf_counter() - t0
+    return {
+        "resolve": t_inc,
+        "full": t_full,
+        "replan": t_replan,
+        "replan_status": str(res.status),
+        "replan_ok": res.plan is not None,
+        "pushed": pushed,
+        "nodes": stn.num_nodes,
+        "delay": delay,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    from hierplan_opt.bench.post import DEFAULT_MAP, DEFAULT_SCEN, make_plan
+    from hierplan_opt.execution import RandomDelays
+    from hierplan_opt.execution.montecarlo import monte_carlo
+    from hierplan_opt.experiments.data import instances_dir
+    from hierplan_opt.io import load_instance
+    from hierplan_opt.io.movingai import load_map, load_scen
+    from hierplan_opt.schedule import postprocess
+
+    ap = argparse.ArgumentParser(prog="hierplan bench execution", description=__doc__)
+    ap.add_argument("--agents", default="100,200,300", help="robot counts of table 1")
+    ap.add_argument("--mc-agents", default="50,300", help="robot counts of table 2")
+    ap.add_argument("--runs", type=int, default=40, help="Monte Carlo runs per row")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--w", type=float, default=1.5, help="ECBS suboptimality bound")
+    ap.add_argument("--rates", default="0.05,0.1,0.2", help="delay probabilities of table 3")
+    ap.add_argument("--layer-runs", type=int, default=50)
+    ap.add_argument("--quick", action="store_true", help="small sizes (a smoke test)")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.agents, args.mc_agents, args.runs, args.repeats = "20,40", "20", 6, 2
+        args.layer_runs, args.workers = 6, 1
+
+    def shipped(name: str) -> Path:
+        return Path(name) if Path(name).exists() else instances_dir() / name.split("/", 1)[-1]
+
+    graph = load_map(str(shipped(DEFAULT_MAP)))
+    scen = str(shipped(DEFAULT_SCEN))
+    cache: dict[int, tuple] = {}
+
+    def setup(k: int) -> tuple:
+        if k not in cache:
+            inst = load_scen(scen, graph, agents=k)
+            plan, planner = make_plan(inst, w=args.w)
+            cache[k] = (inst, plan, postprocess(inst, plan, check_plan=False), planner)
+        return cache[k]
+
+    _say(f"1. STN re-solve after one delay ({Path(DEFAULT_MAP).name}, medians of {args.repeats})")
+    _say(
+        f"{'K':>4} {'planner':>10} {'nodes':>7} {'pushed':>7} {'resolve ms':>10} "
+        f"{'full ms':>8} {'replan s':>9} {'speed-up':>9}"
+    )
+    for k in [int(x) for x in args.agents.split(",") if x]:
+        inst, plan, s, planner = setup(k)
+        r = resolve_row(inst, plan, s, args.w, args.repeats)
+        _say(
+            f"{k:>4} {planner:>10} {r['nodes']:>7} {r['pushed']:>7} {r['resolve'] * 1e3:>10.2f} "
+            f"{r['full'] * 1e3:>8.2f} {r['replan']:>9.3f} {r['replan'] / r['resolve']:>8.0f}x"
+            + ("" if r["replan_ok"] else f"  (re-plan {r['replan_status']})")
+        )
+    _say(f"\n2. Monte Carlo throughput (random delays p=0.05, exp. mean 2 s; {args.runs} runs)")
+    _say(f"{'K':>4} {'workers':>7} {'runs/s':>8} {'collisions':>10}")
+    delays = [RandomDelays(0.05, "exponential", 2.0)]
+    for k in [int(x) for x in args.mc_agents.split(",") if x]:
+        inst, plan, s, _ = setup(k)
+        for w in sorted({1, args.workers}):
+            mc = monte_carlo(inst, s, delays, runs=args.runs, workers=w, progress=False)
+            _say(f"{k:>4} {w:>7} {mc.runs_per_second:>8.2f} {mc.collisions:>10}")
+    wh = load_instance(shipped("instances/paper/warehouse-part1.yaml"))
+    import hierplan_opt as hp
+
+    plan = hp.solve(wh, "cbm", time_limit=60).plan
+    assert plan is not None
+    plain = postprocess(wh, plan, check_plan=False)
+    # Delivery windows: every robot due 10 % after its planned arrival.
+    names, wps = plain.agent_names, plain.waypoints
+    due = {n: float(w.arrival[-1]) * 1.1 for n, w in zip(names, wps, strict=True)}
+    s = postprocess(wh, plan, check_plan=False, deadlines=due)
+    _say(
+        f"\n3. Layers on warehouse-part1 (12 robots, {args.layer_runs} runs per rate, policy "
+        "replan, delays exp. mean 2 s, each robot due 10 % after its planned arrival)"
+    )
+    _say(f"{'p':>5} {'delays':>7} {'slack':>7} {'stn':>7} {'replan':>7} {'makespan+':>10} {'collisions':>10}")
+    for p in [float(x) for x in args.rates.split(",") if x]:
+        mc = monte_carlo(
+            wh,
+            s,
+            [RandomDelays(p, "exponential", 2.0)],
+            runs=args.layer_runs,
+            workers=args.workers,
+            progress=False,
+        )
+        h = mc.handled
+        total = max(1, sum(h.values()))
+        _say(
+            f"{p:>5.2f} {total:>7} {h.get('slack', 0) / total:>7.1%} "
+            f"{h.get('stn', 0) / total:>7.1%} {h.get('replan', 0) / total:>7.1%} "
+            f"{float(np.nanmean(mc.delays)):>9.2f}s {mc.collisions:>10}"
+        )
+    return 0
