@@ -178,7 +178,10 @@ def main(argv: list[str] | None = None) -> int:
         f"\n3. Layers on warehouse-part1 (12 robots, {args.layer_runs} runs per rate, policy "
         "replan, delays exp. mean 2 s, each robot due 10 % after its planned arrival)"
     )
-    _say(f"{'p':>5} {'delays':>7} {'slack':>7} {'stn':>7} {'replan':>7} {'makespan+':>10} {'collisions':>10}")
+    _say(
+        f"{'p':>5} {'delays':>7} {'slack':>7} {'stn':>7} {'replan':>7} {'makespan+':>10} "
+        f"{'collisions':>10}"
+    )
     for p in [float(x) for x in args.rates.split(",") if x]:
         mc = monte_carlo(
             wh,

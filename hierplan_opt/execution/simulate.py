@@ -61,12 +61,13 @@ from hierplan_opt.schedule.tpg import VERTEX, WAIT
 
 log = logging.getLogger(__name__)
 
-POLICIES = ("slack", "stn", "replan", "adg", "naive")
+POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
 MODES = ("agent",)
 LAYERS = {
     "slack": ("slack",),
     "stn": ("slack", "stn"),
     "replan": ("slack", "stn", "replan"),
+    "reorder": ("slack", "reorder", "stn", "replan"),
     "adg": ("slack",),
     "naive": ("slack",),
 }
@@ -317,7 +318,13 @@ class _Sim:
         self.broken = np.zeros(self.K, dtype=bool)
         self.arrival = np.full(self.K, np.nan)
         self.log: list[Event] = []
-        self.runtime = {"slack": 0.0, "stn": 0.0, "replan": 0.0, "simulation": 0.0}
+        self.runtime = {
+            "slack": 0.0,
+            "reorder": 0.0,
+            "stn": 0.0,
+            "replan": 0.0,
+            "simulation": 0.0,
+        }
         self.counts = {"stn_resolves": 0, "replans": 0, "reorders": 0}
         self.phases: list[Phase] = []
         self.replan_at: float | None = None
@@ -365,6 +372,10 @@ class _Sim:
         self.gid = gid
         n = stn.num_nodes
         self.T = targets.copy()
+        self.T0 = targets.copy()
+        from hierplan_opt.execution.reorder import arc_locks
+
+        self.locks = arc_locks(stn)
         self.latest = (
             np.maximum(sched.latest, self.T) if self.policy != "adg" else np.full(n, np.inf)
         )
@@ -508,6 +519,12 @@ class _Sim:
                         extra += x
                         events.append(("random", f"delayed {x:.3g} s"))
         self._depart(v + 1, when, extra)
+        if np.isnan(self.phys[v + 1]):  # beyond a re-planning frontier
+            for kind, detail in events:
+                self._log(
+                    when, self.names[g], kind, "replan", extra, detail + "; re-plan under way"
+                )
+            return
         for kind, detail in events:
             self._react(g, v + 1, kind, detail, when)
 
@@ -573,9 +590,25 @@ class _Sim:
             self.runtime["slack"] += time.perf_counter() - t0
             return
         self.runtime["slack"] += time.perf_counter() - t0
+        if "reorder" in self.layers:
+            from hierplan_opt.execution.reorder import try_reorder
+
+            t1 = time.perf_counter()
+            switched = try_reorder(self, now)
+            self.runtime["reorder"] += time.perf_counter() - t1
+            if switched:
+                self._log(
+                    now,
+                    name,
+                    kind,
+                    "reorder",
+                    late,
+                    f"{detail}; {switched} passing order(s) switched",
+                )
+                return
         t1 = time.perf_counter()
         try:
-            self._resolve(n)
+            self._resolve(n, now)
         except InconsistentSTNError as exc:
             self.runtime["stn"] += time.perf_counter() - t1
             if "replan" in self.layers:
@@ -587,7 +620,7 @@ class _Sim:
         self.runtime["stn"] += time.perf_counter() - t1
         self._log(now, name, kind, "stn", late, f"{detail}; STN re-solved")
 
-    def _resolve(self, n: int) -> None:
+    def _resolve(self, n: int, now: float) -> None:
         """Incremental STN re-solve: ``n``'s release raised to when the robot can be
         there, executed events fixed, successors pushed (topological order)."""
         stn = self.stn
@@ -604,9 +637,42 @@ class _Sim:
         # Robots heading to a node whose target moved slow down from now on.
         for v in changed.tolist():
             if not np.isnan(self.phys[v]) and self.T[v] > self.phys[v]:
+                g = self.gid[self._agent_of(v)]
+                if self.traj[g] and self.traj[g][-1][0] < now < self.phys[v]:
+                    self._record(g, now, self.traj_pos(g, now, v))
                 self.phys[v] = float(self.T[v])
                 if self.in_heap[v]:
                     self._try_push(v)
+
+    def install(self, stn: STN, locks: np.ndarray, targets: np.ndarray, now: float) -> None:
+        """Run on with another STN of the same nodes (switched passing orders) and new
+        targets: Type-2 counts are rebuilt from the events that happened; robots on
+        their way change speed from ``now`` on."""
+        self.stn = stn
+        self.locks = locks
+        self.S = _Structure(stn, self.instance, self.slows)
+        happened = ~np.isnan(self.t)
+        cross = self.S.cross & ~happened[stn.arc_src]
+        self.remaining = np.bincount(stn.arc_dst[cross], minlength=stn.num_nodes).astype(np.int64)
+        old_T = self.T
+        self.T = np.where(happened, self.T, targets)
+        for v in np.flatnonzero(~happened & ~np.isnan(self.phys)).tolist():
+            arrive = float(self.phys[v])
+            if now < arrive and self.T[v] != old_T[v]:
+                g = self.gid[self._agent_of(v)]
+                t_last = self.traj[g][-1][0] if self.traj[g] else now
+                depart = max(now, t_last)
+                here = self.traj_pos(g, depart, v)
+                if now > t_last:
+                    self._record(g, now, here)
+                piece = float(np.linalg.norm(self._pos(v) - self._pos(v - 1)))
+                left = float(np.linalg.norm(self._pos(v) - here))
+                rest = left / piece if piece > 0 else 0.0
+                fastest = depart + rest * float(self.piece_lb[v])
+                self.phys[v] = max(float(self.T[v]), fastest)
+            self.version[v] += 1
+            self.in_heap[v] = False
+            self._try_push(v)
 
     def _request_replan(self, now: float, reason: str) -> None:
         if self.replan_at is None:
