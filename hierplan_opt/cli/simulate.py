@@ -11,7 +11,8 @@ HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-p
 
 POLICY_HELP = (
     "slack (absorb by slack), stn (+ incremental STN re-solve), replan (default: "
-    "slack -> stn -> MAPF re-plan), adg (no schedule), naive (ignore the TPG)"
+    "slack -> stn -> MAPF re-plan), reorder (+ switch passing orders first), adg (no "
+    "schedule), naive (ignore the TPG)"
 )
 
 

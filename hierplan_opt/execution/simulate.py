@@ -27,6 +27,8 @@ Policies (``POLICIES``) and the layers they may use:
 * ``replan`` (default; the hierarchy slack -> stn -> replan): as ``stn``, and an
   inconsistent STN or a breakdown that blocks other robots triggers a MAPF re-plan
   (:mod:`.replan`) from the robots' current positions;
+* ``reorder``: as ``replan``, and before an STN re-solve it tries to switch passing
+  orders at shared locations (:mod:`.reorder`, the switchable ADG);
 * ``adg``: no schedule: each node as soon as its dependencies allow (action
   dependency graph);
 * ``naive``: follow the clock, ignore the Type-2 dependencies (collides under delays).
@@ -818,7 +820,7 @@ def simulate(
     disturbances : sequence
         :class:`~.disturbances.Stop`, :class:`~.disturbances.Breakdown`,
         :class:`~.disturbances.Slow`, :class:`~.disturbances.RandomDelays`.
-    policy : {"slack", "stn", "replan", "adg", "naive"}
+    policy : {"slack", "stn", "replan", "reorder", "adg", "naive"}
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
     mode : {"agent", "robot"}
         ``agent``: constant velocity between way-points; ``robot``: bounded
