@@ -306,3 +306,24 @@ def test_reorder_lets_the_robot_behind_a_late_one_pass_first():
     assert ex.statistics["reorders"] == 1 and ex.log[0].layer == "reorder"
     phase = ex.phases[0]
     assert phase.stn.topo.is_dag and check_bounds(phase.stn, phase.times) == []
+
+
+@pytest.mark.parametrize("policy", ["slack", "stn", "adg"])
+def test_robot_mode_keeps_limits_and_distance(warehouse, policy):
+    inst, s = warehouse
+    dist = [RandomDelays(0.2, "exponential", 2.0), Stop("youbot3", 6.0, at_time=4.0)]
+    agent = simulate(inst, s, disturbances=dist, policy=policy, seed=2)
+    ex = simulate(inst, s, disturbances=dist, policy=policy, seed=2, mode="robot", dt=0.05)
+    st = ex.statistics
+    assert st["collisions"] == 0 and st["distance_kept"] and st["finished"] == inst.num_agents
+    assert st["makespan"] >= agent.statistics["makespan"] - 1e-6  # accelerating costs time
+    for a, tr in zip(inst.agents, ex.trajectories, strict=True):
+        dt = np.diff(tr[:, 0])
+        speed = np.linalg.norm(np.diff(tr[:, 1:], axis=0), axis=1) * s.scale / dt
+        assert speed.max() <= a.kinematics.v_max * (1 + 1e-6)
+
+
+def test_robot_mode_refuses_replans(warehouse):
+    inst, s = warehouse
+    with pytest.raises(InputError, match="robot mode"):
+        simulate(inst, s, disturbances=[Breakdown("youbot8", 10.0)], mode="robot")

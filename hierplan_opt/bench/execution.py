@@ -172,7 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     plain = postprocess(wh, plan, check_plan=False)
     # Delivery windows: every robot due 10 % after its planned arrival.
     names, wps = plain.agent_names, plain.waypoints
-    due = {n: float(w.arrival[-1]) * 1.1 for n, w in zip(names, wps, strict=True)}
+    due: dict[str | int, float] = {
+        n: float(w.arrival[-1]) * 1.1 for n, w in zip(names, wps, strict=True)
+    }
     s = postprocess(wh, plan, check_plan=False, deadlines=due)
     _say(
         f"\n3. Layers on warehouse-part1 (12 robots, {args.layer_runs} runs per rate, policy "

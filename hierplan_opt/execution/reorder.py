@@ -171,16 +171,16 @@ def _solve(
     ms = 1000.0
     big = int(ms * (float(np.nanmax(T)) + 10 * HORIZON + 1e4))
     m = cp_model.CpModel()
-    t = [m.NewIntVar(0, big, f"t{v}") for v in nodes]
+    t = [m.new_int_var(0, big, f"t{v}") for v in nodes]
     for v in nodes:
         lo = now if not happened[v] else float(sim.t[v])
         if not happened[v] and not np.isnan(sim.phys[v]):
             lo = max(lo, float(sim.phys[v]))
         if happened[v]:
-            m.Add(t[idx[v]] == int(round(lo * ms)))
+            m.add(t[idx[v]] == int(round(lo * ms)))
         else:
-            m.Add(t[idx[v]] >= int(np.ceil(lo * ms - 1e-6)))
-    x = [m.NewBoolVar(f"x{i}") for i in range(len(pairs))]
+            m.add(t[idx[v]] >= int(np.ceil(lo * ms - 1e-6)))
+    x = [m.new_bool_var(f"x{i}") for i in range(len(pairs))]
     owners: dict[int, list[int]] = {}
     for i, p in enumerate(pairs):
         for k in (p.arc, p.before, p.after):
@@ -191,7 +191,7 @@ def _solve(
         by_lock.setdefault(p.lock, []).append(i)
     for group in by_lock.values():
         if len(group) > 1:
-            m.Add(sum(x[i] for i in group) <= 1)
+            m.add(sum(x[i] for i in group) <= 1)
     inside = np.zeros(stn.num_nodes, dtype=bool)
     inside[nodes] = True
     arcs = np.flatnonzero(inside[stn.arc_src] & inside[stn.arc_dst])
@@ -200,13 +200,13 @@ def _solve(
         return int(np.ceil(float(stn.lb[k]) * ms - 1e-6))
 
     def arc(u: int, v: int, lb: int, cond: list) -> None:  # noqa: ANN001
-        c = m.Add(t[idx[v]] >= t[idx[u]] + lb)
+        c = m.add(t[idx[v]] >= t[idx[u]] + lb)
         if cond:
-            c.OnlyEnforceIf(cond)
+            c.only_enforce_if(cond)
 
     for k in arcs.tolist():
         u, v = int(stn.arc_src[k]), int(stn.arc_dst[k])
-        arc(u, v, lb_ms(k), [x[i].Not() for i in owners.get(k, [])])
+        arc(u, v, lb_ms(k), [~x[i] for i in owners.get(k, [])])
     for i, p in enumerate(pairs):
         arc(p.b_leave, p.a_enter, lb_ms(p.arc), [x[i]])
         if p.before >= 0:
@@ -219,23 +219,23 @@ def _solve(
     agents = tpg.node_agent[node_set]
     for j in np.unique(agents).tolist():
         lasts.append(int(node_set[agents == j].max()))
-    m.Minimize(sum(t[idx[v]] for v in lasts))
+    m.minimize(sum(t[idx[v]] for v in lasts))
     solver = cp_model.CpSolver()
     solver.parameters.max_time_in_seconds = TIME_LIMIT
     solver.parameters.num_workers = 1
     solver.parameters.random_seed = 0
-    m.AddAssumptions([xi.Not() for xi in x])  # first: the current orders
-    status = solver.Solve(m)
+    m.add_assumptions([~xi for xi in x])  # first: the current orders
+    status = solver.solve(m)
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
         return []
-    base = solver.ObjectiveValue()
-    m.ClearAssumptions()
-    status = solver.Solve(m)
+    base = solver.objective_value
+    m.clear_assumptions()
+    status = solver.solve(m)
     if status not in (cp_model.OPTIMAL, cp_model.FEASIBLE):
         return []
-    if solver.ObjectiveValue() > base - GAIN * ms:
+    if solver.objective_value > base - GAIN * ms:
         return []
-    return [i for i in range(len(pairs)) if solver.Value(x[i])]
+    return [i for i in range(len(pairs)) if solver.value(x[i])]
 
 
 def arc_locks(stn: STN) -> np.ndarray:

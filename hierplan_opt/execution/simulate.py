@@ -64,7 +64,7 @@ from hierplan_opt.schedule.tpg import VERTEX, WAIT
 log = logging.getLogger(__name__)
 
 POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
-MODES = ("agent",)
+MODES = ("agent", "robot")
 LAYERS = {
     "slack": ("slack",),
     "stn": ("slack", "stn"),

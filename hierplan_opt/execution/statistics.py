@@ -120,11 +120,15 @@ def finish(
         keep = np.ones(len(t), dtype=bool)
         keep[:-1] = t[1:] > t[:-1] + 1e-12
         traj.append(np.column_stack([t[keep], xy[keep]]))
+    arrival = sim.arrival.copy()
+    if mode == "robot":
+        from hierplan_opt.execution.robot import robot_run
+
+        traj, arrival = robot_run(sim, instance, dt)
     for tr in traj:
         tr.setflags(write=False)
     exe = executed_schedule(sim.names, traj, schedule, policy)
     d_min, collisions, kept, worst = distances(exe, instance)
-    arrival = sim.arrival.copy()
     done = ~np.isnan(arrival)
     handled = Counter(e.layer for e in sim.log)
     stats: dict[str, Any] = {
