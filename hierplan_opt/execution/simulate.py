@@ -508,8 +508,9 @@ class _Sim:
         # Halts at this node: way-point stops, random delays at vertices.
         extra = 0.0
         events: list[tuple[str, str]] = []
-        wp_index = self._waypoint_index(j, v)
-        for d in self.at_wp.get(g, []):
+        stops = self.at_wp.get(g, [])
+        wp_index = self._waypoint_index(j, v) if stops else None
+        for d in stops:
             if wp_index is not None and d.at_waypoint == wp_index and self.phases[-1].start == 0:
                 extra += d.duration
                 events.append(("stop", f"halts {d.duration:g} s at way-point {d.at_waypoint}"))
