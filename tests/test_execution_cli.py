@@ -71,3 +71,16 @@ def test_bad_disturbance_file_one_line(tmp_path: Path, capsys) -> None:
     assert code == 2 and len(lines) == 1, err
     assert f"{bad}:2:" in lines[0] and "duration" in lines[0]
     assert not out.exists()
+
+
+def test_simulate_robot_mode(tmp_path: Path, capsys) -> None:
+    plan = tmp_path / "plan.yaml"
+    assert main(["solve", WAREHOUSE, "--solver", "cbm", "--out", str(plan)]) == 0
+    out = tmp_path / "r.yaml"
+    argv = ["simulate", WAREHOUSE, str(plan), "--mode", "robot", "--policy", "stn"]
+    code, text, _ = run(capsys, *argv, "--out", str(out))
+    assert code == 0 and "robot mode" in text
+    assert yaml.safe_load(out.read_text())["statistics"]["mode"] == "robot"
+    argv = ["simulate", WAREHOUSE, str(plan), "--mode", "robot", "--disturbances", DISTURBANCES]
+    code, _, err = run(capsys, *argv, "--out", str(tmp_path / "r2.yaml"))
+    assert code == 2 and "robot mode follows one schedule" in err

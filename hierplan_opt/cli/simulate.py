@@ -22,7 +22,12 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
 
     p.add_argument("--disturbances", metavar="FILE", help="disturbances YAML file")
     p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
-    p.add_argument("--mode", choices=("agent",), default="agent", help="agent: constant velocity")
+    p.add_argument(
+        "--mode",
+        choices=("agent", "robot"),
+        default="agent",
+        help="agent: constant velocity; robot: bounded acceleration, turning in place",
+    )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
     p.add_argument("--workers", type=positive_int, metavar="W", help="Monte Carlo processes")
