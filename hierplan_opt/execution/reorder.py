@@ -32,7 +32,7 @@ import numpy as np
 
 from hierplan_opt.schedule.solve_graph import InconsistentSTNError, earliest_times
 from hierplan_opt.schedule.stn import PRECEDENCE, STN
-from hierplan_opt.schedule.tpg import TYPE2
+from hierplan_opt.schedule.tpg import ENTER, LEAVE, TYPE2
 
 if TYPE_CHECKING:
     from hierplan_opt.execution.simulate import _Sim
@@ -43,10 +43,6 @@ log = logging.getLogger(__name__)
 HORIZON = 20.0
 #: CP-SAT time limit per decision (seconds).
 TIME_LIMIT = 1.0
-#: Refuse pairs whose both ends would be substituted vertices (a lone pair at a lock,
-#: robots with a size): our randomized checks found a collision with them that we have
-#: not explained yet; with one substituted end none in 400 runs.
-STRICT = True
 #: Smallest improvement of the objective worth a switch (seconds).
 GAIN = 1e-3
 
@@ -84,8 +80,8 @@ def _claim_ends(stn: STN, sim: _Sim, arc: int) -> _Pair | None:
     after = int(same[out_b][np.argmin(src[out_b])]) if out_b.any() else -1
     if plain:
         a_enter, b_leave = u, w
-    elif STRICT and before < 0 and after < 0:
-        return None
+    elif int(tpg.node_kind[u]) != LEAVE or int(tpg.node_kind[w]) != ENTER:
+        return None  # an arc of an earlier switch (vertex to vertex): not a claim's ends
     else:
         a_enter = int(stn.arc_dst[before]) if before >= 0 else int(S.last_vertex[u])
         if before < 0:
