@@ -41,7 +41,7 @@ from hierplan_opt.schedule import check_bounds, postprocess
 from hierplan_opt.viz.animation import plot_distance, plot_layers
 
 
-def show(fig) -> None:  # noqa: ANN001
+def show(fig) -> None:
     """Display a matplotlib Figure made without pyplot, as a small PNG."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=70)

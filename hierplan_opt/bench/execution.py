@@ -31,10 +31,10 @@ from hierplan_opt.core.instance import Instance
 
 
 def _say(line: str) -> None:
-    print(line)  # noqa: T201
+    print(line)
 
 
-def _median(fn, repeats: int) -> float:  # noqa: ANN001
+def _median(fn, repeats: int) -> float:
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
@@ -43,7 +43,7 @@ def _median(fn, repeats: int) -> float:  # noqa: ANN001
     return statistics.median(times)
 
 
-def _delay_point(schedule) -> tuple[int, float]:  # noqa: ANN001
+def _delay_point(schedule) -> tuple[int, float]:
     """A node in the middle of the plan on the robot with the most nodes, and its delay."""
     tpg = schedule.stn.tpg
     lengths = np.diff(tpg.agent_ptr)
@@ -53,7 +53,7 @@ def _delay_point(schedule) -> tuple[int, float]:  # noqa: ANN001
     return v, float(schedule.slack[v]) + 5.0
 
 
-def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> dict:  # noqa: ANN001
+def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> dict:
     """Times of the incremental re-solve, a full pass and a MAPF re-plan (seconds)."""
     import hierplan_opt as hp
     from hierplan_opt.execution.simulate import rebound
@@ -66,7 +66,7 @@ def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> d
     release[v] = times[v] + delay
     _ = stn.topo  # built once with the schedule
 
-    def incremental():  # noqa: ANN202
+    def incremental():
         new = rebound(stn, release=release)
         return fix_and_propagate(new, times, {v - 1: float(times[v - 1])}, changed=[v])
 

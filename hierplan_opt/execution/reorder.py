@@ -195,7 +195,7 @@ def _solve(
     def lb_ms(k: int) -> int:
         return int(np.ceil(float(stn.lb[k]) * ms - 1e-6))
 
-    def arc(u: int, v: int, lb: int, cond: list) -> None:  # noqa: ANN001
+    def arc(u: int, v: int, lb: int, cond: list) -> None:
         c = m.add(t[idx[v]] >= t[idx[u]] + lb)
         if cond:
             c.only_enforce_if(cond)

@@ -168,7 +168,7 @@ def robot_run(sim: _Sim, instance: Instance, dt: float) -> tuple[list[np.ndarray
     return out, arrival
 
 
-def _coords(tpg, idx: np.ndarray, s_nodes: np.ndarray, s: float) -> np.ndarray:  # noqa: ANN001
+def _coords(tpg, idx: np.ndarray, s_nodes: np.ndarray, s: float) -> np.ndarray:
     """Instance coordinates at path length ``s`` (straight pieces between nodes)."""
     k = int(np.searchsorted(s_nodes, s, side="right")) - 1
     k = min(max(k, 0), len(idx) - 1)
