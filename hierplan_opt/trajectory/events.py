@@ -1,0 +1,348 @@
+"""The schedule's events as refinement sees them: an adapter over ``hierplan_opt.schedule``.
+
+Refinement needs, for every robot, its STN events in path order (vertices and the
+safety markers that carry a precedence) with their positions and scheduled times, and
+the precedences *between* robots (the Type-2 arcs). :class:`EventNetwork` collects
+exactly that from the public parts of a :class:`~hierplan_opt.schedule.Schedule` (its
+``stn``, ``times`` and way-points), so the rest of :mod:`hierplan_opt.trajectory`
+never reads the temporal plan graph's internals.
+
+A schedule *file* holds way-points and arrival times but not the STN. :func:`from_file`
+rebuilds it: the discrete plan is recovered from the vertex way-points (a robot's
+visits ranked by arrival time give the order of visits at every location, which is all
+the temporal plan graph uses), validated, and post-processed again with the file's
+``delta``; the file's arrival times then replace the recomputed ones, after a check that
+the way-points match and that the times respect every precedence.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.instance import Instance
+
+log = logging.getLogger(__name__)
+
+#: Tolerance (seconds, metres) for matching a file against the rebuilt schedule.
+MATCH_TOL = 1e-5
+
+
+@dataclass(frozen=True, eq=False)
+class EventNetwork:
+    """STN events per robot and the precedences between robots (read-only arrays).
+
+    Attributes
+    ----------
+    agent_names : tuple of str
+    agent_ptr : (K+1,) int
+        Events of robot ``j`` are ``agent_ptr[j]:agent_ptr[j+1]``, in path order.
+    agent : (N,) int
+        Owner of every event.
+    kind : tuple of str
+        ``"vertex"``, ``"leave"`` or ``"enter"`` (the marker kinds of the schedule), or
+        ``"follow"`` for points added by :mod:`.following`.
+    pos : (N, dim) float
+        Position in metres.
+    coord : (N, dim) float
+        Position in instance coordinates (for messages).
+    times : (N,) float
+        Scheduled time of every event (a consistent solution of the STN).
+    earliest, latest : (N,) float
+        Earliest and latest times of the STN, ``latest`` against the makespan of
+        ``times``; both contain ``times``.
+    release, deadline : (N,) float
+        Node bounds of the STN.
+    arc_src, arc_dst : (M,) int
+        Precedences between events of *different* robots: ``lb <= t_dst - t_src <= ub``.
+    arc_lb, arc_ub : (M,) float
+    waypoint : (N,) int
+        Index of the event among its robot's way-points in the schedule (which also
+        lists the ends of turns in place).
+    scale : float
+        Metres per instance coordinate unit.
+    safety_distance : float
+        The schedule's guaranteed distance between robot centres.
+    """
+
+    agent_names: tuple[str, ...]
+    agent_ptr: np.ndarray
+    agent: np.ndarray
+    kind: tuple[str, ...]
+    pos: np.ndarray
+    coord: np.ndarray
+    times: np.ndarray
+    earliest: np.ndarray
+    latest: np.ndarray
+    release: np.ndarray
+    deadline: np.ndarray
+    arc_src: np.ndarray
+    arc_dst: np.ndarray
+    arc_lb: np.ndarray
+    arc_ub: np.ndarray
+    waypoint: np.ndarray
+    scale: float
+    safety_distance: float
+    label: Callable[[int], str]
+
+    @property
+    def num_agents(self) -> int:
+        return len(self.agent_names)
+
+    @property
+    def num_events(self) -> int:
+        return len(self.agent)
+
+    @property
+    def dim(self) -> int:
+        return int(self.pos.shape[1])
+
+    @property
+    def makespan(self) -> float:
+        return float(self.times[self.agent_ptr[1:] - 1].max()) if self.num_events else 0.0
+
+    def events(self, j: int) -> range:
+        """Event ids of robot ``j`` in path order."""
+        return range(int(self.agent_ptr[j]), int(self.agent_ptr[j + 1]))
+
+    def where(self, v: int) -> str:
+        """``agent3 way-point 5 at (2, 0.25)``: a name for event ``v`` in messages."""
+        j = int(self.agent[v])
+        idx = int(self.waypoint[v])
+        c = ", ".join(f"{x:.6g}" for x in self.coord[v])
+        if idx < 0:
+            return f"{self.agent_names[j]} {self.kind[v]} point at ({c})"
+        return f"{self.agent_names[j]} way-point {idx} ({self.kind[v]} at ({c}))"
+
+
+def from_schedule(schedule) -> EventNetwork:  # noqa: ANN001 - a hierplan_opt.schedule.Schedule
+    """The events of an in-memory schedule (it must carry its STN).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.plan import Plan
+    >>> from hierplan_opt.schedule import postprocess
+    >>> g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
+    >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)])
+    >>> plan = Plan.from_paths([[3, 4, 5], [1, 1, 4, 7]])
+    >>> net = from_schedule(postprocess(inst, plan, delta=0.25))
+    >>> net.num_events, [net.where(int(v)) for v in net.arc_src]
+    (8, ['agent0 way-point 2 (leave at (1.25, 1))'])
+    """
+    stn = getattr(schedule, "stn", None)
+    if stn is None:
+        raise InputError("the schedule carries no STN (read a file with from_file instead)")
+    waypoint = np.zeros(stn.tpg.num_nodes, dtype=np.int64)
+    for wp in schedule.waypoints:
+        node = np.asarray(wp.node)
+        keep = node >= 0
+        waypoint[node[keep]] = np.flatnonzero(keep)
+    return _from_stn(
+        stn,
+        np.asarray(schedule.times, dtype=float),
+        waypoint,
+        scale=float(schedule.scale),
+        safety_distance=float(schedule.safety_distance),
+        names=tuple(schedule.agent_names),
+    )
+
+
+def _from_stn(
+    stn,  # noqa: ANN001 - hierplan_opt.schedule.STN
+    times: np.ndarray,
+    waypoint: np.ndarray,
+    *,
+    scale: float,
+    safety_distance: float,
+    names: tuple[str, ...],
+) -> EventNetwork:
+    from hierplan_opt.schedule import bellman_ford, earliest_times, latest_times
+
+    tpg = stn.tpg
+    agent = np.asarray(tpg.node_agent, dtype=np.int64)
+    src = np.asarray(stn.arc_src, dtype=np.int64)
+    dst = np.asarray(stn.arc_dst, dtype=np.int64)
+    inter = agent[src] != agent[dst]
+    finals = np.asarray(tpg.agent_ptr[1:], dtype=np.int64) - 1
+    horizon = float(times[finals].max()) if len(finals) else 0.0
+    if stn.has_upper_bounds:
+        earliest, latest_fn = bellman_ford(stn)
+        latest = latest_fn(horizon)
+    else:
+        earliest = earliest_times(stn)
+        latest = latest_times(stn, horizon)
+    earliest = np.asarray(earliest, dtype=float)
+    latest = np.asarray(latest, dtype=float)
+    off = np.maximum(earliest - times, times - latest)
+    if len(off) and float(off.max()) > 1e-6:
+        v = int(np.argmax(off))
+        log.warning(
+            "scheduled time %.6g of %s lies outside its STN range [%.6g, %.6g]; widened",
+            times[v],
+            tpg.label(v),
+            earliest[v],
+            latest[v],
+        )
+    kinds = ("vertex", "leave", "enter")
+    net = EventNetwork(
+        agent_names=names,
+        agent_ptr=np.asarray(tpg.agent_ptr, dtype=np.int64),
+        agent=agent,
+        kind=tuple(kinds[int(k)] if 0 <= int(k) < 3 else str(k) for k in tpg.node_kind),
+        pos=np.asarray(tpg.node_pos, dtype=float),
+        coord=np.asarray(tpg.node_coord, dtype=float),
+        times=times.copy(),
+        earliest=np.minimum(earliest, times),
+        latest=np.maximum(latest, times),
+        release=np.asarray(stn.release, dtype=float),
+        deadline=np.asarray(stn.deadline, dtype=float),
+        arc_src=src[inter],
+        arc_dst=dst[inter],
+        arc_lb=np.asarray(stn.lb, dtype=float)[inter],
+        arc_ub=np.asarray(stn.ub, dtype=float)[inter],
+        waypoint=waypoint,
+        scale=scale,
+        safety_distance=safety_distance,
+        label=tpg.label,
+    )
+    for name in net.__dataclass_fields__:
+        val = getattr(net, name)
+        if isinstance(val, np.ndarray):
+            val.setflags(write=False)
+    return net
+
+
+# ---------------------------------------------------------------------- files
+def from_file(instance: Instance, path: str | Path) -> EventNetwork:
+    """The events of a schedule file written by ``hierplan post`` (YAML, JSON or CSV).
+
+    Raises :class:`InputError` with one line naming the file when the schedule does
+    not belong to ``instance`` or its times break a precedence.
+    """
+    from hierplan_opt.schedule import postprocess, read_schedule
+
+    path = Path(path)
+    data = read_schedule(path)
+    stats = data.get("statistics") or {}
+    sched = data["schedule"]
+    if not isinstance(sched, dict):
+        raise InputError(f"{path}: 'schedule' must map agent names to way-point lists")
+    g = instance.graph
+    names = [a.name for a in instance.agents]
+    missing = [n for n in names if n not in sched]
+    extra = [n for n in sched if n not in names]
+    if missing or extra:
+        what = f"no way-points for {missing[0]!r}" if missing else f"unknown agent {extra[0]!r}"
+        raise InputError(f"{path}: {what} (the schedule does not belong to this instance)")
+    axes = ("x", "y", "z")[: g.dim]
+    lookup = {tuple(np.round(c, 6).tolist()): v for v, c in enumerate(g.coords)}
+    rows: list[np.ndarray] = []
+    arrivals: list[np.ndarray] = []
+    kinds: list[list[str | None]] = []
+    for name in names:
+        wps = sched[name]
+        if not isinstance(wps, list) or not wps:
+            raise InputError(f"{path}: agent {name!r} has no way-points")
+        try:
+            c = np.array([[float(w[a]) for a in axes] for w in wps], dtype=float)
+            t = np.array([float(w["arrival"]) for w in wps], dtype=float)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"{path}: agent {name!r}: bad way-point ({exc})") from None
+        if not (np.isfinite(c).all() and np.isfinite(t).all()):
+            raise InputError(f"{path}: agent {name!r}: non-finite coordinate or time")
+        rows.append(c)
+        arrivals.append(t)
+        kinds.append([w.get("kind") if isinstance(w, dict) else None for w in wps])
+
+    # ---- the discrete plan: vertex visits ranked by arrival time --------------------
+    visits: list[list[tuple[int, float]]] = []
+    for name, c, t, kd in zip(names, rows, arrivals, kinds, strict=True):
+        seq: list[tuple[int, float]] = []
+        for k in range(len(t)):
+            if kd[k] is not None and kd[k] != "vertex":
+                continue
+            v = lookup.get(tuple(np.round(c[k], 6).tolist()))
+            if v is None:
+                if kd[k] == "vertex":
+                    raise InputError(f"{path}: agent {name!r} way-point {k} is not a vertex")
+                continue  # a safety marker between two vertices
+            if seq and seq[-1][0] == v:
+                continue  # the end of a turn in place
+            seq.append((v, float(t[k])))
+        visits.append(seq)
+    all_t = np.round(np.concatenate([[s[1] for s in seq] for seq in visits]), 6)
+    ranks = {x: i for i, x in enumerate(np.unique(all_t).tolist())}
+    paths = []
+    for seq in visits:
+        steps = [ranks[round(s[1], 6)] for s in seq]
+        p: list[int] = []
+        for (v, _), st in zip(seq, steps, strict=True):
+            while len(p) < st:
+                p.append(p[-1] if p else v)
+            p.append(v)
+        paths.append(p)
+    horizon = max(len(p) for p in paths)
+    for p in paths:
+        p.extend([p[-1]] * (horizon - len(p)))
+    from hierplan_opt.core.plan import Plan
+
+    plan = Plan.from_paths(paths)
+    delta = stats.get("delta")
+    if delta is None or not isinstance(delta, (int, float)) or not math.isfinite(delta):
+        raise InputError(f"{path}: statistics.delta is missing (write it with hierplan post)")
+    try:
+        rebuilt = postprocess(instance, plan, "makespan", delta=float(delta))
+    except InputError as exc:
+        raise InputError(f"{path}: the way-points do not form a valid plan: {exc}") from None
+    stn = rebuilt.stn
+    assert stn is not None
+    tpg = stn.tpg
+
+    # ---- the file's times on the rebuilt events ----------------------------------------
+    times = np.zeros(tpg.num_nodes)
+    waypoint = np.zeros(tpg.num_nodes, dtype=np.int64)
+    for j, (name, c, t, kd) in enumerate(zip(names, rows, arrivals, kinds, strict=True)):
+        nodes = list(tpg.agent_nodes(j))
+        keep = [0]
+        for k in range(1, len(t)):
+            if kd[k] == "turn":
+                continue
+            if kd[k] is None and np.allclose(c[k], c[keep[-1]], atol=1e-9):
+                continue  # the end of a turn in place (YAML carries no kinds)
+            keep.append(k)
+        if len(keep) != len(nodes) or not np.allclose(
+            c[keep], tpg.node_coord[nodes], atol=MATCH_TOL
+        ):
+            raise InputError(
+                f"{path}: the way-points of {name!r} do not match the plan rebuilt from "
+                f"them with delta = {float(delta):g} (was the file written by hierplan post "
+                "for this instance?)"
+            )
+        times[nodes] = t[keep]
+        waypoint[nodes] = keep
+    bad = times[stn.arc_dst] - times[stn.arc_src] < stn.lb - MATCH_TOL
+    inter = tpg.node_agent[stn.arc_src] != tpg.node_agent[stn.arc_dst]
+    if np.any(bad & inter):
+        k = int(np.flatnonzero(bad & inter)[0])
+        raise InputError(
+            f"{path}: the times break the precedence {tpg.label(int(stn.arc_src[k]))} -> "
+            f"{tpg.label(int(stn.arc_dst[k]))}"
+        )
+    safety = stats.get("safety_distance", rebuilt.safety_distance)
+    if not isinstance(safety, (int, float)) or not math.isfinite(safety):
+        safety = rebuilt.safety_distance
+    return _from_stn(
+        stn,
+        times,
+        waypoint,
+        scale=float(rebuilt.scale),
+        safety_distance=float(safety),
+        names=tuple(names),
+    )

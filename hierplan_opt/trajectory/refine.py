@@ -1,0 +1,1031 @@
+"""``refine(instance, schedule) -> Trajectories``: smooth, limited motion for every robot.
+
+Steps (formulations/trajectory.md has the mathematics):
+
+1. the schedule's events and inter-robot precedences (:mod:`.events`);
+2. decoupled windows (:mod:`.windows`), so robots can be refined one by one;
+3. per robot, a problem on a free time grid (:mod:`.model`): ``mode="path"`` keeps the
+   robot on its polyline and optimises its progress (it stops at every corner, and a
+   differential-drive robot turns in place there); ``mode="corridor"`` lets a double
+   integrator cut corners within a corridor of half-width ``c``;
+4. robots whose windows their limits cannot meet are reported with the way-point, and
+   the smallest stretch factor of the schedule that makes every robot feasible is found
+   by bisection (feasibility is monotone in the factor: slowing a feasible trajectory
+   down by ``f' / f`` keeps its speed and acceleration within the limits and maps its
+   event times into the stretched windows).
+
+Checking the result is :func:`hierplan_opt.trajectory.verify.verify`'s job.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from hierplan_opt.core.errors import HierplanError, InputError, OptionError
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.schedule.stn import accel_time
+from hierplan_opt.trajectory.events import EventNetwork, from_schedule
+from hierplan_opt.trajectory.following import add_following
+from hierplan_opt.trajectory.model import SOLVERS, SolveResult, grid_size
+from hierplan_opt.trajectory.model import path_ocp as _path_ocp
+from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories
+from hierplan_opt.trajectory.windows import Windows, decouple
+
+log = logging.getLogger(__name__)
+
+MODELS = ("auto", "double_integrator", "unicycle")
+MODES = ("path", "corridor")
+#: Solvers tried in turn by ``solver="auto"``. IPOPT/MUMPS alone: fatrop is faster per
+#: iteration but fails on most robots of these problems (their pinned way-points and
+#: zero-width windows are fixed variables, which its interior point handles badly), so
+#: falling back costs more than it saves; ``hierplan bench trajectory`` prints both.
+AUTO_SOLVERS: tuple[str, ...] = ("ipopt",)
+#: Largest stretch factor tried before giving up.
+MAX_STRETCH = 256.0
+#: Relative precision of the stretch factor.
+STRETCH_RTOL = 1e-3
+#: Feasibility tolerance of a returned solution (bounds, dynamics).
+FEAS_TOL = 1e-6
+#: Angles below this are straight on (radians).
+ANGLE_TOL = 1e-9
+
+
+class InfeasibleWindowsError(HierplanError):
+    """A robot's limits cannot meet its windows.
+
+    Attributes: ``robot`` (name), ``event`` (a description of the way-point, or None),
+    ``stretch`` (smallest factor that makes every robot feasible, or None).
+    """
+
+    def __init__(self, message: str, robot: str, event: str | None, stretch: float | None):
+        super().__init__(message)
+        self.robot = robot
+        self.event = event
+        self.stretch = stretch
+
+
+@dataclass(frozen=True)
+class Limits:
+    v_max: float
+    a_max: float
+    omega_max: float
+    alpha_max: float
+
+    def as_dict(self) -> dict[str, float]:
+        return {
+            "v_max": self.v_max,
+            "a_max": self.a_max,
+            "omega_max": self.omega_max,
+            "alpha_max": self.alpha_max,
+        }
+
+
+# ---------------------------------------------------------------------- one robot's path
+@dataclass(frozen=True, eq=False)
+class RobotPath:
+    """A robot's path as a sequence of knots joined by pieces.
+
+    Knots are the robot's STN events plus, for unicycles, the end of every turn in
+    place. Pieces are straight moves (``sigma`` in metres) or turns in place (``sigma``
+    in radians). ``knot_t`` is the schedule's time of each knot (the warm start).
+    """
+
+    name: str
+    model: str
+    limits: Limits
+    knot_sigma: np.ndarray
+    knot_event: np.ndarray  # STN event id, -1 for the end of a turn
+    knot_stop: np.ndarray  # the robot is at rest there
+    knot_t: np.ndarray
+    knot_pos: np.ndarray  # (m, dim) metres
+    piece_turn: np.ndarray  # bool
+    piece_dir: np.ndarray  # (m-1, dim) unit direction of a move
+    piece_theta0: np.ndarray  # heading at the start of the piece
+    piece_sign: np.ndarray  # +1 / -1: direction of a turn
+    piece_vmax: np.ndarray
+    piece_amax: np.ndarray
+    theta0: float
+    event_ids: np.ndarray  # every STN event of the robot, in path order
+    event_axis: np.ndarray  # their coordinate on the 1-D axis
+
+    @property
+    def num_pieces(self) -> int:
+        return len(self.knot_sigma) - 1
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
+
+
+def robot_path(
+    net: EventNetwork,
+    j: int,
+    model: str,
+    limits: Limits,
+    *,
+    turns: bool,
+    knots: np.ndarray | None = None,
+) -> RobotPath:
+    """Knots and pieces of robot ``j``.
+
+    ``turns``: insert a turn in place at every corner. ``knots`` (a mask over all
+    events): the events that must be grid nodes (those with a window); the robot's
+    first and last events and every corner are knots anyway. Other events lie inside a
+    piece and get their passage time from the solution.
+    """
+    ev = np.array(list(net.events(j)), dtype=np.int64)
+    P = net.pos[ev]
+    T = net.times[ev]
+    dim = P.shape[1]
+    d = np.diff(P, axis=0)
+    ell = np.linalg.norm(d, axis=1)
+    if np.any(ell <= 1e-12):
+        k = int(np.flatnonzero(ell <= 1e-12)[0])
+        raise InputError(f"{net.where(int(ev[k + 1]))} repeats the previous way-point's position")
+    dirs = d / ell[:, None] if len(ell) else np.zeros((0, dim))
+    heads = np.arctan2(dirs[:, 1], dirs[:, 0]) if len(ell) else np.zeros(0)
+    if dim == 3 and len(ell):
+        # Vertical moves keep the previous heading (it is only reported, never used).
+        flat = np.hypot(dirs[:, 0], dirs[:, 1]) > 1e-12
+        for k in range(len(heads)):
+            if not flat[k]:
+                heads[k] = heads[k - 1] if k else 0.0
+    ev_sigma = np.concatenate([[0.0], np.cumsum(ell)])
+    need = np.ones(len(ev), dtype=bool) if knots is None else np.asarray(knots)[ev].copy()
+    need[0] = need[-1] = True
+    corner = np.zeros(len(ev), dtype=bool)
+    if len(ell) > 1:
+        corner[1:-1] = np.einsum("ij,ij->i", dirs[:-1], dirs[1:]) < 1.0 - ANGLE_TOL
+    need |= corner
+    sig, evl, stop, tt, pos = [0.0], [int(ev[0])], [True], [float(T[0])], [P[0]]
+    p_turn, p_dir, p_th0, p_sign, p_v, p_a = [], [], [], [], [], []
+    last = 0  # index (into ev) of the last knot
+    for i in range(1, len(ev)):
+        if not need[i]:
+            continue
+        # ---- a straight move from event ``last`` to event ``i`` -------------------------
+        k = i - 1
+        p_turn.append(False)
+        p_dir.append(dirs[k])
+        p_th0.append(float(heads[k]))
+        p_sign.append(1.0)
+        p_v.append(limits.v_max)
+        p_a.append(limits.a_max)
+        sig.append(sig[-1] + float(ev_sigma[i] - ev_sigma[last]))
+        evl.append(int(ev[i]))
+        stop.append(bool(corner[i]))
+        tt.append(float(T[i]))
+        pos.append(P[i])
+        last = i
+        if corner[i]:
+            dth = _wrap(float(heads[i] - heads[i - 1]))
+            if turns and abs(dth) > ANGLE_TOL:
+                # ---- a turn in place at the corner -----------------------------------
+                dur = abs(dth) / limits.omega_max
+                t_end = min(tt[-1] + dur, 0.5 * (tt[-1] + float(T[i + 1])))
+                p_turn.append(True)
+                p_dir.append(np.zeros(dim))
+                p_th0.append(float(heads[i - 1]))
+                p_sign.append(1.0 if dth > 0 else -1.0)
+                p_v.append(limits.omega_max)
+                p_a.append(limits.alpha_max)
+                sig.append(sig[-1] + abs(dth))
+                evl.append(-1)
+                stop.append(True)
+                tt.append(t_end)
+                pos.append(P[i])
+    stop[-1] = True
+    # Arc-length coordinate of every event on the 1-D axis (turns add radians).
+    knot_ev = np.asarray(evl, dtype=np.int64)
+    ax = np.asarray(sig, dtype=float)
+    event_axis = np.empty(len(ev))
+    kpos = {int(e): q for q, e in enumerate(knot_ev.tolist()) if e >= 0}
+    q_base, i_base = 0, 0
+    for i in range(len(ev)):
+        q = kpos.get(int(ev[i]))
+        if q is not None:
+            event_axis[i] = ax[q]
+            # A move that follows a turn in place starts at the turn's end.
+            q_base = q + 1 if q + 1 < len(knot_ev) and knot_ev[q + 1] < 0 else q
+            i_base = i
+        else:
+            event_axis[i] = ax[q_base] + float(ev_sigma[i] - ev_sigma[i_base])
+    arr = np.asarray
+    return RobotPath(
+        name=net.agent_names[j],
+        model=model,
+        limits=limits,
+        knot_sigma=ax,
+        knot_event=knot_ev,
+        knot_stop=arr(stop, dtype=bool),
+        knot_t=arr(tt, dtype=float),
+        knot_pos=arr(pos, dtype=float).reshape(-1, dim),
+        piece_turn=arr(p_turn, dtype=bool),
+        piece_dir=arr(p_dir, dtype=float).reshape(-1, dim),
+        piece_theta0=arr(p_th0, dtype=float),
+        piece_sign=arr(p_sign, dtype=float),
+        piece_vmax=arr(p_v, dtype=float),
+        piece_amax=arr(p_a, dtype=float),
+        theta0=float(heads[0]) if len(heads) else 0.0,
+        event_ids=ev,
+        event_axis=event_axis,
+    )
+
+
+def allocate(durations: np.ndarray, base: int) -> tuple[int, np.ndarray]:
+    """Intervals per piece: ``base`` each, the rest of the grid size by duration.
+
+    Example
+    -------
+    >>> allocate(np.array([1.0, 3.0]), 3)
+    (8, array([3, 5]))
+    """
+    P = len(durations)
+    need = max(base * P, 1)
+    N = grid_size(need)
+    n = np.full(P, base, dtype=np.int64)
+    extra = N - base * P
+    if extra and P:
+        w = np.maximum(durations, 0.0)
+        w = w / w.sum() if w.sum() > 0 else np.full(P, 1.0 / P)
+        share = w * extra
+        add = np.floor(share).astype(np.int64)
+        rest = extra - int(add.sum())
+        if rest:
+            add[np.argsort(-(share - add))[:rest]] += 1
+        n += add
+    return N, n
+
+
+# ---------------------------------------------------------------------- path mode
+@dataclass(frozen=True, eq=False)
+class PathProblem:
+    """The bounds, warm start and layout of one robot's path-mode problem."""
+
+    path: RobotPath
+    N: int
+    counts: np.ndarray  # intervals per piece
+    knot_node: np.ndarray  # grid node of every knot
+    interval_piece: np.ndarray  # piece of every interval
+
+
+def path_problem(path: RobotPath, base: int) -> PathProblem:
+    dur = np.diff(path.knot_t)
+    N, counts = allocate(dur, base)
+    knot_node = np.concatenate([[0], np.cumsum(counts)])
+    interval_piece = np.repeat(np.arange(path.num_pieces), counts)
+    return PathProblem(path, N, counts, knot_node, interval_piece)
+
+
+def _effective_windows(
+    path: RobotPath, windows: Windows, upto: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Windows of the knots (turn ends get the range their neighbours allow); knots after
+    ``upto`` are left free (used to find the first way-point a robot cannot meet)."""
+    m = len(path.knot_sigma)
+    lo = np.full(m, 0.0)
+    hi = np.full(m, np.inf)
+    has = path.knot_event >= 0
+    lo[has] = windows.lo[path.knot_event[has]]
+    hi[has] = windows.hi[path.knot_event[has]]
+    if upto is not None:
+        lo[upto + 1 :] = 0.0
+        hi[upto + 1 :] = np.inf
+    lo = np.maximum.accumulate(lo)
+    hi = np.minimum.accumulate(hi[::-1])[::-1]
+    return lo, hi
+
+
+def path_bounds(
+    pp: PathProblem, windows: Windows, upto: int | None = None
+) -> tuple[np.ndarray, ...]:
+    """``lbX, ubX (3, N+1), lbU, ubU (2, N)`` of a robot's path-mode problem."""
+    path, N = pp.path, pp.N
+    kn, ip = pp.knot_node, pp.interval_piece
+    lo, hi = _effective_windows(path, windows, upto)
+    lbX = np.empty((3, N + 1))
+    ubX = np.empty((3, N + 1))
+    # Interior nodes take their piece's ranges; knots are pinned below.
+    node_piece = np.concatenate([ip, [path.num_pieces - 1]])
+    lbX[0] = path.knot_sigma[node_piece]
+    ubX[0] = path.knot_sigma[node_piece + 1]
+    lbX[1] = 0.0
+    ubX[1] = path.piece_vmax[node_piece]
+    lbX[2] = lo[node_piece]
+    ubX[2] = hi[node_piece + 1]
+    # ---- knots: fixed position, window, rest at stops -----------------------------------
+    lbX[0, kn] = ubX[0, kn] = path.knot_sigma
+    vk = np.minimum(
+        np.concatenate([[np.inf], path.piece_vmax]), np.concatenate([path.piece_vmax, [np.inf]])
+    )
+    ubX[1, kn] = np.where(path.knot_stop, 0.0, vk)
+    lbX[2, kn] = lo
+    ubX[2, kn] = hi
+    lbU = np.empty((2, N))
+    ubU = np.empty((2, N))
+    lbU[0] = -path.piece_amax[ip]
+    ubU[0] = path.piece_amax[ip]
+    lbU[1] = 0.0
+    ubU[1] = np.inf
+    return lbX, ubX, lbU, ubU
+
+
+def path_warm_start(pp: PathProblem, stretch: float) -> tuple[np.ndarray, np.ndarray]:
+    """The constant-velocity schedule on the grid (rest at the stops)."""
+    path, N = pp.path, pp.N
+    X = np.empty((3, N + 1))
+    U = np.zeros((2, N))
+    kt = path.knot_t * stretch
+    for p in range(path.num_pieces):
+        a, b = int(pp.knot_node[p]), int(pp.knot_node[p + 1])
+        n = b - a
+        s0, s1 = path.knot_sigma[p], path.knot_sigma[p + 1]
+        t0, t1 = kt[p], max(kt[p + 1], kt[p] + 1e-6)
+        f = np.arange(n + 1) / n
+        X[0, a : b + 1] = s0 + f * (s1 - s0)
+        X[2, a : b + 1] = t0 + f * (t1 - t0)
+        speed = min((s1 - s0) / (t1 - t0), float(path.piece_vmax[p]))
+        X[1, a : b + 1] = speed
+        U[1, a:b] = (t1 - t0) / n
+    X[1, pp.knot_node[path.knot_stop]] = 0.0
+    h = np.maximum(U[1], 1e-9)
+    U[0] = np.clip(
+        np.diff(X[1]) / h, -path.piece_amax[pp.interval_piece], path.piece_amax[pp.interval_piece]
+    )
+    return X, U
+
+
+def _feasible(
+    X: np.ndarray, U: np.ndarray, bounds: tuple[np.ndarray, ...], tol: float = FEAS_TOL
+) -> bool:
+    lbX, ubX, lbU, ubU = bounds
+
+    def ok(v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
+        scale = 1.0 + np.abs(np.where(np.isfinite(hi), hi, 0.0))
+        return bool(np.all(v >= lo - tol * scale) and np.all(v <= hi + tol * scale))
+
+    if not (ok(X, lbX, ubX) and ok(U, lbU, ubU)):
+        return False
+    s, v, t = X
+    a, h = U
+    res = np.concatenate(
+        [
+            s[1:] - (s[:-1] + h * v[:-1] + 0.5 * h * h * a),
+            v[1:] - (v[:-1] + h * a),
+            t[1:] - (t[:-1] + h),
+        ]
+    )
+    return bool(np.all(np.abs(res) <= tol * (1.0 + np.abs(t[-1]))))
+
+
+@dataclass(frozen=True, eq=False)
+class Attempt:
+    """The outcome of one robot's solve."""
+
+    ok: bool
+    X: np.ndarray
+    U: np.ndarray
+    result: SolveResult
+    tries: tuple[tuple[str, float, int, bool], ...]  # (solver, wall, iterations, success)
+
+
+def solve_path(
+    pp: PathProblem,
+    windows: Windows,
+    *,
+    solvers: Sequence[str],
+    weights: tuple[float, float, float],
+    upto: int | None = None,
+    warm: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Attempt:
+    """Solve one robot's path problem, trying ``solvers`` in turn until one succeeds."""
+    bounds = path_bounds(pp, windows, upto)
+    X0, U0 = warm if warm is not None else path_warm_start(pp, windows.stretch)
+    tries = []
+    last = None
+    for name in solvers:
+        ocp = _path_ocp(pp.N, name)
+        lbX, ubX, lbU, ubU = bounds
+        res = ocp.solve(
+            ocp.pack(X0, U0),
+            ocp.pack(lbX, lbU),
+            ocp.pack(ubX, ubU),
+            np.array(weights, dtype=float),
+        )
+        X, U = ocp.unpack(res.z)
+        good = res.success and _feasible(X, U, bounds)
+        tries.append((name, res.wall, res.iterations, good))
+        last = Attempt(good, X, U, res, tuple(tries))
+        if good:
+            return last
+    assert last is not None
+    return last
+
+
+def path_trajectory(pp: PathProblem, X: np.ndarray, U: np.ndarray, net_events: int) -> dict:
+    """Spatial piecewise-quadratic motion from the 1-D solution."""
+    path = pp.path
+    ip = pp.interval_piece
+    N = pp.N
+    sigma, v, t = X
+    a, h = U
+    # Clean solver round-off: progress never goes back, speeds are >= 0.
+    v = np.clip(v, 0.0, None)
+    t = np.maximum.accumulate(t)
+    start = path.knot_pos[ip]
+    s0 = path.knot_sigma[ip]
+    turn = path.piece_turn[ip]
+    ds = (sigma[:N] - s0)[:, None]
+    dirs = path.piece_dir[ip]
+    p = np.where(turn[:, None], start, start + dirs * ds)
+    vel = np.where(turn[:, None], 0.0, dirs * v[:N, None])
+    acc = np.where(turn[:, None], 0.0, dirs * a[:, None])
+    sign = path.piece_sign[ip]
+    theta = np.where(turn, path.piece_theta0[ip] + sign * (sigma[:N] - s0), path.piece_theta0[ip])
+    omega = np.where(turn, sign * v[:N], 0.0)
+    alpha = np.where(turn, sign * a, 0.0)
+    last_theta = float(theta[-1] + omega[-1] * h[-1] + 0.5 * alpha[-1] * h[-1] ** 2)
+    P = np.vstack([p, path.knot_pos[-1:]])
+    V = np.vstack([vel, np.zeros((1, P.shape[1]))])
+    TH = np.append(theta, last_theta)
+    OM = np.append(omega, 0.0)
+    return {
+        "t": t,
+        "p": P,
+        "v": V,
+        "a": acc,
+        "theta": TH,
+        "omega": OM,
+        "alpha": alpha,
+        "event_times": passage_times(sigma, v, t, a, path.event_axis),
+    }
+
+
+def passage_times(
+    sigma: np.ndarray, v: np.ndarray, t: np.ndarray, a: np.ndarray, targets: np.ndarray
+) -> np.ndarray:
+    """First time the 1-D motion reaches each of ``targets`` (non-decreasing progress).
+
+    Example
+    -------
+    >>> passage_times(np.array([0.0, 0.5, 1.0]), np.array([0.0, 1.0, 0.0]),
+    ...               np.array([0.0, 1.0, 2.0]), np.array([1.0, -1.0]), np.array([0.5, 0.125]))
+    array([1. , 0.5])
+    """
+    s = np.maximum.accumulate(sigma)
+    idx = np.clip(np.searchsorted(s, targets - 1e-12, side="left"), 0, len(s) - 1)
+    out = t[idx].astype(float).copy()
+    inner = (idx > 0) & (s[idx] > targets + 1e-12)
+    k = idx[inner] - 1
+    d = targets[inner] - s[k]
+    vk, ak = v[k], a[k]
+    disc = np.sqrt(np.maximum(vk * vk + 2.0 * ak * d, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(np.abs(ak) > 1e-12, (disc - vk) / ak, d / np.maximum(vk, 1e-300))
+        tau = np.where(np.isfinite(tau), tau, 0.0)
+    out[inner] = t[k] + np.clip(tau, 0.0, t[k + 1] - t[k])
+    return out
+
+
+# ---------------------------------------------------------------------- diagnosis
+def _reach_time(d: float, v: float, a: float) -> float:
+    """Least time to cover ``d`` from rest (no need to stop at the end)."""
+    if d <= 0:
+        return 0.0
+    if not math.isfinite(a):
+        return d / v
+    if d <= v * v / (2 * a):
+        return math.sqrt(2 * d / a)
+    return v / a + (d - v * v / (2 * a)) / v
+
+
+def earliest_passage(path: RobotPath, lo: np.ndarray) -> np.ndarray:
+    """A lower bound on the time each knot can be passed (limits + lower windows).
+
+    Within a run between two stops the robot is at best accelerating flat out from the
+    last stop; it must rest at every stop; it can never pass a knot before its window
+    opens. A knot whose bound exceeds its window's end is proven unreachable.
+    """
+    m = len(path.knot_sigma)
+    E = np.zeros(m)
+    E[0] = lo[0]
+    run_start = 0
+    for i in range(1, m):
+        p = i - 1
+        vmax, amax = float(path.piece_vmax[p]), float(path.piece_amax[p])
+        d = float(path.knot_sigma[i] - path.knot_sigma[run_start])
+        if path.knot_stop[i]:
+            need = accel_time(d, vmax, amax) if math.isfinite(amax) else d / vmax
+        else:
+            need = _reach_time(d, vmax, amax)
+        step = float(path.knot_sigma[i] - path.knot_sigma[i - 1]) / vmax
+        E[i] = max(lo[i], E[run_start] + need, E[i - 1] + step)
+        if path.knot_stop[i]:
+            run_start = i
+    return E
+
+
+# ---------------------------------------------------------------------- front door
+def _limits(
+    instance: Instance, j: int, model: str, alpha_max: float | None, a_max: float | None
+) -> Limits:
+    k = instance.agents[j].kinematics
+    inf = math.inf
+    acc = k.a_max if k.a_max else a_max
+    if not acc:
+        raise InputError(
+            f"robot type {k.robot_type!r} of {instance.agents[j].name!r} has no a_max; "
+            "refinement needs an acceleration limit (give one in the instance's robot "
+            "types, or a_max= for robots without one)"
+        )
+    omega = float(k.omega_max) if k.omega_max else inf
+    if model == "unicycle" and not math.isfinite(omega):
+        raise InputError(
+            f"model 'unicycle' needs omega_max, and robot type {k.robot_type!r} of "
+            f"{instance.agents[j].name!r} has none"
+        )
+    return Limits(
+        v_max=float(k.v_max),
+        a_max=float(acc),
+        omega_max=omega,
+        alpha_max=float(alpha_max) if alpha_max else inf,
+    )
+
+
+def _model_of(instance: Instance, j: int, model: str) -> str:
+    if model != "auto":
+        return model
+    return (
+        "unicycle" if instance.agents[j].kinematics.drive == "differential" else "double_integrator"
+    )
+
+
+def _check_options(**kw: Any) -> None:
+    if kw["model"] not in MODELS:
+        raise OptionError(f"unknown model {kw['model']!r} (use {', '.join(MODELS)})")
+    if kw["mode"] not in MODES:
+        raise OptionError(f"unknown mode {kw['mode']!r} (use {', '.join(MODES)})")
+    solver = kw["solver"]
+    if solver not in (*SOLVERS, "auto"):
+        raise OptionError(f"unknown solver {solver!r} (use auto, {', '.join(SOLVERS)})")
+    for name in ("accel_weight", "time_weight", "step_weight", "corridor"):
+        v = kw[name]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
+            raise OptionError(f"{name} must be a finite number >= 0, got {v!r}")
+    if kw["accel_weight"] == 0 and kw["time_weight"] == 0:
+        raise OptionError("accel_weight and time_weight cannot both be 0")
+    ipp = kw["intervals_per_piece"]
+    if isinstance(ipp, bool) or not isinstance(ipp, int) or not 1 <= ipp <= 64:
+        raise OptionError(f"intervals_per_piece must be an integer in [1, 64], got {ipp!r}")
+    st = kw["stretch"]
+    if (
+        st is not None
+        and st != "auto"
+        and (
+            isinstance(st, bool)
+            or not isinstance(st, (int, float))
+            or not math.isfinite(st)
+            or st < 1
+        )
+    ):
+        raise OptionError(f"stretch must be None, 'auto' or a number >= 1, got {st!r}")
+    for name in ("alpha_max", "a_max"):
+        a = kw[name]
+        if a is not None and (
+            isinstance(a, bool) or not isinstance(a, (int, float)) or not math.isfinite(a) or a <= 0
+        ):
+            raise OptionError(f"{name} must be a positive number, got {a!r}")
+    w = kw["workers"]
+    if isinstance(w, bool) or not isinstance(w, int) or w < 1:
+        raise OptionError(f"workers must be a positive integer, got {w!r}")
+
+
+def refine(
+    instance: Instance,
+    schedule: Any,
+    *,
+    model: str = "auto",
+    mode: str = "path",
+    corridor: float = 0.1,
+    solver: str = "auto",
+    split: float = 0.5,
+    stretch: float | str | None = None,
+    accel_weight: float = 1.0,
+    time_weight: float = 0.01,
+    step_weight: float = 1e-3,
+    intervals_per_piece: int = 3,
+    alpha_max: float | None = None,
+    a_max: float | None = None,
+    workers: int = 1,
+    following: bool = True,
+) -> Trajectories:
+    """Refine a MAPF-POST schedule into smooth trajectories within each robot's limits.
+
+    Parameters
+    ----------
+    instance : Instance
+        Gives each robot's limits (``v_max``, ``a_max``; ``omega_max`` for unicycles).
+    schedule : Schedule or EventNetwork
+        From :func:`hierplan_opt.schedule.postprocess`, or a file read with
+        :func:`hierplan_opt.trajectory.events.from_file`.
+    model : {"auto", "double_integrator", "unicycle"}
+        ``auto``: unicycle for differential-drive robots, else double integrator.
+    mode : {"path", "corridor"}
+        ``path``: on the planned polyline, the schedule's safety distance carries over;
+        ``corridor``: corners cut within ``corridor`` metres (double integrator only),
+        the guarantee drops by ``2 * corridor``.
+    solver : {"auto", "ipopt", "fatrop"}
+        ``auto``: :data:`AUTO_SOLVERS` (IPOPT with MUMPS).
+    split : float
+        Share of each precedence's slack given to the earlier event (:func:`decouple`).
+    stretch : None, "auto" or float >= 1
+        None: a robot that cannot meet its windows raises
+        :class:`InfeasibleWindowsError` (naming robot, way-point and the smallest
+        stretch factor that would work); "auto": stretch by that factor; a number:
+        stretch by it.
+    accel_weight, time_weight, step_weight : float
+        Objective ``accel_weight * integral |a|^2 dt + time_weight * arrival +
+        step_weight * sum h_k^2`` (the last a small regulariser of the free time grid).
+    intervals_per_piece : int
+        Grid intervals per piece of path at least (the grid is rounded up to a built size).
+    alpha_max : float, optional
+        Turn acceleration limit of unicycles (rad/s^2); default unlimited.
+    a_max : float, optional
+        Acceleration limit (m/s^2) for robots whose kinematics give none (MovingAI
+        instances); a robot without either is refused.
+    workers : int
+        Solve in that many processes (1: in this process).
+    following : bool
+        Add following points (:mod:`.following`) so that a robot that follows another
+        along an edge keeps its distance whatever the two robots' speeds. Without them
+        the reported safety distance is 0.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.instance import Kinematics
+    >>> from hierplan_opt.core.plan import Plan
+    >>> from hierplan_opt.schedule import postprocess
+    >>> g = Graph.grid(4, 1)
+    >>> inst = Instance.mapf(g, [(0, 0)], [(3, 0)], kinematics=Kinematics(a_max=1.0))
+    >>> sched = postprocess(inst, Plan.from_paths([[0, 1, 2, 3]]), delta=0)
+    >>> tr = refine(inst, sched)
+    >>> round(tr.makespan, 3) <= sched.makespan + 1e-6, tr.robots[0].model
+    (True, 'double_integrator')
+    """
+    _check_options(
+        model=model,
+        mode=mode,
+        solver=solver,
+        accel_weight=accel_weight,
+        time_weight=time_weight,
+        step_weight=step_weight,
+        corridor=corridor,
+        intervals_per_piece=intervals_per_piece,
+        stretch=stretch,
+        alpha_max=alpha_max,
+        a_max=a_max,
+        workers=workers,
+    )
+    t_start = time.perf_counter()
+    net = schedule if isinstance(schedule, EventNetwork) else from_schedule(schedule)
+    if net.num_agents != instance.num_agents or tuple(net.agent_names) != tuple(
+        a.name for a in instance.agents
+    ):
+        raise InputError("the schedule's robots are not the instance's robots")
+    if mode == "corridor" and corridor <= 0:
+        raise OptionError("corridor mode needs a corridor half-width > 0")
+    solvers = AUTO_SOLVERS if solver == "auto" else (solver,)
+    follow_d = math.inf
+    follow_stats: dict[str, Any] = {}
+    if following:
+        net, info = add_following(net)
+        follow_d = info.distance
+        follow_stats = {"following_pairs": info.pairs, "following_points": info.points}
+    windows = decouple(net, split)
+    if isinstance(stretch, (int, float)) and not isinstance(stretch, bool) and stretch > 1:
+        windows = windows.stretched(float(stretch))
+    t_windows = time.perf_counter() - t_start
+
+    models = [_model_of(instance, j, model) for j in range(net.num_agents)]
+    if mode == "corridor" and "unicycle" in models:
+        j = models.index("unicycle")
+        raise OptionError(
+            f"corridor mode is implemented for the double integrator only; "
+            f"{net.agent_names[j]!r} is a unicycle (use mode='path', or model="
+            "'double_integrator')"
+        )
+    knots = (windows.lo > 0) | np.isfinite(windows.hi)
+    paths = [
+        robot_path(
+            net,
+            j,
+            models[j],
+            _limits(instance, j, models[j], alpha_max, a_max),
+            turns=models[j] == "unicycle",
+            knots=knots,
+        )
+        for j in range(net.num_agents)
+    ]
+    opts = {
+        "mode": mode,
+        "corridor": float(corridor),
+        "solvers": solvers,
+        "weights": (float(accel_weight), float(time_weight), float(step_weight)),
+        "base": int(intervals_per_piece),
+    }
+    t0 = time.perf_counter()
+    outs = _solve_all(paths, windows, opts, workers)
+    failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
+    found_stretch = None
+    if failed:
+        found_stretch = smallest_stretch([paths[j] for j in failed], windows, opts)
+        if stretch == "auto" and found_stretch is not None:
+            windows = windows.stretched(found_stretch)
+            warm = [None if o is None or not o["ok"] else _dilate(o, found_stretch) for o in outs]
+            outs = _solve_all(paths, windows, opts, workers, warm=warm)
+            failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
+        if failed:
+            raise _infeasible(paths[failed[0]], windows, opts, net, found_stretch, stretch)
+    t_solve = time.perf_counter() - t0
+
+    robots = []
+    for j, (path, o) in enumerate(zip(paths, outs, strict=True)):
+        robots.append(_robot_result(path, o, net, j))
+    c = float(corridor) if mode == "corridor" else 0.0
+    kept = min(net.safety_distance, follow_d)
+    if kept < net.safety_distance:
+        why = (
+            f"the schedule's safety distance {net.safety_distance:.4g} is kept only down to "
+            f"{kept:.4g}: a follower cannot be held further behind its leader than the "
+            "schedule's lead allows"
+        )
+    elif following or net.safety_distance <= 0:
+        why = f"the schedule's safety distance {net.safety_distance:.4g} carries over"
+    else:
+        why = (
+            "no following points: robots following each other along an edge have no "
+            "guaranteed distance"
+        )
+        kept = 0.0
+    sd = max(kept - 2 * c, 0.0)
+    if mode == "path":
+        guarantee = (
+            "path mode: every robot stays on its planned polyline and passes every event "
+            f"(way-points and following points) inside its decoupled window; {why}"
+        )
+    else:
+        guarantee = (
+            f"corridor mode: robots stay within {c:g} of their polylines and pass every event "
+            f"within {c:g} inside its window; {why}, minus 2c = {sd:.4g}"
+        )
+    solves = [o for o in outs if o is not None]
+    stats: dict[str, Any] = {
+        **follow_stats,
+        "windows_time": t_windows,
+        "solve_time": t_solve,
+        "total_time": time.perf_counter() - t_start,
+        "robots_solved": len(solves),
+        "solver_time_sum": sum(o["wall"] for o in solves),
+        "iterations_sum": sum(o["iterations"] for o in solves),
+        "ipopt_fallbacks": sum(1 for o in solves if o["solver"] != solvers[0]),
+    }
+    if found_stretch is not None:
+        stats["stretch_needed"] = found_stretch
+    return Trajectories(
+        robots=tuple(robots),
+        mode=mode,
+        corridor=c,
+        safety_distance=sd,
+        schedule_safety_distance=net.safety_distance,
+        stretch=windows.stretch,
+        guarantee=guarantee,
+        windows=windows,
+        stats=stats,
+    )
+
+
+def _dilate(o: dict, f: float) -> tuple[np.ndarray, np.ndarray]:
+    """A solution slowed down by ``f``: times and steps times ``f``, speeds over ``f``."""
+    X, U = o["X"].copy(), o["U"].copy()
+    X[1] /= f
+    X[2] *= f
+    U[0] /= f * f
+    U[1] *= f
+    return X, U
+
+
+# ---------------------------------------------------------------------- solving
+def _solve_one(
+    path: RobotPath,
+    windows: Windows,
+    opts: dict,
+    upto: int | None = None,
+    warm: tuple[np.ndarray, np.ndarray] | None = None,
+) -> dict | None:
+    if path.num_pieces == 0:
+        return None  # a robot that never moves
+    if opts["mode"] == "corridor":
+        from hierplan_opt.trajectory.corridor import solve_corridor
+
+        return solve_corridor(path, windows, opts, warm=warm)
+    pp = path_problem(path, opts["base"])
+    lo, hi = _effective_windows(path, windows, upto)
+    if np.any(earliest_passage(path, lo) > hi + 1e-9):
+        # Proven infeasible: no solver call needed.
+        return {
+            "ok": False,
+            "X": None,
+            "U": None,
+            "pp": pp,
+            "wall": 0.0,
+            "iterations": 0,
+            "solver": "bound",
+            "status": "unreachable window",
+            "tries": (),
+            "N": pp.N,
+        }
+    att = solve_path(
+        pp, windows, solvers=opts["solvers"], weights=opts["weights"], upto=upto, warm=warm
+    )
+    return {
+        "ok": att.ok,
+        "X": att.X,
+        "U": att.U,
+        "pp": pp,
+        "wall": sum(t[1] for t in att.tries),
+        "iterations": sum(t[2] for t in att.tries),
+        "solver": att.result.solver,
+        "status": att.result.status,
+        "tries": att.tries,
+        "N": pp.N,
+    }
+
+
+def _solve_chunk(args: tuple) -> list[dict | None]:
+    paths, windows, opts, warm = args
+    return [_solve_one(p, windows, opts, warm=w) for p, w in zip(paths, warm, strict=True)]
+
+
+def _solve_all(
+    paths: list[RobotPath],
+    windows: Windows,
+    opts: dict,
+    workers: int,
+    warm: list | None = None,
+) -> list[dict | None]:
+    warm = warm or [None] * len(paths)
+    if workers <= 1 or len(paths) < 2 * workers:
+        return [_solve_one(p, windows, opts, warm=w) for p, w in zip(paths, warm, strict=True)]
+    # Interleaved chunks balance long and short paths; every process builds its own NLPs.
+    chunks = [(paths[i::workers], windows, opts, warm[i::workers]) for i in range(workers)]
+    out: list[dict | None] = [None] * len(paths)
+    with ProcessPoolExecutor(max_workers=workers) as ex:
+        for i, res in enumerate(ex.map(_solve_chunk, chunks)):
+            for k, r in enumerate(res):
+                out[i + k * workers] = r
+    return out
+
+
+def _feasible_at(path: RobotPath, windows: Windows, opts: dict, factor: float) -> bool:
+    w = windows.stretched(factor) if factor > 1 else windows
+    lo, hi = _effective_windows(path, w, None)
+    if np.any(earliest_passage(path, lo) > hi + 1e-9):
+        return False
+    o = _solve_one(path, w, opts)
+    return o is None or bool(o["ok"])
+
+
+def smallest_stretch(paths: Sequence[RobotPath], windows: Windows, opts: dict) -> float | None:
+    """The smallest factor (within :data:`STRETCH_RTOL`) that makes all ``paths`` feasible.
+
+    Robots are taken one by one; a robot feasible at the best factor so far costs one
+    solve, the others a bisection between that factor and a doubling bracket.
+    """
+    best = 1.0
+    for path in paths:
+        if _feasible_at(path, windows, opts, best):
+            continue
+        lo, hi = best, best * 2
+        while not _feasible_at(path, windows, opts, hi):
+            lo, hi = hi, hi * 2
+            if hi > MAX_STRETCH:
+                return None
+        while hi - lo > STRETCH_RTOL * lo:
+            mid = 0.5 * (lo + hi)
+            if _feasible_at(path, windows, opts, mid):
+                hi = mid
+            else:
+                lo = mid
+        best = hi
+    return best
+
+
+def first_unmet(path: RobotPath, windows: Windows, opts: dict) -> tuple[int, str]:
+    """The first knot whose window the robot cannot meet, and why.
+
+    First the earliest-passage bound (a proof when it exceeds a window); otherwise the
+    shortest prefix of the path, with windows up to knot ``m``, that has no solution.
+    """
+    lo, hi = _effective_windows(path, windows, None)
+    E = earliest_passage(path, lo)
+    late = np.flatnonzero(hi + 1e-9 < E)
+    if len(late):
+        i = int(late[0])
+        return i, f"its limits let it pass there at {E[i]:.6g} s at the earliest"
+    a, b = 0, len(path.knot_sigma) - 1  # prefix a feasible (start), prefix b not
+    while b - a > 1:
+        m = (a + b) // 2
+        o = _solve_one(path, windows, opts, upto=m)
+        if o is None or o["ok"]:
+            a = m
+        else:
+            b = m
+    return b, "no motion within its limits meets this and the earlier windows"
+
+
+def _infeasible(
+    path: RobotPath,
+    windows: Windows,
+    opts: dict,
+    net: EventNetwork,
+    found: float | None,
+    stretch: Any,
+) -> InfeasibleWindowsError:
+    i, why = first_unmet(path, windows, opts)
+    ev = int(path.knot_event[i])
+    if ev < 0:  # the end of a turn: name the vertex it turns at
+        ev = int(path.knot_event[i - 1])
+    where = net.where(ev)
+    lo, hi = float(windows.lo[ev]), float(windows.hi[ev])
+    lim = path.limits
+    msg = (
+        f"{where} cannot be passed inside its window [{lo:.6g}, {hi:.6g}] s: {why} "
+        f"(v_max {lim.v_max:g}, a_max {lim.a_max:g})"
+    )
+    if found is None:
+        msg += f"; no stretch factor up to {MAX_STRETCH:g} helps"
+    elif stretch == "auto":
+        msg += f"; even after stretching the schedule by {found:.4g}"
+    else:
+        msg += (
+            f"; stretching the schedule by {found:.4g} makes every robot feasible (stretch='auto')"
+        )
+    return InfeasibleWindowsError(msg, path.name, where, found)
+
+
+def _robot_result(path: RobotPath, o: dict | None, net: EventNetwork, j: int) -> RobotTrajectory:
+    lim = path.limits.as_dict()
+    if o is None:
+        P = path.knot_pos[:1]
+        arr = {
+            "t": np.zeros(1),
+            "p": P.copy(),
+            "v": np.zeros_like(P),
+            "a": np.zeros((0, P.shape[1])),
+            "theta": np.array([path.theta0]),
+            "omega": np.zeros(1),
+            "alpha": np.zeros(0),
+            "event_times": np.zeros(len(net.events(j))),
+        }
+        stats: dict[str, Any] = {"solver": None, "iterations": 0, "solve_time": 0.0}
+    else:
+        if "traj" in o:
+            arr = o["traj"]
+        else:
+            arr = path_trajectory(o["pp"], o["X"], o["U"], len(net.events(j)))
+        stats = {
+            "solver": o["solver"],
+            "status": o["status"],
+            "iterations": o["iterations"],
+            "solve_time": o["wall"],
+            "intervals": o["N"],
+            "tries": o["tries"],
+        }
+    for v in arr.values():
+        v.setflags(write=False)
+    return RobotTrajectory(
+        name=path.name,
+        model=path.model,
+        t=arr["t"],
+        p=arr["p"],
+        v=arr["v"],
+        a=arr["a"],
+        theta=arr["theta"],
+        omega=arr["omega"],
+        alpha=arr["alpha"],
+        event_times=arr["event_times"],
+        limits=lim,
+        stats=stats,
+    )
+
+
+__all__ = ["InfeasibleWindowsError", "Limits", "refine"]
