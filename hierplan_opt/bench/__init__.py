@@ -23,6 +23,7 @@ AREAS = {
     "formulations": "MIP and CP-SAT model sizes and time to optimum vs CBS",
     "post": "MAPF-POST: TPG/STN size and time, graph vs LP",
     "execution": "execution: STN re-solve vs re-plan, Monte Carlo runs/s, layers per delay rate",
+    "trajectory": "trajectory refinement (CasADi): formation and 200 robots, IPOPT vs fatrop",
 }
 
 

@@ -19,7 +19,18 @@ from collections.abc import Sequence
 from hierplan_opt.cli.common import BAD_INPUT, INTERNAL, one_line_errors
 from hierplan_opt.core.errors import HierplanError
 
-COMMANDS = ("solve", "validate", "info", "verify", "post", "simulate", "run", "bench", "sweep")
+COMMANDS = (
+    "solve",
+    "validate",
+    "info",
+    "verify",
+    "post",
+    "refine",
+    "simulate",
+    "run",
+    "bench",
+    "sweep",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

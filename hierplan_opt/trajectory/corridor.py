@@ -1,11 +1,13 @@
 """``mode="corridor"``: a double integrator that may cut corners inside a corridor.
 
 Same knots, windows and grid as path mode (:mod:`.refine`), but the robot's position is
-free in space: every node of a move lies within ``c`` of the move's axis (and between
-its ends, extended by ``c``), every node at an event lies within ``c`` of the event,
-and so does the midpoint of every interval. The solver works with ``0.95 c`` so that
-the exact quadratic arcs between the checked points stay inside ``c``; the verifier
-checks the whole motion.
+free in space. With ``r = c / sqrt(2)``: every node and every interval's middle Bezier
+control point of a move lies in the cylinder of radius ``r`` around the move's axis,
+between its ends extended by ``r``; every node at an event lies within ``r`` of the
+event. The cylinder is convex and holds the balls around its ends, so every arc (the
+quadratic Bezier curve of its three control points) stays inside it, and every point
+of the cylinder is within ``r sqrt(2) = c`` of the move: the robot never leaves the
+corridor of half-width ``c``. The verifier checks the whole motion.
 """
 
 from __future__ import annotations
@@ -14,8 +16,8 @@ import numpy as np
 
 from hierplan_opt.trajectory.model import corridor_ocp
 
-#: Share of the corridor the optimiser may use (the rest absorbs the arcs between nodes).
-INNER = 0.95
+#: Radius of the cylinders the optimiser uses, as a share of the corridor half-width.
+INNER = 1.0 / np.sqrt(2.0)
 
 
 def solve_corridor(path, windows, opts: dict, warm=None) -> dict:  # noqa: ANN001

@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 
 SOLVERS = ("ipopt", "fatrop")
 #: Grid sizes the problems are built for; a robot uses the smallest that fits.
-SIZES = (8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048)
+SIZES = (8, 12, 16, 24, 32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048, 3072, 4096)
 #: IPOPT / fatrop iteration limit.
 MAX_ITER = 1000
 
@@ -226,7 +226,7 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
 
 
 #: Stage constraints of the corridor problem, in order.
-CORRIDOR_ROWS = ("speed2", "accel2", "lateral2", "along", "mid_lateral2", "mid_along")
+CORRIDOR_ROWS = ("speed2", "accel2", "lateral2", "along", "ctrl_lateral2", "ctrl_along")
 
 
 def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
@@ -235,12 +235,16 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     Variables per stage: ``x_k = (p_k, v_k, t_k)``, ``u_k = (a_k, h_k)``. Parameters per
     stage: the corridor's axis ``A_k`` (a point), unit direction ``e_k`` and a flag
     ``m_k`` (1: a cylinder around the axis line, 0: a ball around ``A_k``), for the node
-    and, separately, for the interval's midpoint; then ``(w_acc, w_time)``. Stage
-    constraints (bounds in ``lbg/ubg``, see :data:`CORRIDOR_ROWS`)::
+    and, separately, for the interval's middle control point; then ``(w_acc, w_time)``.
+    Stage constraints (bounds in ``lbg/ubg``, see :data:`CORRIDOR_ROWS`)::
 
         |v_k|^2 <= v_max^2,  |a_k|^2 <= a_max^2
         |q|^2 - m (q . e)^2 <= c^2,  (q . e) in [lo, hi]      with q = p_k - A_k
-        the same at the midpoint p_k + h v_k / 2 + h^2 a_k / 8 of the interval
+        the same for the control point p_k + h v_k / 2
+
+    The arc of an interval is a quadratic Bezier curve with control points ``p_k``,
+    ``p_k + h v_k / 2`` and ``p_{k+1}``; it lies in the convex hull of the three, so
+    constraining them to a convex corridor keeps the whole arc inside.
 
     Example
     -------
@@ -274,8 +278,10 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
         lat, along = inside(p, node_par)
         if k < N:
             a, h = u[k][:dim], u[k][dim]
-            mid = p + 0.5 * h * v + 0.125 * h * h * a
-            mlat, malong = inside(mid, P[2 * dim + 1 :, k])
+            # The arc of interval k is the quadratic Bezier curve with control points
+            # p_k, p_k + h v_k / 2, p_{k+1}: inside any convex set holding all three.
+            ctrl = p + 0.5 * h * v
+            mlat, malong = inside(ctrl, P[2 * dim + 1 :, k])
             accel2 = ca.dot(a, a)
         else:
             mlat, malong, accel2 = ca.SX(0), ca.SX(0), ca.SX(0)

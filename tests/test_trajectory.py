@@ -1,0 +1,361 @@
+"""Trajectory refinement: analytic profiles, windows, limits, decoupling, infeasibility,
+3D quadcopters, unicycles turning in place, corridor mode and the verifier."""
+
+from __future__ import annotations
+
+import importlib
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import hierplan_opt as hp
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance, Kinematics
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.schedule import postprocess
+from hierplan_opt.schedule.stn import accel_time
+from hierplan_opt.trajectory import (
+    InfeasibleWindowsError,
+    decouple,
+    from_schedule,
+    refine,
+)
+from hierplan_opt.trajectory.following import add_following
+from hierplan_opt.trajectory.verify import verify
+from hierplan_opt.trajectory.windows import violations
+
+R = importlib.import_module("hierplan_opt.trajectory.refine")
+
+
+def line_instance(n: int, kin: Kinematics) -> tuple[Instance, Plan]:
+    g = Graph.grid(n + 1, 1)
+    inst = Instance.mapf(g, [(0, 0)], [(n, 0)], kinematics=kin)
+    return inst, Plan.from_paths([list(range(n + 1))])
+
+
+def fd_limits(traj, dt: float = 0.005) -> tuple[float, float]:
+    """Largest speed and acceleration from finite differences of sampled positions."""
+    s = traj.sample(dt)
+    P = s["pos"]
+    v = np.linalg.norm(np.diff(P, axis=1), axis=2) / dt
+    a = np.linalg.norm(P[:, 2:] - 2 * P[:, 1:-1] + P[:, :-2], axis=2) / dt**2
+    return float(v.max()), float(a.max())
+
+
+# ---------------------------------------------------------------------- analytic profile
+def test_straight_line_reproduces_bang_bang_and_the_stretch_factor() -> None:
+    # 4 m at v_max 1 and a_max 1: the minimum time is 4/1 + 1/1 = 5 s (accelerate 1 s,
+    # cruise 3 s, brake 1 s). The schedule without the acceleration bound asks for 4 s,
+    # so the smallest stretch factor is exactly 5/4.
+    inst, plan = line_instance(4, Kinematics(v_max=1.0, a_max=1.0))
+    sched = postprocess(inst, plan, delta=0, acceleration=False)
+    assert sched.makespan == pytest.approx(4.0)
+    with pytest.raises(InfeasibleWindowsError, match=r"agent0 way-point 4 .*stretching") as ei:
+        refine(inst, sched)
+    assert ei.value.stretch == pytest.approx(1.25, rel=2e-3)
+    tr = refine(inst, sched, stretch="auto")
+    assert tr.stretch == pytest.approx(1.25, rel=2e-3)
+    r = tr.robots[0]
+    assert r.arrival == pytest.approx(5.0, rel=3e-3)
+    t = np.linspace(0, r.arrival, 401)
+    v = np.linalg.norm(r.state(t)["v"], axis=1)
+    bang = np.minimum(np.minimum(t, 1.0), np.maximum(r.arrival - t, 0.0))
+    assert np.max(np.abs(v - bang)) < 0.03
+    assert verify(tr, inst).ok
+
+
+def test_short_line_is_triangular() -> None:
+    # 1 m at a_max 1 with v_max 2: no cruise, 2 sqrt(1/1) = 2 s, peak speed 1 m/s.
+    inst, plan = line_instance(1, Kinematics(v_max=2.0, a_max=1.0))
+    sched = postprocess(inst, plan, delta=0, acceleration=False)
+    tr = refine(inst, sched, stretch="auto")
+    r = tr.robots[0]
+    assert tr.stretch * sched.makespan == pytest.approx(accel_time(1.0, 2.0, 1.0), rel=3e-3)
+    vmax = np.linalg.norm(r.state(np.linspace(0, r.arrival, 201))["v"], axis=1).max()
+    assert vmax == pytest.approx(1.0, abs=0.02)
+
+
+# ---------------------------------------------------------------------- windows and limits
+def crossing() -> tuple[Instance, Plan]:
+    # Two robots cross at the centre of a plus-shaped map; agent1 waits one step.
+    g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
+    kin = Kinematics(v_max=1.0, a_max=2.0)
+    inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)], kinematics=kin)
+    v = g.vertex
+    plan = Plan.from_paths(
+        [[v((0, 1)), v((1, 1)), v((2, 1))], [v((1, 0)), v((1, 0)), v((1, 1)), v((1, 2))]]
+    )
+    return inst, plan
+
+
+def test_windows_and_limits_are_kept() -> None:
+    inst, plan = crossing()
+    sched = postprocess(inst, plan, delta=0.25)
+    tr = refine(inst, sched, stretch="auto")
+    win = tr.windows
+    net = win.network
+    for j, r in enumerate(tr.robots):
+        ev = np.array(list(net.events(j)))
+        et = np.asarray(r.event_times)
+        assert np.all(et >= win.lo[ev] - 1e-6) and np.all(et <= win.hi[ev] + 1e-6)
+        # At each event time the robot is at the event.
+        assert np.allclose(r.state(et)["p"], net.pos[ev], atol=1e-6)
+    vmax, amax = fd_limits(tr)
+    assert vmax <= 1.0 + 1e-5 and amax <= 2.0 + 1e-3
+    rep = verify(tr, inst)
+    assert rep.ok, rep.message()
+    assert rep.min_distance >= tr.safety_distance > 0
+    # The precedence of the crossing holds in the refined motion.
+    u, w = int(net.arc_src[0]), int(net.arc_dst[0])
+    tu = tr.robots[int(net.agent[u])].event_times[u - int(net.agent_ptr[int(net.agent[u])])]
+    tw = tr.robots[int(net.agent[w])].event_times[w - int(net.agent_ptr[int(net.agent[w])])]
+    assert tw - tu >= net.arc_lb[0] - 1e-6
+
+
+def random_schedules(count: int):  # noqa: ANN201
+    rng = np.random.default_rng(7)
+    made = 0
+    while made < count:
+        g = Graph.grid(5, 5, obstacles=[(2, 2)])
+        free = [c for c in ((x, y) for x in range(5) for y in range(5)) if c != (2, 2)]
+        pick = rng.permutation(len(free))[:8]
+        k = int(rng.integers(3, 5))
+        starts = [free[i] for i in pick[:k]]
+        goals = [free[i] for i in pick[k : 2 * k]]
+        kin = Kinematics(v_max=float(rng.uniform(0.5, 1.5)), a_max=float(rng.uniform(0.5, 2)))
+        inst = Instance.mapf(g, starts, goals, kinematics=kin)
+        res = hp.solve(inst, "cbs", time_limit=10)
+        if res.plan is None:
+            continue
+        made += 1
+        yield inst, postprocess(inst, res.plan, delta=float(rng.uniform(0.1, 0.3)))
+
+
+def test_decoupled_windows_never_violate_a_precedence() -> None:
+    rng = np.random.default_rng(1)
+    for _inst, sched in random_schedules(6):
+        for net in (from_schedule(sched), add_following(from_schedule(sched))[0]):
+            for split in (0.0, 0.5, 1.0):
+                w = decouple(net, split)
+                assert violations(w) == []
+                assert np.all(w.lo <= net.times + 1e-12) and np.all(net.times <= w.hi + 1e-12)
+                lo = w.lo
+                hi = np.where(np.isfinite(w.hi), w.hi, lo + 100.0)
+                for _ in range(200):
+                    # Any times inside the windows, including their ends.
+                    t = lo + rng.random(len(lo)) * (hi - lo)
+                    ends = rng.random(len(lo))
+                    t = np.where(ends < 0.1, lo, np.where(ends > 0.9, hi, t))
+                    gap = t[net.arc_dst] - t[net.arc_src]
+                    assert np.all(gap >= net.arc_lb - 1e-9)
+
+
+def test_stretched_windows_stay_decoupled() -> None:
+    inst, plan = crossing()
+    w = decouple(from_schedule(postprocess(inst, plan, delta=0.25)))
+    assert violations(w.stretched(1.7)) == []
+    with pytest.raises(hp.InputError, match="stretch factor must be >= 1"):
+        w.stretched(0.5)
+
+
+# ---------------------------------------------------------------------- infeasibility
+def test_infeasible_windows_name_robot_waypoint_and_factor() -> None:
+    inst, plan = crossing()
+    sched = postprocess(inst, plan, delta=0.25, acceleration=False)
+    with pytest.raises(InfeasibleWindowsError) as ei:
+        refine(inst, sched)
+    msg = str(ei.value)
+    assert "\n" not in msg
+    assert ei.value.robot in ("agent0", "agent1")
+    assert "way-point" in msg and "cannot be passed inside its window" in msg
+    f = ei.value.stretch
+    assert f is not None and f > 1
+    # The factor is the smallest that works: a bit less fails, the factor itself works.
+    assert refine(inst, sched, stretch=f).stretch == pytest.approx(f)
+    with pytest.raises(InfeasibleWindowsError):
+        refine(inst, sched, stretch=f / (1 + 5e-3))
+
+
+def test_robot_without_acceleration_limit_is_refused() -> None:
+    inst, plan = line_instance(2, Kinematics(v_max=1.0))
+    with pytest.raises(hp.InputError, match="has no a_max"):
+        refine(inst, postprocess(inst, plan, delta=0))
+    tr = refine(inst, postprocess(inst, plan, delta=0), a_max=1.0, stretch="auto")
+    assert tr.robots[0].limits["a_max"] == 1.0
+
+
+@pytest.mark.parametrize(
+    ("kw", "match"),
+    [
+        ({"model": "bicycle"}, "unknown model"),
+        ({"mode": "tube"}, "unknown mode"),
+        ({"solver": "snopt"}, "unknown solver"),
+        ({"stretch": 0.5}, "stretch must be"),
+        ({"accel_weight": -1.0}, "accel_weight must be"),
+        ({"intervals_per_piece": 0}, "intervals_per_piece must be"),
+        ({"workers": 0}, "workers must be"),
+    ],
+)
+def test_bad_options_are_refused(kw: dict, match: str) -> None:
+    inst, plan = line_instance(2, Kinematics(a_max=1.0))
+    with pytest.raises(hp.OptionError, match=match):
+        refine(inst, postprocess(inst, plan, delta=0), **kw)
+
+
+# ---------------------------------------------------------------------- 3D and unicycles
+def test_quadcopters_in_3d() -> None:
+    g = Graph.grid(3, 3, 3)
+    kin = Kinematics("quad", v_max=1.0, a_max=2.0)
+    inst = Instance.mapf(g, [(0, 1, 1), (1, 0, 1)], [(2, 1, 1), (1, 2, 1)], kinematics=kin)
+    res = hp.solve(inst, "cbs", time_limit=10)
+    sched = postprocess(inst, res.plan)
+    tr = refine(inst, sched, stretch="auto")
+    assert tr.dim == 3
+    rep = verify(tr, inst)
+    assert rep.ok, rep.message()
+    from hierplan_opt.trajectory.result import trajectories_csv
+
+    header = [ln for ln in trajectories_csv(tr).splitlines() if not ln.startswith("#")][0]
+    assert header == "agent,t,x,y,z,vx,vy,vz"
+
+
+def test_unicycle_turns_in_place_at_corners() -> None:
+    g = Graph.grid(3, 3)
+    kin = Kinematics("pioneer", drive="differential", v_max=0.5, a_max=1.0, omega_max=1.0)
+    inst = Instance.mapf(g, [(0, 0)], [(2, 2)], kinematics=kin)
+    v = g.vertex
+    plan = Plan.from_paths([[v((0, 0)), v((1, 0)), v((2, 0)), v((2, 1)), v((2, 2))]])
+    sched = postprocess(inst, plan, delta=0.25)
+    tr = refine(inst, sched, stretch="auto")
+    r = tr.robots[0]
+    assert r.model == "unicycle"
+    ts = np.linspace(0, r.arrival, 4001)
+    st = r.state(ts)
+    at_corner = np.linalg.norm(st["p"] - np.array([2.0, 0.0]), axis=1) < 1e-9
+    # While at the corner the robot turns from heading 0 to pi/2 without moving.
+    assert at_corner.any()
+    th = st["theta"][at_corner]
+    assert th.min() == pytest.approx(0.0, abs=1e-6) and th.max() == pytest.approx(
+        math.pi / 2, abs=1e-6
+    )
+    assert np.all(np.linalg.norm(st["v"][at_corner], axis=1) < 1e-6)
+    assert np.abs(st["omega"]).max() <= 1.0 + 1e-6
+    # Never sideways: the velocity points along the heading.
+    head = np.stack([np.cos(st["theta"]), np.sin(st["theta"])], axis=1)
+    side = np.abs(st["v"][:, 0] * head[:, 1] - st["v"][:, 1] * head[:, 0])
+    assert side.max() < 1e-6
+    assert verify(tr, inst).ok
+    from hierplan_opt.trajectory.result import trajectories_csv
+
+    header = [ln for ln in trajectories_csv(tr).splitlines() if not ln.startswith("#")][0]
+    assert header == "agent,t,x,y,vx,vy,theta"
+
+
+def test_unicycle_model_needs_omega_max() -> None:
+    inst, plan = line_instance(2, Kinematics(a_max=1.0))
+    with pytest.raises(hp.InputError, match="needs omega_max"):
+        refine(inst, postprocess(inst, plan, delta=0), model="unicycle")
+
+
+# ---------------------------------------------------------------------- following, corridor
+def following_instance() -> tuple[Instance, Plan]:
+    g = Graph.grid(6, 1)
+    kin = Kinematics(v_max=1.0, a_max=1.0)
+    inst = Instance.mapf(g, [(1, 0), (0, 0)], [(5, 0), (4, 0)], kinematics=kin)
+    return inst, Plan.from_paths([[1, 2, 3, 4, 5], [0, 1, 2, 3, 4]])
+
+
+def test_a_follower_keeps_its_distance() -> None:
+    inst, plan = following_instance()
+    sched = postprocess(inst, plan)
+    net2, info = add_following(from_schedule(sched))
+    assert info.pairs == 3 and info.distance >= sched.safety_distance
+    tr = refine(inst, sched, stretch="auto")
+    assert tr.stats["following_pairs"] == 3
+    assert tr.safety_distance == pytest.approx(sched.safety_distance)
+    rep = verify(tr, inst)
+    assert rep.ok and rep.min_distance >= tr.safety_distance
+    no = refine(inst, sched, stretch="auto", following=False)
+    assert no.safety_distance == 0 and "no following points" in no.guarantee
+
+
+def test_corridor_cuts_corners_and_loses_2c() -> None:
+    g = Graph.grid(4, 4)
+    kin = Kinematics(v_max=1.0, a_max=1.0)
+    inst = Instance.mapf(g, [(0, 0)], [(3, 3)], kinematics=kin)
+    v = g.vertex
+    plan = Plan.from_paths(
+        [[v((0, 0)), v((1, 0)), v((1, 1)), v((2, 1)), v((2, 2)), v((3, 2)), v((3, 3))]]
+    )
+    sched = postprocess(inst, plan, delta=0)
+    c = 0.2
+    path = refine(inst, sched, stretch="auto")
+    corr = refine(inst, sched, mode="corridor", corridor=c, stretch="auto")
+    assert corr.corridor == c and "2c" in corr.guarantee
+    rep = verify(corr, inst)
+    assert rep.ok, rep.message()
+    from hierplan_opt.schedule.replay import segment_distance
+
+    P = corr.sample(0.01)["pos"][0]
+    W = corr.windows.network.pos
+    d = np.min(
+        [
+            segment_distance(
+                P, P, np.repeat(W[i : i + 1], len(P), 0), np.repeat(W[i + 1 : i + 2], len(P), 0)
+            )
+            for i in range(len(W) - 1)
+        ],
+        axis=0,
+    )
+    assert 0.05 < d.max() <= c + 1e-6  # it left the polyline, but not the corridor
+    # Cutting the staircase's corners is faster than stopping at each of them.
+    assert corr.makespan <= path.makespan + 1e-6
+
+
+def test_corridor_mode_refuses_unicycles() -> None:
+    g = Graph.grid(3, 1)
+    kin = Kinematics("p", drive="differential", v_max=0.5, a_max=1.0, omega_max=1.0)
+    inst = Instance.mapf(g, [(0, 0)], [(2, 0)], kinematics=kin)
+    sched = postprocess(inst, Plan.from_paths([[0, 1, 2]]), delta=0)
+    with pytest.raises(hp.OptionError, match="corridor mode"):
+        refine(inst, sched, mode="corridor")
+
+
+# ---------------------------------------------------------------------- the verifier
+def test_verifier_catches_broken_trajectories() -> None:
+    inst, plan = crossing()
+    sched = postprocess(inst, plan, delta=0.25)
+    tr = refine(inst, sched, stretch="auto")
+    assert verify(tr, inst).ok
+    r0 = tr.robots[0]
+    # Twice as fast: every limit and window broken.
+    fast = replace(r0, t=r0.t / 2, v=r0.v * 2, a=r0.a * 4, event_times=r0.event_times / 2)
+    rep = verify(replace(tr, robots=(fast, *tr.robots[1:])), inst)
+    assert not rep.ok
+    assert any("speed" in p for p in rep.problems)
+    assert any("outside its window" in p for p in rep.problems)
+    # A robot moved off its path.
+    off = replace(r0, p=r0.p + np.array([0.0, 0.3]))
+    rep = verify(replace(tr, robots=(off, *tr.robots[1:])), inst)
+    assert any("off its path" in p for p in rep.problems)
+    # A claim the motion does not keep.
+    rep = verify(replace(tr, safety_distance=5.0), inst)
+    assert not rep.ok and "below the reported safety distance" in rep.problems[-1]
+
+
+def test_output_files(tmp_path) -> None:  # noqa: ANN001
+    from hierplan_opt.trajectory import write_trajectories
+
+    inst, plan = crossing()
+    tr = refine(inst, postprocess(inst, plan, delta=0.25), stretch="auto")
+    csv_path = write_trajectories(tr, tmp_path / "t.csv", dt=0.5)
+    rows = [ln for ln in csv_path.read_text().splitlines() if not ln.startswith("#")]
+    assert rows[0] == "agent,t,x,y,vx,vy"
+    S = len(tr.sample(0.5)["t"])
+    assert len(rows) == 1 + 2 * S
+    npz = np.load(write_trajectories(tr, tmp_path / "t.npz"))
+    assert npz["pos"].shape == (2, len(npz["t"]), 2)
+    with pytest.raises(hp.InputError, match="must end in .csv or .npz"):
+        write_trajectories(tr, tmp_path / "t.txt")
