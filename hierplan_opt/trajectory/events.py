@@ -8,11 +8,14 @@ exactly that from the public parts of a :class:`~hierplan_opt.schedule.Schedule`
 never reads the temporal plan graph's internals.
 
 A schedule *file* holds way-points and arrival times but not the STN. :func:`from_file`
-rebuilds it: the discrete plan is recovered from the vertex way-points (a robot's
-visits ranked by arrival time give the order of visits at every location, which is all
-the temporal plan graph uses), validated, and post-processed again with the file's
-``delta``; the file's arrival times then replace the recomputed ones, after a check that
-the way-points match and that the times respect every precedence.
+rebuilds it: the order in which robots visit every location is the order of their
+arrival times there (a precedence makes the later robot arrive strictly later), which
+is all the temporal plan graph uses. A discrete plan with these visit orders follows
+from the difference constraints "one step per move" and "a robot enters a location no
+earlier than the previous visitor enters its next one", solved by longest paths. The
+plan is validated and post-processed again with the file's ``delta``; the file's
+arrival times then replace the recomputed ones, after a check that the way-points match
+and that the times respect every precedence.
 """
 
 from __future__ import annotations
@@ -261,7 +264,7 @@ def from_file(instance: Instance, path: str | Path) -> EventNetwork:
         arrivals.append(t)
         kinds.append([w.get("kind") if isinstance(w, dict) else None for w in wps])
 
-    # ---- the discrete plan: vertex visits ranked by arrival time --------------------
+    # ---- the discrete plan: visit orders from arrival times, steps by longest paths ----
     visits: list[list[tuple[int, float]]] = []
     for name, c, t, kd in zip(names, rows, arrivals, kinds, strict=True):
         seq: list[tuple[int, float]] = []
@@ -276,18 +279,13 @@ def from_file(instance: Instance, path: str | Path) -> EventNetwork:
             if seq and seq[-1][0] == v:
                 continue  # the end of a turn in place
             seq.append((v, float(t[k])))
+        if not seq or lookup.get(tuple(np.round(c[0], 6).tolist())) is None:
+            raise InputError(
+                f"{path}: the first way-point of {name!r} is not a vertex of the map "
+                "(the schedule does not belong to this instance)"
+            )
         visits.append(seq)
-    all_t = np.round(np.concatenate([[s[1] for s in seq] for seq in visits]), 6)
-    ranks = {x: i for i, x in enumerate(np.unique(all_t).tolist())}
-    paths = []
-    for seq in visits:
-        steps = [ranks[round(s[1], 6)] for s in seq]
-        p: list[int] = []
-        for (v, _), st in zip(seq, steps, strict=True):
-            while len(p) < st:
-                p.append(p[-1] if p else v)
-            p.append(v)
-        paths.append(p)
+    paths = _plan_from_visits(visits, names, path)
     horizon = max(len(p) for p in paths)
     for p in paths:
         p.extend([p[-1]] * (horizon - len(p)))
@@ -346,3 +344,49 @@ def from_file(instance: Instance, path: str | Path) -> EventNetwork:
         safety_distance=float(safety),
         names=tuple(names),
     )
+
+
+def _plan_from_visits(
+    visits: list[list[tuple[int, float]]], names: list[str], path: Path
+) -> list[list[int]]:
+    """Paths (one vertex per step) whose visit orders are those of the arrival times."""
+    import networkx as nx
+
+    G = nx.DiGraph()
+    for j, seq in enumerate(visits):
+        G.add_node((j, 0))
+        for i in range(1, len(seq)):
+            G.add_edge((j, i - 1), (j, i), w=1)
+    at: dict[int, list[tuple[float, int, int]]] = {}
+    for j, seq in enumerate(visits):
+        for i, (v, t) in enumerate(seq):
+            at.setdefault(v, []).append((t, j, i))
+    for v, lst in at.items():
+        lst.sort()
+        for (_, j, i), (_, k, i2) in zip(lst[:-1], lst[1:], strict=True):
+            if j == k:
+                continue
+            if i + 1 >= len(visits[j]):
+                raise InputError(
+                    f"{path}: {names[k]!r} reaches the goal of {names[j]!r} after it parked "
+                    f"there (vertex {v})"
+                )
+            G.add_edge((j, i + 1), (k, i2), w=0)
+    try:
+        order = list(nx.topological_sort(G))
+    except nx.NetworkXUnfeasible:
+        raise InputError(f"{path}: the arrival times order the robots in a cycle") from None
+    step = dict.fromkeys(G.nodes, 0)
+    for u in order:
+        for _, w, d in G.out_edges(u, data=True):
+            step[w] = max(step[w], step[u] + d["w"])
+    paths = []
+    for j, seq in enumerate(visits):
+        p: list[int] = []
+        for i, (v, _) in enumerate(seq):
+            st = step[(j, i)]
+            while len(p) < st:
+                p.append(p[-1] if p else v)
+            p.append(v)
+        paths.append(p)
+    return paths

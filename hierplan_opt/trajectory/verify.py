@@ -172,7 +172,7 @@ def verify(
             if ar > 1 + tol + 4 * jump / (dt * dt * lim["a_max"]):
                 bad(f"{r.name}: acceleration {ar * lim['a_max']:.6g} > a_max {lim['a_max']:g}")
         if r.model == "unicycle":
-            th = st["theta"]
+            th = np.unwrap(st["theta"])
             om = np.abs(np.diff(th)) / dt
             wmax = lim["omega_max"]
             wr = max(float(om.max(initial=0.0)), float(np.abs(r.omega).max(initial=0.0))) / wmax
