@@ -35,13 +35,13 @@ def _stretch(text: str) -> float | str:
     return value
 
 
-def _nonneg(text: str) -> float:
+def _fraction(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+        value = math.nan
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
     return value
 
 
@@ -84,7 +84,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--a-max", type=positive_float, help="acceleration limit for robots without one")
     p.add_argument("--alpha-max", type=positive_float, help="turn acceleration limit of unicycles")
     p.add_argument(
-        "--split", type=_nonneg, default=0.5, help="slack share of the earlier event (0.5)"
+        "--split", type=_fraction, default=0.5, help="slack share of the earlier event (0.5)"
     )
     p.add_argument("--no-following", action="store_true", help="no following points (no guarantee)")
     p.add_argument("--workers", type=positive_int, default=1, help="solve in N processes (1)")
@@ -118,8 +118,6 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.out)
     if args.plot:
         _check_plot(args.plot)
-    if args.split > 1:
-        raise InputError(f"--split must lie in [0, 1], got {args.split:g}")
     instance = load_instance_from_args(args)
     network = from_file(instance, args.schedule)
     try:
