@@ -152,6 +152,16 @@ def test_decoupled_windows_never_violate_a_precedence() -> None:
                     assert np.all(gap >= net.arc_lb - 1e-9)
 
 
+def test_processes_give_the_same_trajectories() -> None:
+    inst, sched = next((i, s) for i, s in random_schedules(10) if i.num_agents >= 4)
+    one = refine(inst, sched, stretch="auto")
+    two = refine(inst, sched, stretch="auto", workers=2)
+    assert two.stretch == pytest.approx(one.stretch)
+    for a, b in zip(one.robots, two.robots, strict=True):
+        assert np.allclose(a.event_times, b.event_times, atol=1e-6)
+    assert verify(two, inst).ok
+
+
 def test_stretched_windows_stay_decoupled() -> None:
     inst, plan = crossing()
     w = decouple(from_schedule(postprocess(inst, plan, delta=0.25)))

@@ -25,6 +25,7 @@ import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -885,8 +886,10 @@ def _solve_all(
     warm = warm or [None] * len(paths)
     if workers <= 1 or len(paths) < 2 * workers:
         return [_solve_one(p, windows, opts, warm=w) for p, w in zip(paths, warm, strict=True)]
-    # Interleaved chunks balance long and short paths; every process builds its own NLPs.
-    chunks = [(paths[i::workers], windows, opts, warm[i::workers]) for i in range(workers)]
+    # Interleaved chunks balance long and short paths; every process builds its own NLPs
+    # and gets the windows as plain arrays (the network's labels are closures).
+    plain = SimpleNamespace(lo=windows.lo, hi=windows.hi, stretch=windows.stretch)
+    chunks = [(paths[i::workers], plain, opts, warm[i::workers]) for i in range(workers)]
     out: list[dict | None] = [None] * len(paths)
     with ProcessPoolExecutor(max_workers=workers) as ex:
         for i, res in enumerate(ex.map(_solve_chunk, chunks)):
