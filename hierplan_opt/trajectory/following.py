@@ -15,10 +15,12 @@ For every directed edge ``u -> w`` that robot ``j`` and later robot ``k`` both t
 the precedence "``j`` passes ``x_i + G`` before ``k`` passes ``x_i``". While ``k`` is
 between ``x_i`` and ``x_{i+1}``, ``j`` is then at least ``x_i + G`` along its path, so
 the two are at least the distance between ``k``'s sub-segment and ``j``'s path from
-that point on (``G - ell / n`` on a straight line). ``G`` is at most the leader's lead
-in the schedule (so the schedule satisfies the new precedences, and decoupling works
-as before); ``n`` (up to ``max_points``) and ``G`` are chosen to reach the schedule's
-safety distance when the schedule allows it, with as much slack as possible.
+that point to the end of the edge it is on (beyond, the markers of that vertex keep
+the two apart) or to where ``j``'s windows let it be (``G - ell / n`` on a straight
+line). ``G`` is at most the leader's lead in the schedule (so the schedule satisfies
+the new precedences, and decoupling works as before); ``n`` (up to ``max_points``) and
+``G`` are chosen to reach the schedule's safety distance when the schedule allows it,
+with as much slack as possible.
 
 The distance each pair is guaranteed is computed here (an argument, not a proof: a
 leader whose path later comes back near the edge is covered by the other precedences
@@ -113,6 +115,7 @@ def add_following(
     # A robot passes an event after every earlier event's window opens and before every
     # later event's window closes.
     LO = [np.maximum.accumulate(w0.lo[net.events(j).start : net.events(j).stop]) for j in range(K)]
+    VX = [np.array([net.kind[e] == "vertex" for e in net.events(j)], dtype=bool) for j in range(K)]
     HI = [
         np.minimum.accumulate(w0.hi[net.events(j).start : net.events(j).stop][::-1])[::-1]
         for j in range(K)
@@ -144,7 +147,7 @@ def add_following(
             if LO[k][ak] >= HI[j][bj]:
                 continue  # k enters the edge only after j has left it
             best = _choose(
-                (S[j], Pj[j], Tj[j], LO[j]),
+                (S[j], Pj[j], Tj[j], LO[j], VX[j]),
                 aj,
                 (S[k], Pj[k], Tj[k], HI[k]),
                 ak,
@@ -182,10 +185,10 @@ def _choose(
 ) -> tuple[float, float, int] | None:
     """``(guaranteed distance, G, n)`` for one leader/follower/edge, or None.
 
-    ``leader`` is ``(arc lengths, positions, schedule times, earliest passage)`` of the
-    leader's events, ``follower`` the same with the latest passage.
+    ``leader`` is ``(arc lengths, positions, schedule times, earliest passage, is a
+    vertex)`` of the leader's events, ``follower`` the first three and the latest passage.
     """
-    Sj, Pj, Tj, LOj = leader
+    Sj, Pj, Tj, LOj, Vj = leader
     Sk, Pk, Tk, HIk = follower
     sj0, sk0 = float(Sj[aj]), float(Sk[ak])
     ell = float(Sk[bk] - sk0)
@@ -211,6 +214,11 @@ def _choose(
                 t_by = float(HIk[min(q, len(Sk) - 1)])
                 r = int(np.searchsorted(LOj, t_by, side="right"))
                 s_cap = float(Sj[r]) if r < len(Sj) else float(Sj[-1])
+                # Past the end of the edge it is on, the leader is kept away by the
+                # markers of that vertex (and the clearance of the map).
+                nxt = Sj[Vj & (Sj > s0 + 1e-9)]
+                if len(nxt):
+                    s_cap = min(s_cap, float(nxt[0]))
                 poly = _path_piece(Pj, Sj, s0, max(s_cap, s0))
                 if len(poly) == 1:
                     poly = np.vstack([poly, poly])
