@@ -202,22 +202,19 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     import casadi as ca
 
     t0 = time.perf_counter()
-    # ---- variables ----------------------------------------------------------------
-    x = [ca.SX.sym(f"x[{k}]", 3) for k in range(N + 1)]  # sigma, v, t
-    u = [ca.SX.sym(f"u[{k}]", 2) for k in range(N)]  # a, h
+    # ---- variables: z = [x_0, u_0, x_1, u_1, ..., x_N], built as whole rows ----------
+    z = ca.SX.sym("z", 5 * N + 3)
+    Z = ca.reshape(z[: 5 * N], 5, N)  # column k: sigma_k, v_k, t_k, a_k, h_k
+    x_end = z[5 * N :]
+    sigma, v, t, a, h = (Z[i, :] for i in range(5))
+    nxt = ca.horzcat(Z[:3, 1:], x_end)  # x_{k+1}
     w = ca.SX.sym("w", 3)  # w_acc, w_time, w_reg
-    z, g, J = [], [], 0
-    for k in range(N):
-        sigma, v, t = x[k][0], x[k][1], x[k][2]
-        a, h = u[k][0], u[k][1]
-        z += [x[k], u[k]]
-        # ---- dynamics: exact integration of a constant acceleration -------------------
-        g.append(x[k + 1] - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h))
-        # ---- objective: acceleration energy, a small pull towards even steps ... ------
-        J += w[0] * a * a * h + w[2] * h * h
-    z.append(x[N])
-    J += w[1] * x[N][2]  # ... plus a small weight on the arrival time
-    nlp = {"x": ca.vertcat(*z), "p": w, "f": J, "g": ca.vertcat(*g)}
+    # ---- dynamics: exact integration of a constant acceleration -------------------------
+    G = nxt - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h)
+    g = ca.vec(G)  # stage by stage: dyn_0, dyn_1, ...
+    # ---- objective: acceleration energy, arrival time, a pull towards even steps --------
+    J = w[0] * ca.sum2(a * a * h) + w[1] * x_end[2] + w[2] * ca.sum2(h * h)
+    nlp = {"x": z, "p": w, "f": J, "g": g}
     fn = ca.nlpsol(f"path_{N}_{solver}", solver, nlp, _options(solver, 3, N, 0))
     ocp = OCP("path", solver, N, 3, 2, 0, 3, fn, time.perf_counter() - t0)
     log.debug("built %s in %.3f s", fn.name(), ocp.build_time)
@@ -260,51 +257,43 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     t0 = time.perf_counter()
     nx, nu = 2 * dim + 1, dim + 1
     npar_stage = 2 * (2 * dim + 1)
-    x = [ca.SX.sym(f"x[{k}]", nx) for k in range(N + 1)]  # p, v, t
-    u = [ca.SX.sym(f"u[{k}]", nu) for k in range(N)]  # a, h
+    # ---- variables: z = [x_0, u_0, ..., x_N], built as whole rows -------------------------
+    z = ca.SX.sym("z", (nx + nu) * N + nx)
+    Z = ca.reshape(z[: (nx + nu) * N], nx + nu, N)
+    x_end = z[(nx + nu) * N :]
+    X = ca.horzcat(Z[:nx, :], x_end)  # nodes 0..N
+    p, v, t = X[:dim, :], X[dim : 2 * dim, :], X[2 * dim, :]
+    a, h = Z[nx : nx + dim, :], Z[nx + dim, :]
     P = ca.SX.sym("P", npar_stage, N + 1)
     w = ca.SX.sym("w", 2)
 
     def inside(pt, par):  # noqa: ANN001, ANN202
-        A, e, m = par[:dim], par[dim : 2 * dim], par[2 * dim]
+        A, e, m = par[:dim, :], par[dim : 2 * dim, :], par[2 * dim, :]
         q = pt - A
-        along = ca.dot(q, e)
-        return ca.dot(q, q) - m * along * along, along
+        along = ca.sum1(q * e)
+        return ca.sum1(q * q) - m * along * along, along
 
-    z, g, J = [], [], 0
-    for k in range(N + 1):
-        p, v = x[k][:dim], x[k][dim : 2 * dim]
-        node_par = P[: 2 * dim + 1, k]
-        lat, along = inside(p, node_par)
-        if k < N:
-            a, h = u[k][:dim], u[k][dim]
-            # The arc of interval k is the quadratic Bezier curve with control points
-            # p_k, p_k + h v_k / 2, p_{k+1}: inside any convex set holding all three.
-            ctrl = p + 0.5 * h * v
-            mlat, malong = inside(ctrl, P[2 * dim + 1 :, k])
-            accel2 = ca.dot(a, a)
-        else:
-            mlat, malong, accel2 = ca.SX(0), ca.SX(0), ca.SX(0)
-        # ---- limits and corridor at node k (and the midpoint of interval k) -----------
-        g.append(ca.vertcat(ca.dot(v, v), accel2, lat, along, mlat, malong))
-        z.append(x[k])
-        if k < N:
-            z.append(u[k])
-            a, h = u[k][:dim], u[k][dim]
-            t = x[k][2 * dim]
-            # ---- dynamics: exact integration of a constant acceleration ---------------
-            g.append(
-                x[k + 1] - ca.vertcat(p + h * v + 0.5 * h * h * a, v + h * a, t + h),
-            )
-            # ---- objective: acceleration energy ---------------------------------------
-            J += w[0] * ca.dot(a, a) * h
-    J += w[1] * x[N][2 * dim]
-    nlp = {
-        "x": ca.vertcat(*z),
-        "p": ca.vertcat(ca.vec(P), w),
-        "f": J,
-        "g": ca.vertcat(*g),
-    }
+    pk, vk = p[:, :N], v[:, :N]
+    hd = ca.repmat(h, dim, 1)  # the step, once per axis
+    # ---- limits and corridor at every node, and at every interval's control point -------
+    lat, along = inside(p, P[: 2 * dim + 1, :])
+    ctrl = pk + 0.5 * hd * vk  # middle Bezier control point of interval k
+    clat, calong = inside(ctrl, P[2 * dim + 1 :, :N])
+    zero = ca.SX.zeros(1, 1)
+    stage = ca.vertcat(
+        ca.sum1(v * v),
+        ca.horzcat(ca.sum1(a * a), zero),
+        lat,
+        along,
+        ca.horzcat(clat, zero),
+        ca.horzcat(calong, zero),
+    )
+    # ---- dynamics: exact integration of a constant acceleration -------------------------
+    dyn = X[:, 1:] - ca.vertcat(pk + vk * hd + 0.5 * a * (hd * hd), vk + a * hd, t[:, :N] + h)
+    g = ca.vertcat(ca.vec(ca.vertcat(stage[:, :N], dyn)), stage[:, N])
+    # ---- objective: acceleration energy and arrival time ------------------------------
+    J = w[0] * ca.sum2(ca.sum1(a * a) * h) + w[1] * x_end[2 * dim]
+    nlp = {"x": z, "p": ca.vertcat(ca.vec(P), w), "f": J, "g": g}
     ng = len(CORRIDOR_ROWS)
     fn = ca.nlpsol(f"corridor{dim}_{N}_{solver}", solver, nlp, _options(solver, nx, N, ng))
     ocp = OCP(
