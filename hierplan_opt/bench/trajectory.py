@@ -76,7 +76,7 @@ def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]: 
         "corridor": traj.corridor,
         "solvers": (solver,),
         "weights": (1.0, 0.01, 1e-3),
-        "base": 3,
+        "base": 2,
     }
     out = []
     for j, r in enumerate(traj.robots):

@@ -622,7 +622,7 @@ def refine(
     accel_weight: float = 1.0,
     time_weight: float = 0.01,
     step_weight: float = 1e-3,
-    intervals_per_piece: int = 3,
+    intervals_per_piece: int = 2,
     alpha_max: float | None = None,
     a_max: float | None = None,
     workers: int = 1,
