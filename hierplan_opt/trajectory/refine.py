@@ -748,12 +748,16 @@ def refine(
     failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
     found_stretch = None
     if failed:
-        found_stretch = smallest_stretch([paths[j] for j in failed], windows, opts)
+        found_stretch, sols = smallest_stretch([paths[j] for j in failed], windows, opts)
         if stretch == "auto" and found_stretch is not None:
-            windows = windows.stretched(found_stretch)
-            warm = [None if o is None or not o["ok"] else _dilate(o, found_stretch) for o in outs]
-            outs = _solve_all(paths, windows, opts, workers, warm=warm)
-            failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
+            # Every solution slowed down to the final factor stays feasible (the
+            # monotonicity argument above): no robot is solved again.
+            f = found_stretch
+            windows = windows.stretched(f)
+            outs = [o if not _ok(o) else _dilate(o, f, paths[j]) for j, o in enumerate(outs)]
+            for j, (fj, o) in zip(failed, sols, strict=True):
+                outs[j] = None if o is None else _dilate(o, f / fj, paths[j])
+            failed = []
         if failed:
             raise _infeasible(paths[failed[0]], windows, opts, net, found_stretch, stretch)
     t_solve = time.perf_counter() - t0
@@ -814,14 +818,23 @@ def refine(
     )
 
 
-def _dilate(o: dict, f: float) -> tuple[np.ndarray, np.ndarray]:
-    """A solution slowed down by ``f``: times and steps times ``f``, speeds over ``f``."""
+def _dilate(o: dict | None, f: float, path: RobotPath) -> dict | None:
+    """A solution slowed down by ``f``: times and steps times ``f``, speeds over ``f``,
+    accelerations over ``f**2``."""
+    if o is None or f == 1.0:
+        return o
     X, U = o["X"].copy(), o["U"].copy()
-    X[1] /= f
-    X[2] *= f
-    U[0] /= f * f
-    U[1] *= f
-    return X, U
+    dim = (X.shape[0] - 1) // 2
+    X[dim : 2 * dim] /= f
+    X[2 * dim] *= f
+    U[:-1] /= f * f
+    U[-1] *= f
+    out = dict(o, X=X, U=U)
+    if "traj" in o:  # corridor mode keeps the spatial motion
+        from hierplan_opt.trajectory.corridor import _trajectory
+
+        out["traj"] = _trajectory(path, o["pp"], X, U, dim)
+    return out
 
 
 # ---------------------------------------------------------------------- solving
@@ -898,38 +911,48 @@ def _solve_all(
     return out
 
 
-def _feasible_at(path: RobotPath, windows: Windows, opts: dict, factor: float) -> bool:
-    w = windows.stretched(factor) if factor > 1 else windows
-    lo, hi = _effective_windows(path, w, None)
-    if np.any(earliest_passage(path, lo) > hi + 1e-9):
-        return False
-    o = _solve_one(path, w, opts)
+def _solve_at(path: RobotPath, windows: Windows, opts: dict, factor: float) -> dict | None:
+    return _solve_one(path, windows.stretched(factor) if factor > 1 else windows, opts)
+
+
+def _ok(o: dict | None) -> bool:
     return o is None or bool(o["ok"])
 
 
-def smallest_stretch(paths: Sequence[RobotPath], windows: Windows, opts: dict) -> float | None:
-    """The smallest factor (within :data:`STRETCH_RTOL`) that makes all ``paths`` feasible.
+def smallest_stretch(
+    paths: Sequence[RobotPath], windows: Windows, opts: dict
+) -> tuple[float | None, list[tuple[float, dict | None]]]:
+    """The smallest factor (within :data:`STRETCH_RTOL`) that makes all ``paths`` feasible,
+    and for every path a factor and a solution found there (to be slowed down to the
+    final factor).
 
     Robots are taken one by one; a robot feasible at the best factor so far costs one
     solve, the others a bisection between that factor and a doubling bracket.
     """
     best = 1.0
+    sols: list[tuple[float, dict | None]] = []
     for path in paths:
-        if _feasible_at(path, windows, opts, best):
+        o = _solve_at(path, windows, opts, best)
+        if _ok(o):
+            sols.append((best, o))
             continue
         lo, hi = best, best * 2
-        while not _feasible_at(path, windows, opts, hi):
+        o = _solve_at(path, windows, opts, hi)
+        while not _ok(o):
             lo, hi = hi, hi * 2
             if hi > MAX_STRETCH:
-                return None
+                return None, sols
+            o = _solve_at(path, windows, opts, hi)
         while hi - lo > STRETCH_RTOL * lo:
             mid = 0.5 * (lo + hi)
-            if _feasible_at(path, windows, opts, mid):
-                hi = mid
+            o_mid = _solve_at(path, windows, opts, mid)
+            if _ok(o_mid):
+                hi, o = mid, o_mid
             else:
                 lo = mid
         best = hi
-    return best
+        sols.append((hi, o))
+    return best, sols
 
 
 def first_unmet(path: RobotPath, windows: Windows, opts: dict) -> tuple[int, str]:
