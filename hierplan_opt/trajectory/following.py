@@ -71,8 +71,8 @@ def _path_piece(P: np.ndarray, S: np.ndarray, s0: float, s1: float) -> np.ndarra
     """The polyline from arc length ``s0`` to ``s1`` (points)."""
     s1 = min(s1, float(S[-1]))
     s0 = min(s0, s1)
-    inner = [P[k] for k in range(len(S)) if s0 < S[k] < s1]
-    return np.array([_point_at(P, S, s0), *inner, _point_at(P, S, s1)])
+    a, b = int(np.searchsorted(S, s0, side="right")), int(np.searchsorted(S, s1, side="left"))
+    return np.vstack([_point_at(P, S, s0)[None], P[a:b], _point_at(P, S, s1)[None]])
 
 
 def add_following(
@@ -232,18 +232,27 @@ def _choose(
             d = segment_distance(np.vstack(A), np.vstack(B), np.vstack(C), np.vstack(D))
             return float(d.min())
 
-        g_max = guarantee(G_max)
-        if best is None or g_max > best[0]:
-            best = (g_max, G_max, n)
-        if g_max >= target:
-            lo, hi = 0.0, G_max  # the smallest G that still reaches the target
-            for _ in range(12):
-                mid = 0.5 * (lo + hi)
-                if guarantee(mid) >= target:
-                    hi = mid
-                else:
-                    lo = mid
-            return target, hi, n
+        # Euclidean distance is at most path distance: no n with G_max - ell/n below the
+        # target can reach it, whatever the geometry.
+        if n == max_points:  # the fallback: as close to the target as the lead allows
+            best = (guarantee(G_max), G_max, n)
+        if G_max - ell / n < target:
+            continue
+        # On a straight line G = target + ell/n is exactly enough; around a corner the
+        # smallest sufficient G lies between that and G_max (bisection).
+        lo = target + ell / n
+        if guarantee(lo) >= target:
+            return target, lo, n
+        if guarantee(G_max) < target:
+            continue
+        hi = G_max
+        for _ in range(10):
+            mid = 0.5 * (lo + hi)
+            if guarantee(mid) >= target:
+                hi = mid
+            else:
+                lo = mid
+        return target, hi, n
     return best
 
 
