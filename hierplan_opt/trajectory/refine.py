@@ -246,7 +246,7 @@ def allocate(durations: np.ndarray, base: int) -> tuple[int, np.ndarray]:
 
     Example
     -------
-    >>> allocate(np.array([1.0, 3.0]), 3)
+    >>> allocate(np.array([1.0, 3.0]), 2)
     (8, array([3, 5]))
     """
     P = len(durations)

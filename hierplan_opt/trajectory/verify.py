@@ -241,7 +241,7 @@ def verify(
             0.0,
             np.maximum(lo_b[:, None, :] - hi_b[None, :, :], lo_b[None, :, :] - hi_b[:, None, :]),
         )
-        near = np.sqrt((gap * gap).sum(axis=2)) < radius
+        near = np.sqrt((gap * gap).sum(axis=2)) <= radius
         ii, jj = np.nonzero(np.triu(near, 1))
         if not len(ii):
             continue
@@ -263,7 +263,7 @@ def verify(
         if val < best[0]:
             a, c = int(ii[k[1]]), int(jj[k[1]])
             best = (val, (traj.robots[a].name, traj.robots[c].name), float(ts[b0 + k[0]]))
-    min_d = best[0] if best[0] < radius else math.inf
+    min_d = best[0] if best[0] <= radius else math.inf
     if min_d < claimed - tol:
         bad(
             f"robots {best[1][0]} and {best[1][1]} come within {min_d:.4g} of each other "  # type: ignore[index]
