@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cache", metavar="DIR", help="keep the warehouse plan in DIR and reuse it")
     ap.add_argument("--solvers", default="ipopt,fatrop", help="solvers compared per robot")
     ap.add_argument("--no-following", action="store_true", help="refine without following points")
-    ap.add_argument("--verify-dt", type=float, default=0.01)
+    ap.add_argument("--verify-dt", type=float, default=0.02, help="verification step (s)")
     args = ap.parse_args(argv)
     k = 50 if args.quick else args.agents
     cases = [_formation(), _warehouse(k, args.w, args.cache, args.time_limit)]

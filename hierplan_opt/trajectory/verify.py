@@ -38,7 +38,7 @@ from hierplan_opt.schedule.replay import segment_distance
 from hierplan_opt.trajectory.result import Trajectories
 
 #: Default sampling step (seconds).
-DEFAULT_DT = 0.01
+DEFAULT_DT = 0.02
 #: Samples per block of the pairwise check.
 BLOCK = 256
 
