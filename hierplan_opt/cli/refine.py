@@ -92,7 +92,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--dt", type=positive_float, default=0.1, help="sampling step of the file (0.1 s)"
     )
     p.add_argument(
-        "--verify-dt", type=positive_float, default=0.01, help="verification step (0.01 s)"
+        "--verify-dt", type=positive_float, default=0.02, help="verification step (0.02 s)"
     )
     p.add_argument("--no-verify", action="store_true", help="skip the independent verification")
     p.epilog = (
