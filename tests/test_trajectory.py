@@ -14,7 +14,7 @@ import hierplan_opt as hp
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance, Kinematics
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.schedule import postprocess
+from hierplan_opt.schedule import ClearanceError, postprocess
 from hierplan_opt.schedule.stn import accel_time
 from hierplan_opt.trajectory import (
     InfeasibleWindowsError,
@@ -22,7 +22,6 @@ from hierplan_opt.trajectory import (
     from_schedule,
     refine,
 )
-from hierplan_opt.trajectory.following import add_following
 from hierplan_opt.trajectory.verify import verify
 from hierplan_opt.trajectory.windows import violations
 
@@ -50,7 +49,7 @@ def test_straight_line_reproduces_bang_bang_and_the_stretch_factor() -> None:
     # cruise 3 s, brake 1 s). The schedule without the acceleration bound asks for 4 s,
     # so the smallest stretch factor is exactly 5/4.
     inst, plan = line_instance(4, Kinematics(v_max=1.0, a_max=1.0))
-    sched = postprocess(inst, plan, delta=0, acceleration=False)
+    sched = postprocess(inst, plan, acceleration=False)
     assert sched.makespan == pytest.approx(4.0)
     with pytest.raises(InfeasibleWindowsError, match=r"agent0 way-point 4 .*stretching") as ei:
         refine(inst, sched)
@@ -69,7 +68,7 @@ def test_straight_line_reproduces_bang_bang_and_the_stretch_factor() -> None:
 def test_short_line_is_triangular() -> None:
     # 1 m at a_max 1 with v_max 2: no cruise, 2 sqrt(1/1) = 2 s, peak speed 1 m/s.
     inst, plan = line_instance(1, Kinematics(v_max=2.0, a_max=1.0))
-    sched = postprocess(inst, plan, delta=0, acceleration=False)
+    sched = postprocess(inst, plan, acceleration=False)
     tr = refine(inst, sched, stretch="auto")
     r = tr.robots[0]
     assert tr.stretch * sched.makespan == pytest.approx(accel_time(1.0, 2.0, 1.0), rel=3e-3)
@@ -81,7 +80,7 @@ def test_short_line_is_triangular() -> None:
 def crossing() -> tuple[Instance, Plan]:
     # Two robots cross at the centre of a plus-shaped map; agent1 waits one step.
     g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
-    kin = Kinematics(v_max=1.0, a_max=2.0)
+    kin = Kinematics(v_max=1.0, a_max=2.0, radius=0.2)
     inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)], kinematics=kin)
     v = g.vertex
     plan = Plan.from_paths(
@@ -92,7 +91,7 @@ def crossing() -> tuple[Instance, Plan]:
 
 def test_windows_and_limits_are_kept() -> None:
     inst, plan = crossing()
-    sched = postprocess(inst, plan, delta=0.25)
+    sched = postprocess(inst, plan)
     tr = refine(inst, sched, stretch="auto")
     win = tr.windows
     net = win.network
@@ -124,19 +123,27 @@ def random_schedules(count: int):  # noqa: ANN201
         k = int(rng.integers(3, 5))
         starts = [free[i] for i in pick[:k]]
         goals = [free[i] for i in pick[k : 2 * k]]
-        kin = Kinematics(v_max=float(rng.uniform(0.5, 1.5)), a_max=float(rng.uniform(0.5, 2)))
+        kin = Kinematics(
+            v_max=float(rng.uniform(0.5, 1.5)),
+            a_max=float(rng.uniform(0.5, 2)),
+            radius=float(rng.uniform(0.1, 0.3)),
+        )
         inst = Instance.mapf(g, starts, goals, kinematics=kin)
         res = hp.solve(inst, "cbs", time_limit=10)
         if res.plan is None:
             continue
+        try:
+            sched = postprocess(inst, res.plan, margin=float(rng.uniform(0.0, 0.2)))
+        except ClearanceError:
+            continue  # a rotation: robots with a size cannot follow this plan
         made += 1
-        yield inst, postprocess(inst, res.plan, delta=float(rng.uniform(0.1, 0.3)))
+        yield inst, sched, res.plan
 
 
 def test_decoupled_windows_never_violate_a_precedence() -> None:
     rng = np.random.default_rng(1)
-    for _inst, sched in random_schedules(6):
-        for net in (from_schedule(sched), add_following(from_schedule(sched))[0]):
+    for _inst, sched, _plan in random_schedules(6):
+        for net in (from_schedule(sched),):
             for split in (0.0, 0.5, 1.0):
                 w = decouple(net, split)
                 assert violations(w) == []
@@ -153,7 +160,7 @@ def test_decoupled_windows_never_violate_a_precedence() -> None:
 
 
 def test_processes_give_the_same_trajectories() -> None:
-    inst, sched = next((i, s) for i, s in random_schedules(10) if i.num_agents >= 4)
+    inst, sched = next((i, s) for i, s, _ in random_schedules(10) if i.num_agents >= 4)
     one = refine(inst, sched, stretch="auto")
     two = refine(inst, sched, stretch="auto", workers=2)
     assert two.stretch == pytest.approx(one.stretch)
@@ -164,7 +171,7 @@ def test_processes_give_the_same_trajectories() -> None:
 
 def test_stretched_windows_stay_decoupled() -> None:
     inst, plan = crossing()
-    w = decouple(from_schedule(postprocess(inst, plan, delta=0.25)))
+    w = decouple(from_schedule(postprocess(inst, plan)))
     assert violations(w.stretched(1.7)) == []
     with pytest.raises(hp.InputError, match="stretch factor must be >= 1"):
         w.stretched(0.5)
@@ -173,7 +180,7 @@ def test_stretched_windows_stay_decoupled() -> None:
 # ---------------------------------------------------------------------- infeasibility
 def test_infeasible_windows_name_robot_waypoint_and_factor() -> None:
     inst, plan = crossing()
-    sched = postprocess(inst, plan, delta=0.25, acceleration=False)
+    sched = postprocess(inst, plan, acceleration=False)
     with pytest.raises(InfeasibleWindowsError) as ei:
         refine(inst, sched)
     msg = str(ei.value)
@@ -191,8 +198,8 @@ def test_infeasible_windows_name_robot_waypoint_and_factor() -> None:
 def test_robot_without_acceleration_limit_is_refused() -> None:
     inst, plan = line_instance(2, Kinematics(v_max=1.0))
     with pytest.raises(hp.InputError, match="has no a_max"):
-        refine(inst, postprocess(inst, plan, delta=0))
-    tr = refine(inst, postprocess(inst, plan, delta=0), a_max=1.0, stretch="auto")
+        refine(inst, postprocess(inst, plan))
+    tr = refine(inst, postprocess(inst, plan), a_max=1.0, stretch="auto")
     assert tr.robots[0].limits["a_max"] == 1.0
 
 
@@ -211,13 +218,13 @@ def test_robot_without_acceleration_limit_is_refused() -> None:
 def test_bad_options_are_refused(kw: dict, match: str) -> None:
     inst, plan = line_instance(2, Kinematics(a_max=1.0))
     with pytest.raises(hp.OptionError, match=match):
-        refine(inst, postprocess(inst, plan, delta=0), **kw)
+        refine(inst, postprocess(inst, plan), **kw)
 
 
 # ---------------------------------------------------------------------- 3D and unicycles
 def test_quadcopters_in_3d() -> None:
     g = Graph.grid(3, 3, 3)
-    kin = Kinematics("quad", v_max=1.0, a_max=2.0)
+    kin = Kinematics("quad", v_max=1.0, a_max=2.0, radius=0.15)
     inst = Instance.mapf(g, [(0, 1, 1), (1, 0, 1)], [(2, 1, 1), (1, 2, 1)], kinematics=kin)
     res = hp.solve(inst, "cbs", time_limit=10)
     sched = postprocess(inst, res.plan)
@@ -237,7 +244,7 @@ def test_unicycle_turns_in_place_at_corners() -> None:
     inst = Instance.mapf(g, [(0, 0)], [(2, 2)], kinematics=kin)
     v = g.vertex
     plan = Plan.from_paths([[v((0, 0)), v((1, 0)), v((2, 0)), v((2, 1)), v((2, 2))]])
-    sched = postprocess(inst, plan, delta=0.25)
+    sched = postprocess(inst, plan)
     tr = refine(inst, sched, stretch="auto")
     r = tr.robots[0]
     assert r.model == "unicycle"
@@ -266,29 +273,108 @@ def test_unicycle_turns_in_place_at_corners() -> None:
 def test_unicycle_model_needs_omega_max() -> None:
     inst, plan = line_instance(2, Kinematics(a_max=1.0))
     with pytest.raises(hp.InputError, match="needs omega_max"):
-        refine(inst, postprocess(inst, plan, delta=0), model="unicycle")
+        refine(inst, postprocess(inst, plan), model="unicycle")
 
 
-# ---------------------------------------------------------------------- following, corridor
-def following_instance() -> tuple[Instance, Plan]:
+# ---------------------------------------------------------------------- clearance, corridor
+def motion_in_windows(net, w, j: int, rng) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """A random motion of robot ``j`` forward along its path that passes every event with a
+    window at a random time inside it (its ends included), the others in between, and
+    between two events dawdles: it covers a random part of the piece at once, then stops
+    or creeps. Times increase strictly (a continuous motion, however fast)."""
+    ev = np.array(list(net.events(j)))
+    tied = (w.lo[ev] > 0) | np.isfinite(w.hi[ev])
+    tied[0] = tied[-1] = True
+    k = np.flatnonzero(tied)
+    lo = np.maximum.accumulate(w.lo[ev[k]])
+    hi = np.where(np.isfinite(w.hi[ev[k]]), w.hi[ev[k]], lo + 5.0)
+    hi = np.maximum(np.minimum.accumulate(hi[::-1])[::-1], lo)
+    tk = np.empty(len(k))
+    t_prev = -1.0
+    for q in range(len(k)):
+        nxt = hi[q + 1] if q + 1 < len(k) else np.inf
+        u = rng.random()
+        if u < 0.2 and lo[q] > t_prev:
+            t = lo[q]
+        elif u > 0.8 and hi[q] < nxt and hi[q] > t_prev:
+            t = hi[q]
+        else:
+            a = max(lo[q], t_prev)
+            t = a + (0.001 + 0.998 * rng.random()) * (hi[q] - a)
+        tk[q] = t_prev = t
+    times = np.interp(np.arange(len(ev)), k, tk)  # the others in between, then jittered
+    for q in range(len(k) - 1):
+        inner = np.arange(k[q] + 1, k[q + 1])
+        if len(inner):
+            f = np.sort(rng.uniform(0.001, 0.999, len(inner)))
+            times[inner] = tk[q] + f * (tk[q + 1] - tk[q])
+    ts, ps = [float(times[0])], [net.pos[ev[0]].astype(float)]
+    for i in range(1, len(ev)):
+        f, g = rng.random(), 0.001 + 0.998 * rng.random() ** 3
+        ts.append(ts[-1] + g * (times[i] - ts[-1]))
+        ps.append(ps[-1] + f * (net.pos[ev[i]] - ps[-1]))
+        ts.append(float(times[i]))
+        ps.append(net.pos[ev[i]].astype(float))
+    return np.array(ts), np.array(ps)
+
+
+def closest(ta, pa, tb, pb) -> float:  # noqa: ANN001
+    """Exact minimum distance of two piecewise-linear motions (at rest outside them)."""
+    T = np.union1d(ta, tb)
+    A = np.stack([np.interp(T, ta, pa[:, d]) for d in range(pa.shape[1])], axis=1)
+    B = np.stack([np.interp(T, tb, pb[:, d]) for d in range(pb.shape[1])], axis=1)
+    r0 = (A - B)[:-1]
+    dr = (A - B)[1:] - r0
+    dd = (dr * dr).sum(axis=1)
+    s = np.clip(-(r0 * dr).sum(axis=1) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    d = np.linalg.norm(r0 + dr * s[:, None], axis=1)
+    return float(min(d.min(initial=np.inf), np.linalg.norm(A[-1] - B[-1])))
+
+
+def worst_gap(sched, rng, motions: int) -> float:  # noqa: ANN001
+    """Smallest ``distance - (r_i + r_j + margin)`` over random motions in the windows."""
+    net = from_schedule(sched)
+    worst = np.inf
+    for split in (0.0, 0.5, 1.0):
+        w = decouple(net, split)
+        for _ in range(motions):
+            mo = [motion_in_windows(net, w, j, rng) for j in range(net.num_agents)]
+            for i in range(net.num_agents):
+                for j in range(i + 1, net.num_agents):
+                    d = closest(*mo[i], *mo[j])
+                    worst = min(worst, d - float(net.radius[i] + net.radius[j] + sched.margin))
+    return worst
+
+
+def test_any_motion_inside_the_decoupled_windows_keeps_the_clearance() -> None:
+    # The claim argument of MAPF-POST (docs/post.md) for refined robots: robots that move
+    # forward on their paths and pass every event inside its decoupled window keep
+    # r_i + r_j + margin, however they speed up, stop or creep between the events
+    # (the case the following points of earlier versions were for). Without the
+    # clearance markers (clearance=False) the same motions collide.
+    rng = np.random.default_rng(3)
+    plain = []
+    for inst, sched, plan in random_schedules(6):
+        assert worst_gap(sched, rng, 30) >= -1e-9
+        plain.append(worst_gap(postprocess(inst, plan, clearance=False), rng, 5))
+    assert min(plain) < -0.05
+
+
+def test_a_refined_follower_keeps_its_distance() -> None:
     g = Graph.grid(6, 1)
-    kin = Kinematics(v_max=1.0, a_max=1.0)
+    kin = Kinematics(v_max=1.0, a_max=1.0, radius=0.3)
     inst = Instance.mapf(g, [(1, 0), (0, 0)], [(5, 0), (4, 0)], kinematics=kin)
-    return inst, Plan.from_paths([[1, 2, 3, 4, 5], [0, 1, 2, 3, 4]])
-
-
-def test_a_follower_keeps_its_distance() -> None:
-    inst, plan = following_instance()
+    plan = Plan.from_paths([[1, 2, 3, 4, 5], [0, 1, 2, 3, 4]])
     sched = postprocess(inst, plan)
-    net2, info = add_following(from_schedule(sched))
-    assert info.pairs == 3 and info.distance >= sched.safety_distance
     tr = refine(inst, sched, stretch="auto")
-    assert tr.stats["following_pairs"] == 3
-    assert tr.safety_distance == pytest.approx(sched.safety_distance)
+    assert tr.safety_distance == pytest.approx(0.6) == sched.safety_distance
+    assert tr.required(0, 1) == pytest.approx(0.6)
     rep = verify(tr, inst)
-    assert rep.ok and rep.min_distance >= tr.safety_distance
-    no = refine(inst, sched, stretch="auto", following=False)
-    assert no.safety_distance == 0 and "no following points" in no.guarantee
+    assert rep.ok, rep.message()
+    assert rep.min_distance >= 0.6 - 1e-9 and rep.worst_gap >= -1e-9
+    # Without clearance the schedule guarantees nothing, and the refinement says so.
+    loose = refine(inst, postprocess(inst, plan, clearance=False), stretch="auto")
+    assert loose.safety_distance == 0 and "without clearance" in loose.guarantee
 
 
 def test_corridor_cuts_corners_and_loses_2c() -> None:
@@ -299,14 +385,14 @@ def test_corridor_cuts_corners_and_loses_2c() -> None:
     plan = Plan.from_paths(
         [[v((0, 0)), v((1, 0)), v((1, 1)), v((2, 1)), v((2, 2)), v((3, 2)), v((3, 3))]]
     )
-    sched = postprocess(inst, plan, delta=0)
+    sched = postprocess(inst, plan)
     c = 0.2
     path = refine(inst, sched, stretch="auto")
     corr = refine(inst, sched, mode="corridor", corridor=c, stretch="auto")
     assert corr.corridor == c and "2c" in corr.guarantee
     rep = verify(corr, inst)
     assert rep.ok, rep.message()
-    from hierplan_opt.schedule.replay import segment_distance
+    from hierplan_opt.schedule.geometry import segment_distance
 
     P = corr.sample(0.01)["pos"][0]
     W = corr.windows.network.pos
@@ -328,7 +414,7 @@ def test_corridor_mode_refuses_unicycles() -> None:
     g = Graph.grid(3, 1)
     kin = Kinematics("p", drive="differential", v_max=0.5, a_max=1.0, omega_max=1.0)
     inst = Instance.mapf(g, [(0, 0)], [(2, 0)], kinematics=kin)
-    sched = postprocess(inst, Plan.from_paths([[0, 1, 2]]), delta=0)
+    sched = postprocess(inst, Plan.from_paths([[0, 1, 2]]))
     with pytest.raises(hp.OptionError, match="corridor mode"):
         refine(inst, sched, mode="corridor")
 
@@ -336,7 +422,7 @@ def test_corridor_mode_refuses_unicycles() -> None:
 # ---------------------------------------------------------------------- the verifier
 def test_verifier_catches_broken_trajectories() -> None:
     inst, plan = crossing()
-    sched = postprocess(inst, plan, delta=0.25)
+    sched = postprocess(inst, plan)
     tr = refine(inst, sched, stretch="auto")
     assert verify(tr, inst).ok
     r0 = tr.robots[0]
@@ -352,14 +438,14 @@ def test_verifier_catches_broken_trajectories() -> None:
     assert any("off its path" in p for p in rep.problems)
     # A claim the motion does not keep.
     rep = verify(replace(tr, safety_distance=5.0), inst)
-    assert not rep.ok and "below the reported safety distance" in rep.problems[-1]
+    assert not rep.ok and "they must keep" in rep.problems[-1]
 
 
 def test_output_files(tmp_path) -> None:  # noqa: ANN001
     from hierplan_opt.trajectory import write_trajectories
 
     inst, plan = crossing()
-    tr = refine(inst, postprocess(inst, plan, delta=0.25), stretch="auto")
+    tr = refine(inst, postprocess(inst, plan), stretch="auto")
     csv_path = write_trajectories(tr, tmp_path / "t.csv", dt=0.5)
     rows = [ln for ln in csv_path.read_text().splitlines() if not ln.startswith("#")]
     assert rows[0] == "agent,t,x,y,vx,vy"

@@ -86,7 +86,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--split", type=_fraction, default=0.5, help="slack share of the earlier event (0.5)"
     )
-    p.add_argument("--no-following", action="store_true", help="no following points (no guarantee)")
     p.add_argument("--workers", type=positive_int, default=1, help="solve in N processes (1)")
     p.add_argument(
         "--dt", type=positive_float, default=0.1, help="sampling step of the file (0.1 s)"
@@ -108,6 +107,15 @@ def _check_plot(path: str) -> None:
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise InputError(f"{path}: directory {parent} does not exist")
+
+
+def _clearance(traj) -> str:  # noqa: ANN001 - Trajectories
+    """``r_i + r_j + 0.1 (smallest pair 0.6 m)``: what the trajectories keep."""
+    if not traj.enforced:
+        return "none guaranteed (schedule without clearance)"
+    less = traj.margin - 2 * traj.corridor
+    sign = "+" if less >= 0 else "-"
+    return f"r_i + r_j {sign} {abs(less):.4g} m (smallest pair {traj.safety_distance:.4g} m)"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -133,7 +141,6 @@ def run(args: argparse.Namespace) -> int:
             a_max=args.a_max,
             alpha_max=args.alpha_max,
             workers=args.workers,
-            following=not args.no_following,
         )
     except InfeasibleWindowsError as exc:
         print(f"hierplan refine: infeasible: {exc}", file=sys.stderr)
@@ -147,8 +154,8 @@ def run(args: argparse.Namespace) -> int:
     solvers = sorted({r.stats.get("solver") or "-" for r in traj.robots} - {"-"})
     line = (
         f"refined {traj.num_agents} robots ({traj.mode} mode, {'/'.join(solvers) or 'no solver'}): "
-        f"makespan {traj.makespan:.6g} s, stretch {traj.stretch:.4g}, safety distance "
-        f"{traj.safety_distance:.4g}, {st['total_time']:.2f} s -> {args.out}"
+        f"makespan {traj.makespan:.6g} s, stretch {traj.stretch:.4g}, clearance "
+        f"{_clearance(traj)}, {st['total_time']:.2f} s -> {args.out}"
     )
     code = OK
     if not args.no_verify:

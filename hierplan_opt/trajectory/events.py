@@ -1,11 +1,13 @@
 """The schedule's events as refinement sees them: an adapter over ``hierplan_opt.schedule``.
 
-Refinement needs, for every robot, its STN events in path order (vertices and the
-safety markers that carry a precedence) with their positions and scheduled times, and
-the precedences *between* robots (the Type-2 arcs). :class:`EventNetwork` collects
-exactly that from the public parts of a :class:`~hierplan_opt.schedule.Schedule` (its
-``stn``, ``times`` and way-points), so the rest of :mod:`hierplan_opt.trajectory`
-never reads the temporal plan graph's internals.
+Refinement needs, for every robot, its STN events in path order (vertices, the
+markers that end or begin a clearance claim, and ``wait`` events where a robot sets off
+from its start) with their positions and scheduled times, the precedences *between*
+robots (the Type-2 arcs), and the clearance they keep: ``r_i + r_j + margin`` for every
+pair (``docs/post.md``). :class:`EventNetwork` collects exactly that from the public
+parts of a :class:`~hierplan_opt.schedule.Schedule` (its ``stn``, ``times``, windows
+``earliest``/``latest`` for the schedule returned, and way-points), so the rest of
+:mod:`hierplan_opt.trajectory` never reads the temporal plan graph's internals.
 
 A schedule *file* holds way-points and arrival times but not the STN. :func:`from_file`
 rebuilds it: the order in which robots visit every location is the order of their
@@ -13,9 +15,10 @@ arrival times there (a precedence makes the later robot arrive strictly later), 
 is all the temporal plan graph uses. A discrete plan with these visit orders follows
 from the difference constraints "one step per move" and "a robot enters a location no
 earlier than the previous visitor enters its next one", solved by longest paths. The
-plan is validated and post-processed again with the file's ``delta``; the file's
-arrival times then replace the recomputed ones, after a check that the way-points match
-and that the times respect every precedence.
+plan is validated and post-processed again with the file's ``margin`` (and without
+clearance if the file says it had none); the file's arrival times then replace the
+recomputed ones, after a check that the way-points match and that the times respect
+every precedence.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -49,8 +53,8 @@ class EventNetwork:
     agent : (N,) int
         Owner of every event.
     kind : tuple of str
-        ``"vertex"``, ``"leave"`` or ``"enter"`` (the marker kinds of the schedule), or
-        ``"follow"`` for points added by :mod:`.following`.
+        ``"vertex"``, ``"leave"``, ``"enter"``, ``"marker"`` (both) or ``"wait"`` (the
+        robot sets off from its start), as in the schedule.
     pos : (N, dim) float
         Position in metres.
     coord : (N, dim) float
@@ -58,8 +62,8 @@ class EventNetwork:
     times : (N,) float
         Scheduled time of every event (a consistent solution of the STN).
     earliest, latest : (N,) float
-        Earliest and latest times of the STN, ``latest`` against the makespan of
-        ``times``; both contain ``times``.
+        The STN's window of every event for this schedule (``latest`` against its
+        makespan); both contain ``times``.
     release, deadline : (N,) float
         Node bounds of the STN.
     arc_src, arc_dst : (M,) int
@@ -70,8 +74,13 @@ class EventNetwork:
         lists the ends of turns in place).
     scale : float
         Metres per instance coordinate unit.
-    safety_distance : float
-        The schedule's guaranteed distance between robot centres.
+    radius : (K,) float
+        The robots' radii (metres).
+    margin : float
+        Extra clearance beyond the radii (metres).
+    enforced : bool
+        Whether the schedule's precedences keep ``r_i + r_j + margin`` (False for a
+        schedule built with ``clearance=False``).
     """
 
     agent_names: tuple[str, ...]
@@ -91,7 +100,9 @@ class EventNetwork:
     arc_ub: np.ndarray
     waypoint: np.ndarray
     scale: float
-    safety_distance: float
+    radius: np.ndarray
+    margin: float
+    enforced: bool
     label: Callable[[int], str]
 
     @property
@@ -110,34 +121,48 @@ class EventNetwork:
     def makespan(self) -> float:
         return float(self.times[self.agent_ptr[1:] - 1].max()) if self.num_events else 0.0
 
+    def required(self, i: int, j: int) -> float:
+        """``r_i + r_j + margin``: the distance robots ``i`` and ``j`` must keep."""
+        return float(self.radius[i] + self.radius[j] + self.margin)
+
+    @property
+    def safety_distance(self) -> float:
+        """The smallest distance the schedule guarantees between any two robots
+        (``min r_i + r_j + margin``; 0 when not enforced or with one robot)."""
+        if not self.enforced or self.num_agents < 2:
+            return 0.0
+        r = np.sort(self.radius)
+        return float(r[0] + r[1] + self.margin)
+
     def events(self, j: int) -> range:
         """Event ids of robot ``j`` in path order."""
         return range(int(self.agent_ptr[j]), int(self.agent_ptr[j + 1]))
 
     def where(self, v: int) -> str:
-        """``agent3 way-point 5 at (2, 0.25)``: a name for event ``v`` in messages."""
+        """``agent3 way-point 5 (leave at (2, 0.25))``: a name for event ``v`` in messages."""
         j = int(self.agent[v])
         idx = int(self.waypoint[v])
         c = ", ".join(f"{x:.6g}" for x in self.coord[v])
-        if idx < 0:
-            return f"{self.agent_names[j]} {self.kind[v]} point at ({c})"
         return f"{self.agent_names[j]} way-point {idx} ({self.kind[v]} at ({c}))"
 
 
-def from_schedule(schedule) -> EventNetwork:  # noqa: ANN001 - a hierplan_opt.schedule.Schedule
-    """The events of an in-memory schedule (it must carry its STN).
+def from_schedule(schedule: Any) -> EventNetwork:
+    """The events of an in-memory :class:`~hierplan_opt.schedule.Schedule` (it must carry
+    its STN).
 
     Example
     -------
     >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.instance import Kinematics
     >>> from hierplan_opt.core.plan import Plan
     >>> from hierplan_opt.schedule import postprocess
     >>> g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
-    >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)])
+    >>> kin = Kinematics("disc", radius=0.2)
+    >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)], kinematics=kin)
     >>> plan = Plan.from_paths([[3, 4, 5], [1, 1, 4, 7]])
-    >>> net = from_schedule(postprocess(inst, plan, delta=0.25))
-    >>> net.num_events, [net.where(int(v)) for v in net.arc_src]
-    (8, ['agent0 way-point 2 (leave at (1.25, 1))'])
+    >>> net = from_schedule(postprocess(inst, plan))
+    >>> net.num_events, [net.where(int(v)) for v in net.arc_src], net.safety_distance
+    (8, ['agent0 way-point 2 (leave at (1.7, 1))'], 0.4)
     """
     stn = getattr(schedule, "stn", None)
     if stn is None:
@@ -150,55 +175,38 @@ def from_schedule(schedule) -> EventNetwork:  # noqa: ANN001 - a hierplan_opt.sc
     return _from_stn(
         stn,
         np.asarray(schedule.times, dtype=float),
+        np.asarray(schedule.earliest, dtype=float),
+        np.asarray(schedule.latest, dtype=float),
         waypoint,
         scale=float(schedule.scale),
-        safety_distance=float(schedule.safety_distance),
         names=tuple(schedule.agent_names),
     )
 
 
 def _from_stn(
-    stn,  # noqa: ANN001 - hierplan_opt.schedule.STN
+    stn: Any,
     times: np.ndarray,
+    earliest: np.ndarray,
+    latest: np.ndarray,
     waypoint: np.ndarray,
     *,
     scale: float,
-    safety_distance: float,
     names: tuple[str, ...],
 ) -> EventNetwork:
-    from hierplan_opt.schedule import bellman_ford, earliest_times, latest_times
+    from hierplan_opt.schedule.stn import PRECEDENCE
+    from hierplan_opt.schedule.tpg import KIND_NAMES
 
     tpg = stn.tpg
     agent = np.asarray(tpg.node_agent, dtype=np.int64)
-    src = np.asarray(stn.arc_src, dtype=np.int64)
-    dst = np.asarray(stn.arc_dst, dtype=np.int64)
-    inter = agent[src] != agent[dst]
-    finals = np.asarray(tpg.agent_ptr[1:], dtype=np.int64) - 1
-    horizon = float(times[finals].max()) if len(finals) else 0.0
-    if stn.has_upper_bounds:
-        earliest, latest_fn = bellman_ford(stn)
-        latest = latest_fn(horizon)
-    else:
-        earliest = earliest_times(stn)
-        latest = latest_times(stn, horizon)
-    earliest = np.asarray(earliest, dtype=float)
-    latest = np.asarray(latest, dtype=float)
-    off = np.maximum(earliest - times, times - latest)
-    if len(off) and float(off.max()) > 1e-6:
-        v = int(np.argmax(off))
-        log.warning(
-            "scheduled time %.6g of %s lies outside its STN range [%.6g, %.6g]; widened",
-            times[v],
-            tpg.label(v),
-            earliest[v],
-            latest[v],
-        )
-    kinds = ("vertex", "leave", "enter")
+    inter = np.asarray(stn.arc_kind) == PRECEDENCE
+    src = np.asarray(stn.arc_src, dtype=np.int64)[inter]
+    dst = np.asarray(stn.arc_dst, dtype=np.int64)[inter]
+    req = tpg.requirement
     net = EventNetwork(
         agent_names=names,
         agent_ptr=np.asarray(tpg.agent_ptr, dtype=np.int64),
         agent=agent,
-        kind=tuple(kinds[int(k)] if 0 <= int(k) < 3 else str(k) for k in tpg.node_kind),
+        kind=tuple(KIND_NAMES[int(k)] for k in tpg.node_kind),
         pos=np.asarray(tpg.node_pos, dtype=float),
         coord=np.asarray(tpg.node_coord, dtype=float),
         times=times.copy(),
@@ -206,13 +214,15 @@ def _from_stn(
         latest=np.maximum(latest, times),
         release=np.asarray(stn.release, dtype=float),
         deadline=np.asarray(stn.deadline, dtype=float),
-        arc_src=src[inter],
-        arc_dst=dst[inter],
+        arc_src=src,
+        arc_dst=dst,
         arc_lb=np.asarray(stn.lb, dtype=float)[inter],
         arc_ub=np.asarray(stn.ub, dtype=float)[inter],
         waypoint=waypoint,
         scale=scale,
-        safety_distance=safety_distance,
+        radius=np.asarray(req.radius, dtype=float).copy(),
+        margin=float(req.margin),
+        enforced=bool(req.enforced),
         label=tpg.label,
     )
     for name in net.__dataclass_fields__:
@@ -223,32 +233,44 @@ def _from_stn(
 
 
 # ---------------------------------------------------------------------- files
-def from_file(instance: Instance, path: str | Path) -> EventNetwork:
-    """The events of a schedule file written by ``hierplan post`` (YAML, JSON or CSV).
+def _margin_of(stats: dict, path: Path) -> float:
+    """The file's margin (``delta`` in files of earlier versions)."""
+    margin = stats.get("margin", stats.get("delta"))
+    if (
+        margin is None
+        or isinstance(margin, bool)
+        or not isinstance(margin, (int, float))
+        or not math.isfinite(margin)
+        or margin < 0
+    ):
+        raise InputError(f"{path}: statistics.margin is missing (write it with hierplan post)")
+    return float(margin)
 
-    Raises :class:`InputError` with one line naming the file when the schedule does
-    not belong to ``instance`` or its times break a precedence.
-    """
-    from hierplan_opt.schedule import postprocess, read_schedule
 
-    path = Path(path)
-    data = read_schedule(path)
-    stats = data.get("statistics") or {}
-    sched = data["schedule"]
+def _clearance_of(stats: dict) -> bool:
+    """False when the file says a pair needing a distance had no guarantee."""
+    rows = stats.get("clearance")
+    if not isinstance(rows, list):
+        return True
+    for row in rows:
+        if isinstance(row, dict) and row.get("guaranteed") is False:
+            return False
+    return True
+
+
+def _read_rows(
+    path: Path, sched: Any, names: list[str], dim: int
+) -> tuple[list[np.ndarray], list[np.ndarray]]:
     if not isinstance(sched, dict):
         raise InputError(f"{path}: 'schedule' must map agent names to way-point lists")
-    g = instance.graph
-    names = [a.name for a in instance.agents]
     missing = [n for n in names if n not in sched]
     extra = [n for n in sched if n not in names]
     if missing or extra:
         what = f"no way-points for {missing[0]!r}" if missing else f"unknown agent {extra[0]!r}"
         raise InputError(f"{path}: {what} (the schedule does not belong to this instance)")
-    axes = ("x", "y", "z")[: g.dim]
-    lookup = {tuple(np.round(c, 6).tolist()): v for v, c in enumerate(g.coords)}
+    axes = ("x", "y", "z")[:dim]
     rows: list[np.ndarray] = []
     arrivals: list[np.ndarray] = []
-    kinds: list[list[str | None]] = []
     for name in names:
         wps = sched[name]
         if not isinstance(wps, list) or not wps:
@@ -262,41 +284,54 @@ def from_file(instance: Instance, path: str | Path) -> EventNetwork:
             raise InputError(f"{path}: agent {name!r}: non-finite coordinate or time")
         rows.append(c)
         arrivals.append(t)
-        kinds.append([w.get("kind") if isinstance(w, dict) else None for w in wps])
+    return rows, arrivals
+
+
+def from_file(instance: Instance, path: str | Path) -> EventNetwork:
+    """The events of a schedule file written by ``hierplan post`` (YAML, JSON or CSV).
+
+    Raises :class:`InputError` with one line naming the file when the schedule does
+    not belong to ``instance`` or its times break a precedence.
+    """
+    from hierplan_opt.core.plan import Plan
+    from hierplan_opt.schedule import postprocess, read_schedule, windows
+    from hierplan_opt.schedule.stn import PRECEDENCE
+
+    path = Path(path)
+    data = read_schedule(path)
+    stats = data.get("statistics") or {}
+    g = instance.graph
+    names = [a.name for a in instance.agents]
+    rows, arrivals = _read_rows(path, data["schedule"], names, g.dim)
+    lookup = {tuple(np.round(c, 6).tolist()): v for v, c in enumerate(g.coords)}
 
     # ---- the discrete plan: visit orders from arrival times, steps by longest paths ----
     visits: list[list[tuple[int, float]]] = []
-    for name, c, t, kd in zip(names, rows, arrivals, kinds, strict=True):
-        seq: list[tuple[int, float]] = []
-        for k in range(len(t)):
-            if kd[k] is not None and kd[k] != "vertex":
-                continue
-            v = lookup.get(tuple(np.round(c[k], 6).tolist()))
-            if v is None:
-                if kd[k] == "vertex":
-                    raise InputError(f"{path}: agent {name!r} way-point {k} is not a vertex")
-                continue  # a safety marker between two vertices
-            if seq and seq[-1][0] == v:
-                continue  # the end of a turn in place
-            seq.append((v, float(t[k])))
-        if not seq or lookup.get(tuple(np.round(c[0], 6).tolist())) is None:
+    for name, c, t in zip(names, rows, arrivals, strict=True):
+        if lookup.get(tuple(np.round(c[0], 6).tolist())) is None:
             raise InputError(
                 f"{path}: the first way-point of {name!r} is not a vertex of the map "
                 "(the schedule does not belong to this instance)"
             )
+        seq: list[tuple[int, float]] = []
+        for k in range(len(t)):
+            v = lookup.get(tuple(np.round(c[k], 6).tolist()))
+            if v is None:
+                continue  # a marker between two vertices
+            if seq and seq[-1][0] == v:
+                continue  # the end of a turn in place, or where a robot sets off
+            seq.append((v, float(t[k])))
         visits.append(seq)
     paths = _plan_from_visits(visits, names, path)
     horizon = max(len(p) for p in paths)
     for p in paths:
         p.extend([p[-1]] * (horizon - len(p)))
-    from hierplan_opt.core.plan import Plan
-
     plan = Plan.from_paths(paths)
-    delta = stats.get("delta")
-    if delta is None or not isinstance(delta, (int, float)) or not math.isfinite(delta):
-        raise InputError(f"{path}: statistics.delta is missing (write it with hierplan post)")
+    margin = _margin_of(stats, path)
     try:
-        rebuilt = postprocess(instance, plan, "makespan", delta=float(delta))
+        rebuilt = postprocess(
+            instance, plan, "makespan", margin=margin, clearance=_clearance_of(stats)
+        )
     except InputError as exc:
         raise InputError(f"{path}: the way-points do not form a valid plan: {exc}") from None
     stn = rebuilt.stn
@@ -306,43 +341,29 @@ def from_file(instance: Instance, path: str | Path) -> EventNetwork:
     # ---- the file's times on the rebuilt events ----------------------------------------
     times = np.zeros(tpg.num_nodes)
     waypoint = np.zeros(tpg.num_nodes, dtype=np.int64)
-    for j, (name, c, t, kd) in enumerate(zip(names, rows, arrivals, kinds, strict=True)):
-        nodes = list(tpg.agent_nodes(j))
-        keep = [0]
-        for k in range(1, len(t)):
-            if kd[k] == "turn":
-                continue
-            if kd[k] is None and np.allclose(c[k], c[keep[-1]], atol=1e-9):
-                continue  # the end of a turn in place (YAML carries no kinds)
-            keep.append(k)
-        if len(keep) != len(nodes) or not np.allclose(
-            c[keep], tpg.node_coord[nodes], atol=MATCH_TOL
-        ):
+    for name, c, t, wp in zip(names, rows, arrivals, rebuilt.waypoints, strict=True):
+        if len(c) != len(wp) or not np.allclose(c, wp.coords, atol=MATCH_TOL):
             raise InputError(
                 f"{path}: the way-points of {name!r} do not match the plan rebuilt from "
-                f"them with delta = {float(delta):g} (was the file written by hierplan post "
+                f"them with margin {margin:g} (was the file written by hierplan post "
                 "for this instance?)"
             )
-        times[nodes] = t[keep]
-        waypoint[nodes] = keep
-    bad = times[stn.arc_dst] - times[stn.arc_src] < stn.lb - MATCH_TOL
-    inter = tpg.node_agent[stn.arc_src] != tpg.node_agent[stn.arc_dst]
-    if np.any(bad & inter):
-        k = int(np.flatnonzero(bad & inter)[0])
+        node = np.asarray(wp.node)
+        keep = np.flatnonzero(node >= 0)
+        times[node[keep]] = t[keep]
+        waypoint[node[keep]] = keep
+    prec = np.asarray(stn.arc_kind) == PRECEDENCE
+    gap = times[stn.arc_dst] - times[stn.arc_src]
+    bad = prec & (gap < stn.lb - MATCH_TOL)
+    if np.any(bad):
+        k = int(np.flatnonzero(bad)[0])
         raise InputError(
             f"{path}: the times break the precedence {tpg.label(int(stn.arc_src[k]))} -> "
             f"{tpg.label(int(stn.arc_dst[k]))}"
         )
-    safety = stats.get("safety_distance", rebuilt.safety_distance)
-    if not isinstance(safety, (int, float)) or not math.isfinite(safety):
-        safety = rebuilt.safety_distance
+    early, late = windows(stn, times)
     return _from_stn(
-        stn,
-        times,
-        waypoint,
-        scale=float(rebuilt.scale),
-        safety_distance=float(safety),
-        names=tuple(names),
+        stn, times, early, late, waypoint, scale=float(rebuilt.scale), names=tuple(names)
     )
 
 

@@ -34,7 +34,6 @@ from hierplan_opt.core.errors import HierplanError, InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.schedule.stn import accel_time
 from hierplan_opt.trajectory.events import EventNetwork, from_schedule
-from hierplan_opt.trajectory.following import add_following
 from hierplan_opt.trajectory.model import SOLVERS, SolveResult, grid_size
 from hierplan_opt.trajectory.model import path_ocp as _path_ocp
 from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories
@@ -148,10 +147,16 @@ def robot_path(
     dim = P.shape[1]
     d = np.diff(P, axis=0)
     ell = np.linalg.norm(d, axis=1)
-    if np.any(ell <= 1e-12):
-        k = int(np.flatnonzero(ell <= 1e-12)[0])
-        raise InputError(f"{net.where(int(ev[k + 1]))} repeats the previous way-point's position")
-    dirs = d / ell[:, None] if len(ell) else np.zeros((0, dim))
+    # A piece of length 0 (a robot that sets off from its start only after a ``wait``
+    # event) is a rest: both ends are stops, and it takes the direction of the next move.
+    zero = ell <= 1e-12
+    dirs = d / np.where(zero, 1.0, ell)[:, None] if len(ell) else np.zeros((0, dim))
+    for k in np.flatnonzero(zero)[::-1].tolist():
+        if k + 1 < len(dirs):
+            dirs[k] = dirs[k + 1]
+    for k in np.flatnonzero(zero).tolist():
+        if not np.any(dirs[k]) and k > 0:
+            dirs[k] = dirs[k - 1]
     heads = np.arctan2(dirs[:, 1], dirs[:, 0]) if len(ell) else np.zeros(0)
     if dim == 3 and len(ell):
         # Vertical moves keep the previous heading (it is only reported, never used).
@@ -165,7 +170,10 @@ def robot_path(
     corner = np.zeros(len(ev), dtype=bool)
     if len(ell) > 1:
         corner[1:-1] = np.einsum("ij,ij->i", dirs[:-1], dirs[1:]) < 1.0 - ANGLE_TOL
-    need |= corner
+    rest = corner.copy()
+    rest[1:][zero] = True
+    rest[:-1][zero] = True
+    need |= rest
     sig, evl, stop, tt, pos = [0.0], [int(ev[0])], [True], [float(T[0])], [P[0]]
     p_turn, p_dir, p_th0, p_sign, p_v, p_a = [], [], [], [], [], []
     last = 0  # index (into ev) of the last knot
@@ -182,7 +190,7 @@ def robot_path(
         p_a.append(limits.a_max)
         sig.append(sig[-1] + float(ev_sigma[i] - ev_sigma[last]))
         evl.append(int(ev[i]))
-        stop.append(bool(corner[i]))
+        stop.append(bool(rest[i]))
         tt.append(float(T[i]))
         pos.append(P[i])
         last = i
@@ -466,8 +474,21 @@ def path_trajectory(pp: PathProblem, X: np.ndarray, U: np.ndarray, net_events: i
         "theta": TH,
         "omega": OM,
         "alpha": alpha,
-        "event_times": passage_times(sigma, v, t, a, path.event_axis),
+        "event_times": event_times(pp, sigma, v, t, a),
     }
+
+
+def event_times(
+    pp: PathProblem, sigma: np.ndarray, v: np.ndarray, t: np.ndarray, a: np.ndarray
+) -> np.ndarray:
+    """When the robot passes each of its events: knots at their grid node's time (a
+    ``wait`` event is the moment the robot sets off), other events by
+    :func:`passage_times`."""
+    path = pp.path
+    out = passage_times(sigma, v, t, a, path.event_axis)
+    has = path.knot_event >= 0
+    out[path.knot_event[has] - int(path.event_ids[0])] = t[pp.knot_node[has]]
+    return out
 
 
 def passage_times(
@@ -626,7 +647,6 @@ def refine(
     alpha_max: float | None = None,
     a_max: float | None = None,
     workers: int = 1,
-    following: bool = True,
 ) -> Trajectories:
     """Refine a MAPF-POST schedule into smooth trajectories within each robot's limits.
 
@@ -664,10 +684,6 @@ def refine(
         instances); a robot without either is refused.
     workers : int
         Solve in that many processes (1: in this process).
-    following : bool
-        Add following points (:mod:`.following`) so that a robot that follows another
-        along an edge keeps its distance whatever the two robots' speeds. Without them
-        the reported safety distance is 0.
 
     Example
     -------
@@ -677,7 +693,7 @@ def refine(
     >>> from hierplan_opt.schedule import postprocess
     >>> g = Graph.grid(4, 1)
     >>> inst = Instance.mapf(g, [(0, 0)], [(3, 0)], kinematics=Kinematics(a_max=1.0))
-    >>> sched = postprocess(inst, Plan.from_paths([[0, 1, 2, 3]]), delta=0)
+    >>> sched = postprocess(inst, Plan.from_paths([[0, 1, 2, 3]]))
     >>> tr = refine(inst, sched)
     >>> round(tr.makespan, 3) <= sched.makespan + 1e-6, tr.robots[0].model
     (True, 'double_integrator')
@@ -705,12 +721,6 @@ def refine(
     if mode == "corridor" and corridor <= 0:
         raise OptionError("corridor mode needs a corridor half-width > 0")
     solvers = AUTO_SOLVERS if solver == "auto" else (solver,)
-    follow_d = math.inf
-    follow_stats: dict[str, Any] = {}
-    if following:
-        net, info = add_following(net)
-        follow_d = info.distance
-        follow_stats = {"following_pairs": info.pairs, "following_points": info.points}
     windows = decouple(net, split)
     if isinstance(stretch, (int, float)) and not isinstance(stretch, bool) and stretch > 1:
         windows = windows.stretched(float(stretch))
@@ -766,35 +776,10 @@ def refine(
     for j, (path, o) in enumerate(zip(paths, outs, strict=True)):
         robots.append(_robot_result(path, o, net, j))
     c = float(corridor) if mode == "corridor" else 0.0
-    kept = min(net.safety_distance, follow_d)
-    if kept < net.safety_distance:
-        why = (
-            f"the schedule's safety distance {net.safety_distance:.4g} is kept only down to "
-            f"{kept:.4g}: a follower cannot be held further behind its leader than the "
-            "schedule's lead allows"
-        )
-    elif following or net.safety_distance <= 0:
-        why = f"the schedule's safety distance {net.safety_distance:.4g} carries over"
-    else:
-        why = (
-            "no following points: robots following each other along an edge have no "
-            "guaranteed distance"
-        )
-        kept = 0.0
-    sd = max(kept - 2 * c, 0.0)
-    if mode == "path":
-        guarantee = (
-            "path mode: every robot stays on its planned polyline and passes every event "
-            f"(way-points and following points) inside its decoupled window; {why}"
-        )
-    else:
-        guarantee = (
-            f"corridor mode: robots stay within {c:g} of their polylines and pass every event "
-            f"within {c:g} inside its window; {why}, minus 2c = {sd:.4g}"
-        )
+    sd = max(net.safety_distance - 2 * c, 0.0)
+    guarantee = _guarantee_text(net, mode, c, sd)
     solves = [o for o in outs if o is not None]
     stats: dict[str, Any] = {
-        **follow_stats,
         "windows_time": t_windows,
         "solve_time": t_solve,
         "total_time": time.perf_counter() - t_start,
@@ -815,6 +800,37 @@ def refine(
         guarantee=guarantee,
         windows=windows,
         stats=stats,
+        radius=tuple(float(r) for r in net.radius),
+        margin=net.margin if net.enforced else 0.0,
+        enforced=net.enforced,
+    )
+
+
+def _guarantee_text(net: EventNetwork, mode: str, c: float, sd: float) -> str:
+    """What the trajectories keep, and why (formulations/trajectory.md, "Clearance")."""
+    if not net.enforced:
+        kept = (
+            "the schedule was built without clearance (clearance=False): no distance "
+            "between robots is guaranteed"
+        )
+    elif net.safety_distance <= 0:
+        kept = "point robots (radii and margin 0): no distance is required"
+    else:
+        less = f" - 2c = r_i + r_j + {net.margin - 2 * c:.4g}" if c > 0 else ""
+        kept = (
+            "every precedence of the schedule holds, so by the claim theorem of MAPF-POST "
+            f"(docs/post.md) robots i and j keep r_i + r_j + margin{less} between their "
+            f"centres (smallest pair {sd:.4g} m)"
+        )
+    if mode == "path":
+        return (
+            "path mode: every robot moves forward on its planned polyline and passes every "
+            f"event of the schedule inside its decoupled window; {kept}"
+        )
+    return (
+        f"corridor mode: robots stay within {c:g} of the piece of their polyline between "
+        f"the events they are between, and pass every event within {c:g} inside its "
+        f"window; {kept} (2c = {2 * c:g} less than in path mode)"
     )
 
 

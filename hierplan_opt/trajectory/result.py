@@ -133,9 +133,10 @@ class Trajectories:
     corridor : float
         Half-width ``c`` of the corridor (0 in path mode).
     safety_distance : float
-        The distance between robot centres the refinement guarantees: the schedule's
-        in path mode, the schedule's minus ``2 c`` in corridor mode.
+        The smallest distance between robot centres the refinement guarantees over all
+        pairs: :meth:`required` is the distance of one pair.
     schedule_safety_distance : float
+        The schedule's (``min r_i + r_j + margin``).
     stretch : float
         Factor by which the schedule's times were scaled (1: not stretched).
     guarantee : str
@@ -143,6 +144,12 @@ class Trajectories:
     windows : Windows
         The decoupled windows (after stretching) the robots were refined in.
     stats : dict
+    radius : tuple of float
+        The robots' radii (metres; empty: unknown, only ``safety_distance`` is known).
+    margin : float
+        Extra clearance of the schedule beyond the radii.
+    enforced : bool
+        Whether the schedule guaranteed clearance (False for ``clearance=False``).
     """
 
     robots: tuple[RobotTrajectory, ...]
@@ -154,6 +161,26 @@ class Trajectories:
     guarantee: str
     windows: Any = field(repr=False, default=None)
     stats: dict[str, Any] = field(default_factory=dict)
+    radius: tuple[float, ...] = ()
+    margin: float = 0.0
+    enforced: bool = True
+
+    def required(self, i: int, j: int) -> float:
+        """The distance robots ``i`` and ``j`` keep: ``r_i + r_j + margin`` (path mode),
+        minus ``2 c`` in corridor mode, 0 without a guarantee.
+
+        Example
+        -------
+        >>> T = Trajectories((), "corridor", 0.05, 0.5, 0.6, 1.0, "", radius=(0.3, 0.3))
+        >>> round(T.required(0, 1), 9)
+        0.5
+        """
+        if not self.enforced:
+            return 0.0
+        if not self.radius:
+            return self.safety_distance
+        d = self.radius[i] + self.radius[j] + self.margin
+        return max(d - 2.0 * self.corridor, 0.0) if d > 0 else 0.0
 
     @property
     def agent_names(self) -> tuple[str, ...]:

@@ -12,16 +12,18 @@ Every robot is sampled every ``dt`` seconds from its piecewise-quadratic motion,
   mode), that time lies in the event's decoupled window, the times are in path order,
   and between two events every sample lies on the segment joining them (path mode) or
   within ``c`` of the path around it (corridor mode);
-* **distance** — the minimum distance between any two robots over continuous time:
-  between two samples the relative position ``r(t)`` differs from the straight line
-  joining its samples by at most ``A dt^2 / 8``, ``A = a_max,i + a_max,j`` bounding
-  ``|r''|``, so the closest approach of that line minus ``A dt^2 / 8`` is a sound lower
-  bound (without acceleration limits: ``(d_i + d_{i+1} - w dt) / 2`` with the largest
-  relative speed ``w``). Pairs whose bounding boxes over a block of samples are farther
-  apart than ``radius`` are skipped (they are that far apart).
+* **distance** — the minimum distance between any two robots over continuous time,
+  against the distance the pair must keep, ``r_i + r_j + margin`` (minus ``2 c`` in
+  corridor mode) with the radii of ``instance`` when given: between two samples the
+  relative position ``r(t)`` differs from the straight line joining its samples by at
+  most ``A dt^2 / 8``, where ``A = A_i + A_j`` and ``A_i`` is the largest acceleration
+  of robot ``i``'s pieces (read from the motion itself, not from its limits), so the
+  closest approach of that line minus ``A dt^2 / 8`` is a sound lower bound. Pairs
+  whose bounding boxes over a block of samples are farther apart than ``radius`` are
+  skipped (they are that far apart).
 
-The report says whether every check passed and the smallest distance found, to be
-compared with the safety distance the trajectories report.
+The report says whether every check passed, the smallest distance found and the
+smallest margin of any pair over its required distance.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.schedule.replay import segment_distance
+from hierplan_opt.schedule.geometry import segment_distance
 from hierplan_opt.trajectory.result import Trajectories
 
 #: Default sampling step (seconds).
@@ -54,6 +56,8 @@ class VerifyReport:
     min_pair: tuple[str, str] | None
     min_time: float | None
     safety_distance: float
+    worst_gap: float
+    worst_pair: tuple[str, str] | None
     max_speed_ratio: float
     max_accel_ratio: float
     max_omega_ratio: float
@@ -68,8 +72,10 @@ class VerifyReport:
         """One line for the CLI."""
         dist = f"{self.min_distance:.4g}" if math.isfinite(self.min_distance) else "inf"
         head = "verified" if self.ok else "NOT verified"
+        gap = f"{self.worst_gap:+.4g}" if math.isfinite(self.worst_gap) else "inf"
         line = (
-            f"{head}: min distance {dist} (reported {self.safety_distance:.4g}), "
+            f"{head}: min distance {dist} (reported {self.safety_distance:.4g}; closest "
+            f"pair vs its r_i + r_j + margin {gap} m), "
             f"max speed {self.max_speed_ratio:.3f}, accel {self.max_accel_ratio:.3f} "
             f"of the limits, path error {self.max_path_error:.2g} m, dt {self.dt:g} s"
         )
@@ -143,7 +149,7 @@ def verify(
             if r.model == "unicycle":
                 lim["omega_max"] = float(k.omega_max) if k.omega_max else math.inf
         vmax[j] = lim["v_max"]
-        amax[j] = lim["a_max"]
+        amax[j] = float(np.linalg.norm(r.a, axis=1).max(initial=0.0)) if len(r.a) else 0.0
         st = r.state(ts)
         P = st["p"]
         positions[:, j] = P
@@ -228,10 +234,12 @@ def verify(
                 bad(f"{r.name}: {dist[k] - corridor:.3g} m off {what} at t = {ts[k]:.6g}")
 
     # ---- minimum distance between robots over continuous time ---------------------------
+    need = _required(traj, instance)
     claimed = traj.safety_distance
     if radius is None:
-        radius = max(2.0 * max(claimed, 0.0), float(net.scale))
+        radius = max(2.0 * float(need.max(initial=0.0)), float(net.scale))
     best = (math.inf, None, None)
+    worst = (math.inf, None, None)
     checked: set[tuple[int, int]] = set()
     for b0 in range(0, S - 1, BLOCK):
         b1 = min(S, b0 + BLOCK + 1)
@@ -251,24 +259,29 @@ def verify(
         dd = (dr * dr).sum(axis=2)
         s = np.clip(-(r0 * dr).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
         closest = np.linalg.norm(r0 + dr * s[..., None], axis=2)
-        acc = (amax[ii] + amax[jj])[None, :]
-        if np.isfinite(acc).all():
-            lower = closest - acc * dt * dt / 8.0
-        else:
-            d = np.linalg.norm(r, axis=2)
-            w = (vmax[ii] + vmax[jj])[None, :]
-            lower = np.minimum(0.5 * (d[1:] + d[:-1] - w * dt), closest)
+        lower = np.maximum(closest - (amax[ii] + amax[jj])[None, :] * dt * dt / 8.0, 0.0)
         k = np.unravel_index(int(np.argmin(lower)), lower.shape)
         val = float(lower[k])
         if val < best[0]:
             a, c = int(ii[k[1]]), int(jj[k[1]])
             best = (val, (traj.robots[a].name, traj.robots[c].name), float(ts[b0 + k[0]]))
+        margin = lower - need[ii, jj][None, :]
+        k = np.unravel_index(int(np.argmin(margin)), margin.shape)
+        val = float(margin[k])
+        if val < worst[0]:
+            a, c = int(ii[k[1]]), int(jj[k[1]])
+            worst = (val, (a, c), float(ts[b0 + k[0]]))
     min_d = best[0] if best[0] <= radius else math.inf
-    if min_d < claimed - tol:
+    if worst[1] is not None and worst[0] < -tol:
+        a, c = worst[1]
         bad(
-            f"robots {best[1][0]} and {best[1][1]} come within {min_d:.4g} of each other "  # type: ignore[index]
-            f"near t = {best[2]:.6g}, below the reported safety distance {claimed:.4g}"
+            f"robots {traj.robots[a].name} and {traj.robots[c].name} come within "
+            f"{worst[0] + need[a, c]:.4g} m of each other near t = {worst[2]:.6g}, below "
+            f"the {need[a, c]:.4g} m they must keep"
         )
+    worst_pair = None
+    if worst[1] is not None:
+        worst_pair = (traj.robots[worst[1][0]].name, traj.robots[worst[1][1]].name)
     return VerifyReport(
         ok=count[0] == 0,
         problems=tuple(problems),
@@ -277,6 +290,8 @@ def verify(
         min_pair=best[1] if math.isfinite(min_d) else None,
         min_time=best[2] if math.isfinite(min_d) else None,
         safety_distance=claimed,
+        worst_gap=worst[0] if worst[1] is not None else math.inf,
+        worst_pair=worst_pair,
         max_speed_ratio=ratios["v"],
         max_accel_ratio=ratios["a"],
         max_omega_ratio=ratios["w"],
@@ -287,3 +302,27 @@ def verify(
         pairs_checked=len(checked),
         time=time.perf_counter() - t_start,
     )
+
+
+def _required(traj: Trajectories, instance: Instance | None) -> np.ndarray:
+    """``(K, K)`` distances the pairs must keep: what the trajectories report
+    (:meth:`Trajectories.required`) and, when ``instance`` is given and they report a
+    guarantee, ``r_i + r_j + margin`` (``- 2 c``) with its radii (the physical robots)."""
+    K = traj.num_agents
+    if traj.radius:
+        rad = np.asarray(traj.radius, dtype=float)
+        d = rad[:, None] + rad[None, :] + traj.margin
+        out = np.where(d > 0, np.maximum(d - 2.0 * traj.corridor, 0.0), 0.0)
+        if not traj.enforced:
+            out = np.zeros((K, K))
+    else:
+        out = np.zeros((K, K))
+    # The reported smallest distance holds for every pair.
+    out = np.maximum(out, float(traj.safety_distance))
+    if instance is not None and traj.enforced and traj.safety_distance > 0:
+        rad = np.array([a.kinematics.radius for a in instance.agents], dtype=float)
+        d = rad[:, None] + rad[None, :] + traj.margin
+        out = np.maximum(out, np.maximum(d - 2.0 * traj.corridor, 0.0))
+    out = out.reshape(K, K).copy()
+    np.fill_diagonal(out, 0.0)
+    return out

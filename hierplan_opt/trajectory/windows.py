@@ -86,13 +86,18 @@ def decouple(network: EventNetwork, split: float = 0.5) -> Windows:
     >>> from hierplan_opt.core.plan import Plan
     >>> from hierplan_opt.schedule import postprocess
     >>> from hierplan_opt.trajectory.events import from_schedule
+    >>> from hierplan_opt.core.instance import Kinematics
     >>> g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
-    >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)])
-    >>> plan = Plan.from_paths([[3, 4, 5], [1, 1, 1, 4, 7]])  # agent1 waits a step
-    >>> w = decouple(from_schedule(postprocess(inst, plan, delta=0.25, acceleration=False)))
-    >>> u, v = int(w.network.arc_src[0]), int(w.network.arc_dst[0])
-    >>> (float(w.hi[u]), float(w.lo[v])), violations(w)
-    ((1.25, 1.25), [])
+    >>> kin = [Kinematics("disc", radius=0.2), Kinematics("slow", v_max=0.15, radius=0.2)]
+    >>> inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)], kinematics=kin)
+    >>> plan = Plan.from_paths([[3, 4, 5], [1, 1, 4, 7]])  # agent0 crosses first
+    >>> net = from_schedule(postprocess(inst, plan, acceleration=False))
+    >>> w = decouple(net)
+    >>> u, v = int(net.arc_src[0]), int(net.arc_dst[0])  # agent0 leaves, agent1 enters
+    >>> [round(float(x), 6) for x in (net.times[u], net.times[v], w.hi[u], w.lo[v])]
+    [1.7, 2.0, 1.85, 2.0]
+    >>> violations(w)
+    []
     """
     if not 0.0 <= split <= 1.0:
         raise InputError(f"split must lie in [0, 1], got {split!r}")
