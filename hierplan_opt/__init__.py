@@ -41,6 +41,8 @@ _LAZY = {
     "save_instance": "hierplan_opt.io",
     "postprocess": "hierplan_opt.schedule",
     "Schedule": "hierplan_opt.schedule",
+    "refine": "hierplan_opt.trajectory",
+    "Trajectories": "hierplan_opt.trajectory",
     "verify": "hierplan_opt.formulations.verify",
 }
 

@@ -35,7 +35,7 @@ def solve_corridor(path, windows, opts: dict, warm=None) -> dict:  # noqa: ANN00
     length = np.diff(path.knot_sigma)
 
     # ---- bounds: windows on t at the knots; rest at both ends --------------------------------
-    lbX1, ubX1, lbU1, ubU1 = path_bounds(pp, windows)
+    lbX1, ubX1, lbU1, ubU1, *_ = path_bounds(pp, windows)
     nx, nu = 2 * dim + 1, dim + 1
     lbX = np.full((nx, N + 1), -np.inf)
     ubX = np.full((nx, N + 1), np.inf)

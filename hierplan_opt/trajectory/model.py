@@ -176,24 +176,32 @@ def _options(solver: str, nx: int, N: int, ng_stage: int) -> dict[str, Any]:
 def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     """The 1-D path-following problem with ``N`` intervals (built once, then cached).
 
-    Variables per stage: ``x_k = (sigma_k, v_k, t_k)``, ``u_k = (a_k, h_k)``;
-    parameters ``p = (w_acc, w_time, w_reg)``. Dynamics (exact for constant ``a_k``)::
+    Variables per stage: ``x_k = (sigma_k, v_k, t_k, f_k)``, ``u_k = (a_k, h_k)``;
+    ``f`` is the stretch factor of the robot's windows (constant along the grid).
+    Parameters ``p = (w_acc, w_time, w_reg, w_stretch, lo_0..lo_N, hi_0..hi_N)``.
+    Dynamics (exact for constant ``a_k``)::
 
         sigma_{k+1} = sigma_k + h_k v_k + h_k^2 a_k / 2
         v_{k+1}     = v_k + h_k a_k
         t_{k+1}     = t_k + h_k
+        f_{k+1}     = f_k
 
-    Objective ``w_acc * sum_k a_k^2 h_k + w_time * t_N + w_reg * sum_k h_k^2``: the last
-    term (small) removes the freedom of how a wait is split between intervals, which
-    otherwise costs IPOPT many iterations. Everything else (the path's
-    pieces, stops, speed and acceleration limits, windows) is a bound on ``x`` or
-    ``u``.
+    Stage constraints ``t_k - f_k lo_k >= 0`` and ``t_k - f_k hi_k <= 0``: the windows
+    stretched by a free factor (inactive rows get infinite bounds). With ``f`` fixed
+    (its bounds ``[1, 1]``) the windows are plain bounds on ``t`` instead.
+
+    Objective ``w_acc * sum_k a_k^2 h_k + w_time * t_N + w_reg * sum_k h_k^2 +
+    w_stretch * f_N``: the third term (small) removes the freedom of how a wait is
+    split between intervals, which otherwise costs IPOPT many iterations; the last one
+    (large, with ``f`` free) finds the smallest stretch factor of the robot in one solve.
+    Everything else (the path's pieces, stops, speed and acceleration limits, windows)
+    is a bound on ``x`` or ``u`` or a constraint bound.
 
     Example
     -------
     >>> ocp = path_ocp(8, "ipopt")
-    >>> ocp.nx, ocp.nu, ocp.N
-    (3, 2, 8)
+    >>> ocp.nx, ocp.nu, ocp.N, ocp.ng_stage
+    (4, 2, 8, 2)
     """
     key = ("path", N, solver)
     with _LOCK:
@@ -203,20 +211,30 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
 
     t0 = time.perf_counter()
     # ---- variables: z = [x_0, u_0, x_1, u_1, ..., x_N], built as whole rows ----------
-    z = ca.SX.sym("z", 5 * N + 3)
-    Z = ca.reshape(z[: 5 * N], 5, N)  # column k: sigma_k, v_k, t_k, a_k, h_k
-    x_end = z[5 * N :]
-    sigma, v, t, a, h = (Z[i, :] for i in range(5))
-    nxt = ca.horzcat(Z[:3, 1:], x_end)  # x_{k+1}
-    w = ca.SX.sym("w", 3)  # w_acc, w_time, w_reg
+    z = ca.SX.sym("z", 6 * N + 4)
+    Z = ca.reshape(z[: 6 * N], 6, N)  # column k: sigma_k, v_k, t_k, f_k, a_k, h_k
+    x_end = z[6 * N :]
+    sigma, v, t, f, a, h = (Z[i, :] for i in range(6))
+    X = ca.horzcat(Z[:4, :], x_end)  # nodes 0..N
+    nxt = X[:, 1:]  # x_{k+1}
+    w = ca.SX.sym("w", 4)  # w_acc, w_time, w_reg, w_stretch
+    lo = ca.SX.sym("lo", 1, N + 1)
+    hi = ca.SX.sym("hi", 1, N + 1)
+    # ---- windows stretched by f --------------------------------------------------------
+    stage = ca.vertcat(X[2, :] - X[3, :] * lo, X[2, :] - X[3, :] * hi)
     # ---- dynamics: exact integration of a constant acceleration -------------------------
-    G = nxt - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h)
-    g = ca.vec(G)  # stage by stage: dyn_0, dyn_1, ...
-    # ---- objective: acceleration energy, arrival time, a pull towards even steps --------
-    J = w[0] * ca.sum2(a * a * h) + w[1] * x_end[2] + w[2] * ca.sum2(h * h)
-    nlp = {"x": z, "p": w, "f": J, "g": g}
-    fn = ca.nlpsol(f"path_{N}_{solver}", solver, nlp, _options(solver, 3, N, 0))
-    ocp = OCP("path", solver, N, 3, 2, 0, 3, fn, time.perf_counter() - t0)
+    dyn = nxt - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h, f)
+    g = ca.vertcat(ca.vec(ca.vertcat(stage[:, :N], dyn)), stage[:, N])
+    # ---- objective: acceleration energy, arrival time, even steps, stretch --------------
+    J = (
+        w[0] * ca.sum2(a * a * h)
+        + w[1] * x_end[2]
+        + w[2] * ca.sum2(h * h)
+        + w[3] * x_end[3]
+    )
+    nlp = {"x": z, "p": ca.vertcat(w, lo.T, hi.T), "f": J, "g": g}
+    fn = ca.nlpsol(f"path_{N}_{solver}", solver, nlp, _options(solver, 4, N, 2))
+    ocp = OCP("path", solver, N, 4, 2, 2, 4 + 2 * (N + 1), fn, time.perf_counter() - t0)
     log.debug("built %s in %.3f s", fn.name(), ocp.build_time)
     with _LOCK:
         return _CACHE.setdefault(key, ocp)

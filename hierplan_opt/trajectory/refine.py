@@ -54,6 +54,8 @@ MAX_STRETCH = 256.0
 STRETCH_RTOL = 1e-3
 #: Feasibility tolerance of a returned solution (bounds, dynamics).
 FEAS_TOL = 1e-6
+#: Weight of the stretch factor (per second of the robot's schedule) when it is free.
+STRETCH_WEIGHT = 1e3
 #: Angles below this are straight on (radians).
 ANGLE_TOL = 1e-9
 
@@ -314,43 +316,67 @@ def _effective_windows(
 
 
 def path_bounds(
-    pp: PathProblem, windows: Windows, upto: int | None = None
+    pp: PathProblem, windows: Windows, upto: int | None = None, free: bool = False
 ) -> tuple[np.ndarray, ...]:
-    """``lbX, ubX (3, N+1), lbU, ubU (2, N)`` of a robot's path-mode problem."""
+    """``lbX, ubX (4, N+1), lbU, ubU (2, N), lbG, ubG (2, N+1), LO, HI (N+1)`` of a
+    robot's path-mode problem.
+
+    ``free``: the stretch factor ``f`` of the windows is a variable in ``[1,
+    MAX_STRETCH]`` and the windows are the constraints ``f lo <= t <= f hi`` at the
+    knots; otherwise ``f = 1`` and the windows are bounds on ``t``.
+    """
     path, N = pp.path, pp.N
     kn, ip = pp.knot_node, pp.interval_piece
     lo, hi = _effective_windows(path, windows, upto)
-    lbX = np.empty((3, N + 1))
-    ubX = np.empty((3, N + 1))
+    lbX = np.empty((4, N + 1))
+    ubX = np.empty((4, N + 1))
     # Interior nodes take their piece's ranges; knots are pinned below.
     node_piece = np.concatenate([ip, [path.num_pieces - 1]])
     lbX[0] = path.knot_sigma[node_piece]
     ubX[0] = path.knot_sigma[node_piece + 1]
     lbX[1] = 0.0
     ubX[1] = path.piece_vmax[node_piece]
-    lbX[2] = lo[node_piece]
-    ubX[2] = hi[node_piece + 1]
-    # ---- knots: fixed position, window, rest at stops -----------------------------------
+    # ---- knots: fixed position, rest at stops -------------------------------------------
     lbX[0, kn] = ubX[0, kn] = path.knot_sigma
     vk = np.minimum(
         np.concatenate([[np.inf], path.piece_vmax]), np.concatenate([path.piece_vmax, [np.inf]])
     )
     ubX[1, kn] = np.where(path.knot_stop, 0.0, vk)
-    lbX[2, kn] = lo
-    ubX[2, kn] = hi
+    LO = np.zeros(N + 1)
+    HI = np.zeros(N + 1)
+    lbG = np.full((2, N + 1), -np.inf)
+    ubG = np.full((2, N + 1), np.inf)
+    if free:
+        lbX[2] = 0.0
+        ubX[2] = np.inf
+        lbX[2, 0] = ubX[2, 0] = lo[0]
+        lbX[3] = 1.0
+        ubX[3] = MAX_STRETCH
+        LO[kn] = lo
+        lbG[0, kn] = 0.0  # t_k - f lo_k >= 0
+        fin = np.isfinite(hi)
+        HI[kn[fin]] = hi[fin]
+        ubG[1, kn[fin]] = 0.0  # t_k - f hi_k <= 0
+    else:
+        lbX[2] = lo[node_piece]
+        ubX[2] = hi[node_piece + 1]
+        lbX[2, kn] = lo
+        ubX[2, kn] = hi
+        lbX[3] = ubX[3] = 1.0
     lbU = np.empty((2, N))
     ubU = np.empty((2, N))
     lbU[0] = -path.piece_amax[ip]
     ubU[0] = path.piece_amax[ip]
     lbU[1] = 0.0
     ubU[1] = np.inf
-    return lbX, ubX, lbU, ubU
+    return lbX, ubX, lbU, ubU, lbG, ubG, LO, HI
 
 
 def path_warm_start(pp: PathProblem, stretch: float) -> tuple[np.ndarray, np.ndarray]:
     """The constant-velocity schedule on the grid (rest at the stops)."""
     path, N = pp.path, pp.N
-    X = np.empty((3, N + 1))
+    X = np.empty((4, N + 1))
+    X[3] = 1.0
     U = np.zeros((2, N))
     kt = path.knot_t * stretch
     for p in range(path.num_pieces):
@@ -375,21 +401,23 @@ def path_warm_start(pp: PathProblem, stretch: float) -> tuple[np.ndarray, np.nda
 def _feasible(
     X: np.ndarray, U: np.ndarray, bounds: tuple[np.ndarray, ...], tol: float = FEAS_TOL
 ) -> bool:
-    lbX, ubX, lbU, ubU = bounds
+    lbX, ubX, lbU, ubU, lbG, ubG, LO, HI = bounds
 
     def ok(v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> bool:
         scale = 1.0 + np.abs(np.where(np.isfinite(hi), hi, 0.0))
         return bool(np.all(v >= lo - tol * scale) and np.all(v <= hi + tol * scale))
 
-    if not (ok(X, lbX, ubX) and ok(U, lbU, ubU)):
+    s, v, t, f = X
+    G = np.stack([t - f * LO, t - f * HI])
+    if not (ok(X, lbX, ubX) and ok(U, lbU, ubU) and ok(G, lbG, ubG)):
         return False
-    s, v, t = X
     a, h = U
     res = np.concatenate(
         [
             s[1:] - (s[:-1] + h * v[:-1] + 0.5 * h * h * a),
             v[1:] - (v[:-1] + h * a),
             t[1:] - (t[:-1] + h),
+            f[1:] - f[:-1],
         ]
     )
     return bool(np.all(np.abs(res) <= tol * (1.0 + np.abs(t[-1]))))
@@ -411,23 +439,33 @@ def solve_path(
     windows: Windows,
     *,
     solvers: Sequence[str],
-    weights: tuple[float, float, float],
+    weights: tuple[float, ...],
     upto: int | None = None,
     warm: tuple[np.ndarray, np.ndarray] | None = None,
+    free: bool = False,
 ) -> Attempt:
-    """Solve one robot's path problem, trying ``solvers`` in turn until one succeeds."""
-    bounds = path_bounds(pp, windows, upto)
+    """Solve one robot's path problem, trying ``solvers`` in turn until one succeeds.
+
+    ``free``: the stretch factor of the robot's windows is a variable (weighted by
+    :data:`STRETCH_WEIGHT` per second of the schedule), so the solve finds the robot's
+    smallest factor (1 when it meets its windows).
+    """
+    bounds = path_bounds(pp, windows, upto, free)
+    lbX, ubX, lbU, ubU, lbG, ubG, LO, HI = bounds
     X0, U0 = warm if warm is not None else path_warm_start(pp, windows.stretch)
+    w_f = STRETCH_WEIGHT * (1.0 + float(pp.path.knot_t[-1]) * windows.stretch) if free else 0.0
+    par = np.concatenate([np.array([*weights[:3], w_f], dtype=float), LO, HI])
     tries = []
     last = None
     for name in solvers:
         ocp = _path_ocp(pp.N, name)
-        lbX, ubX, lbU, ubU = bounds
         res = ocp.solve(
             ocp.pack(X0, U0),
             ocp.pack(lbX, lbU),
             ocp.pack(ubX, ubU),
-            np.array(weights, dtype=float),
+            par,
+            ocp.pack_g(lbG, np.zeros(4)),
+            ocp.pack_g(ubG, np.zeros(4)),
         )
         X, U = ocp.unpack(res.z)
         good = res.success and _feasible(X, U, bounds)
@@ -444,7 +482,7 @@ def path_trajectory(pp: PathProblem, X: np.ndarray, U: np.ndarray, net_events: i
     path = pp.path
     ip = pp.interval_piece
     N = pp.N
-    sigma, v, t = X
+    sigma, v, t = X[0], X[1], X[2]
     a, h = U
     # Clean solver round-off: progress never goes back, speeds are >= 0.
     v = np.clip(v, 0.0, None)
@@ -754,22 +792,50 @@ def refine(
         "base": int(intervals_per_piece),
     }
     t0 = time.perf_counter()
+    # Path mode: every robot once with a free stretch factor of its windows (the
+    # smallest factor that makes it feasible, 1 for most robots); corridor mode: f = 1.
+    opts["free"] = mode == "path"
     outs = _solve_all(paths, windows, opts, workers)
+    opts["free"] = False
     failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
+    late = [j for j, o in enumerate(outs) if o is not None and o["ok"] and _factor(o) > 1.0]
+    # A factor a hair above 1 is round-off (windows met within 1e-9 of their times).
+    for j in [j for j in late if _factor(outs[j]) <= 1.0 + 1e-9]:
+        outs[j] = dict(outs[j], f=1.0)  # type: ignore[arg-type]
+    late = [j for j in late if _factor(outs[j]) > 1.0]
+    if stretch != "auto":
+        # Close to 1: solve those robots with f = 1.
+        for j in [j for j in late if 1.0 < _factor(outs[j]) <= 1.0 + STRETCH_RTOL / 10]:
+            o = _solve_one(paths[j], windows, opts)
+            outs[j] = o
+            if not _ok(o):
+                failed.append(j)
+        late = [j for j in late if _ok(outs[j]) and _factor(outs[j]) > 1.0]
     found_stretch = None
-    if failed:
-        found_stretch, sols = smallest_stretch([paths[j] for j in failed], windows, opts)
+    if failed or late:
+        found_stretch, sols = smallest_stretch(
+            [paths[j] for j in late + failed],
+            windows,
+            opts,
+            known=[_factor(outs[j]) for j in late] + [None] * len(failed),
+            known_sols=[outs[j] for j in late] + [None] * len(failed),
+        )
         if stretch == "auto" and found_stretch is not None:
             # Every solution slowed down to the final factor stays feasible (the
             # monotonicity argument above): no robot is solved again.
             f = found_stretch
             windows = windows.stretched(f)
-            outs = [o if not _ok(o) else _dilate(o, f, paths[j]) for j, o in enumerate(outs)]
-            for j, (fj, o) in zip(failed, sols, strict=True):
+            todo = set(late + failed)
+            outs = [
+                o if not _ok(o) or j in todo else _dilate(o, f, paths[j])
+                for j, o in enumerate(outs)
+            ]
+            for j, (fj, o) in zip(late + failed, sols, strict=True):
                 outs[j] = None if o is None else _dilate(o, f / fj, paths[j])
-            failed = []
-        if failed:
-            raise _infeasible(paths[failed[0]], windows, opts, net, found_stretch, stretch)
+            failed = late = []
+        if failed or late:
+            worst = (late + failed)[0]
+            raise _infeasible(paths[worst], windows, opts, net, found_stretch, stretch)
     t_solve = time.perf_counter() - t0
 
     robots = []
@@ -869,7 +935,7 @@ def _solve_one(
         return solve_corridor(path, windows, opts, warm=warm)
     pp = path_problem(path, opts["base"])
     lo, hi = _effective_windows(path, windows, upto)
-    if np.any(earliest_passage(path, lo) > hi + 1e-9):
+    if not opts.get("free") and np.any(earliest_passage(path, lo) > hi + 1e-9):
         # Proven infeasible: no solver call needed.
         return {
             "ok": False,
@@ -883,11 +949,19 @@ def _solve_one(
             "tries": (),
             "N": pp.N,
         }
+    free = bool(opts.get("free")) and upto is None and warm is None
     att = solve_path(
-        pp, windows, solvers=opts["solvers"], weights=opts["weights"], upto=upto, warm=warm
+        pp,
+        windows,
+        solvers=opts["solvers"],
+        weights=opts["weights"],
+        upto=upto,
+        warm=warm,
+        free=free,
     )
     return {
         "ok": att.ok,
+        "f": float(att.X[3, 0]) if free and att.ok else 1.0,
         "X": att.X,
         "U": att.U,
         "pp": pp,
@@ -931,43 +1005,73 @@ def _solve_at(path: RobotPath, windows: Windows, opts: dict, factor: float) -> d
     return _solve_one(path, windows.stretched(factor) if factor > 1 else windows, opts)
 
 
+def _factor(o: dict | None) -> float:
+    """The stretch factor a solution was found at (1 unless its factor was free)."""
+    return 1.0 if o is None else float(o.get("f", 1.0))
+
+
 def _ok(o: dict | None) -> bool:
     return o is None or bool(o["ok"])
 
 
 def smallest_stretch(
-    paths: Sequence[RobotPath], windows: Windows, opts: dict
+    paths: Sequence[RobotPath],
+    windows: Windows,
+    opts: dict,
+    known: Sequence[float | None] | None = None,
+    known_sols: Sequence[dict | None] | None = None,
 ) -> tuple[float | None, list[tuple[float, dict | None]]]:
     """The smallest factor (within :data:`STRETCH_RTOL`) that makes all ``paths`` feasible,
     and for every path a factor and a solution found there (to be slowed down to the
     final factor).
 
-    Robots are taken one by one; a robot feasible at the best factor so far costs one
-    solve, the others a bisection between that factor and a doubling bracket.
+    ``known[i]``: a factor at which path ``i`` is known to be feasible, with its solution
+    ``known_sols[i]`` (from a solve with a free factor, which is close to the smallest):
+    the search then starts just below it. Robots are taken by decreasing known factor,
+    then the others; a robot feasible at the best factor so far costs one solve, the
+    others a bisection between that factor and a known or doubling bracket.
     """
+    n = len(paths)
+    known = list(known) if known is not None else [None] * n
+    known_sols = list(known_sols) if known_sols is not None else [None] * n
+    order = sorted(range(n), key=lambda i: -(known[i] or 0.0))
     best = 1.0
-    sols: list[tuple[float, dict | None]] = []
-    for path in paths:
+    sols: list[tuple[float, dict | None]] = [(1.0, None)] * n
+    for i in order:
+        path, fk = paths[i], known[i]
+        if fk is not None and fk <= best:
+            sols[i] = (fk, known_sols[i])
+            continue
         o = _solve_at(path, windows, opts, best)
         if _ok(o):
-            sols.append((best, o))
+            sols[i] = (best, o)
             continue
-        lo, hi = best, best * 2
-        o = _solve_at(path, windows, opts, hi)
-        while not _ok(o):
-            lo, hi = hi, hi * 2
-            if hi > MAX_STRETCH:
-                return None, sols
+        lo = best
+        o_at = None  # the factor of a known solution (slowed down to ``hi`` at the end)
+        if fk is not None:
+            # A hair above the known factor, whose solution meets its windows only to
+            # the solver's tolerance.
+            hi, o, o_at = fk * (1.0 + 1e-6), known_sols[i], fk
+        else:
+            hi = best * 2
             o = _solve_at(path, windows, opts, hi)
+            while not _ok(o):
+                lo, hi = hi, hi * 2
+                if hi > MAX_STRETCH:
+                    return None, sols
+                o = _solve_at(path, windows, opts, hi)
+        first = True
         while hi - lo > STRETCH_RTOL * lo:
-            mid = 0.5 * (lo + hi)
+            # A known factor is close to the smallest: probe just below it first.
+            mid = max(hi / (1.0 + STRETCH_RTOL), lo) if first and fk is not None else 0.5 * (lo + hi)
+            first = False
             o_mid = _solve_at(path, windows, opts, mid)
             if _ok(o_mid):
-                hi, o = mid, o_mid
+                hi, o, o_at = mid, o_mid, None
             else:
                 lo = mid
         best = hi
-        sols.append((hi, o))
+        sols[i] = (hi if o_at is None else o_at, o)
     return best, sols
 
 
