@@ -73,7 +73,9 @@ def test_short_line_is_triangular() -> None:
     r = tr.robots[0]
     assert tr.stretch * sched.makespan == pytest.approx(accel_time(1.0, 2.0, 1.0), rel=3e-3)
     vmax = np.linalg.norm(r.state(np.linspace(0, r.arrival, 201))["v"], axis=1).max()
-    assert vmax == pytest.approx(1.0, abs=0.02)
+    # Within the factor's precision (1e-3) the profile may round its peak by
+    # O(sqrt(1e-3)): 2 s + 2 ms allow a peak of about 0.96 m/s.
+    assert vmax == pytest.approx(1.0, abs=0.05)
 
 
 # ---------------------------------------------------------------------- windows and limits

@@ -55,7 +55,7 @@ STRETCH_RTOL = 1e-3
 #: Feasibility tolerance of a returned solution (bounds, dynamics).
 FEAS_TOL = 1e-6
 #: Weight of the stretch factor (per second of the robot's schedule) when it is free.
-STRETCH_WEIGHT = 10.0
+STRETCH_WEIGHT = 100.0
 #: Angles below this are straight on (radians).
 ANGLE_TOL = 1e-9
 
@@ -820,11 +820,12 @@ def refine(
             known=[_factor(outs[j]) for j in late] + [None] * len(failed),
             known_sols=[outs[j] for j in late] + [None] * len(failed),
         )
-        if stretch == "auto" and found_stretch is not None:
+        if found_stretch is not None and (stretch == "auto" or found_stretch <= 1.0):
             # Every solution slowed down to the final factor stays feasible (the
             # monotonicity argument above): no robot is solved again.
             f = found_stretch
-            windows = windows.stretched(f)
+            if f > 1.0:
+                windows = windows.stretched(f)
             todo = set(late + failed)
             outs = [
                 o if not _ok(o) or j in todo else _dilate(o, f, paths[j])
@@ -1070,9 +1071,17 @@ def smallest_stretch(
                 hi, o, o_at = mid, o_mid, None
             else:
                 lo = mid
+        if o_at is not None:
+            # The known solution traded smoothness for a small factor: solve once more
+            # at the factor found (the usual objective), keeping it if that fails.
+            o_hi = _solve_at(path, windows, opts, hi)
+            if _ok(o_hi):
+                o, o_at = o_hi, None
         best = hi
         sols[i] = (hi if o_at is None else o_at, o)
-    return best, sols
+    # A little room (a tenth of the precision) so that the factor, given back to
+    # ``refine(stretch=...)``, is not met only to the solver's tolerance.
+    return (best * (1.0 + STRETCH_RTOL / 10) if best > 1.0 else best), sols
 
 
 def first_unmet(path: RobotPath, windows: Windows, opts: dict) -> tuple[int, str]:
