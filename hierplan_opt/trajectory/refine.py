@@ -55,7 +55,7 @@ STRETCH_RTOL = 1e-3
 #: Feasibility tolerance of a returned solution (bounds, dynamics).
 FEAS_TOL = 1e-6
 #: Weight of the stretch factor (per second of the robot's schedule) when it is free.
-STRETCH_WEIGHT = 100.0
+STRETCH_WEIGHT = 10.0
 #: Angles below this are straight on (radians).
 ANGLE_TOL = 1e-9
 
