@@ -252,10 +252,7 @@ def _clearance_of(stats: dict) -> bool:
     rows = stats.get("clearance")
     if not isinstance(rows, list):
         return True
-    for row in rows:
-        if isinstance(row, dict) and row.get("guaranteed") is False:
-            return False
-    return True
+    return not any(isinstance(row, dict) and row.get("guaranteed") is False for row in rows)
 
 
 def _read_rows(

@@ -226,12 +226,7 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     dyn = nxt - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h, f)
     g = ca.vertcat(ca.vec(ca.vertcat(stage[:, :N], dyn)), stage[:, N])
     # ---- objective: acceleration energy, arrival time, even steps, stretch --------------
-    J = (
-        w[0] * ca.sum2(a * a * h)
-        + w[1] * x_end[2]
-        + w[2] * ca.sum2(h * h)
-        + w[3] * x_end[3]
-    )
+    J = w[0] * ca.sum2(a * a * h) + w[1] * x_end[2] + w[2] * ca.sum2(h * h) + w[3] * x_end[3]
     nlp = {"x": z, "p": ca.vertcat(w, lo.T, hi.T), "f": J, "g": g}
     fn = ca.nlpsol(f"path_{N}_{solver}", solver, nlp, _options(solver, 4, N, 2))
     ocp = OCP("path", solver, N, 4, 2, 2, 4 + 2 * (N + 1), fn, time.perf_counter() - t0)

@@ -1064,7 +1064,8 @@ def smallest_stretch(
         first = True
         while hi - lo > STRETCH_RTOL * lo:
             # A known factor is close to the smallest: probe just below it first.
-            mid = max(hi / (1.0 + STRETCH_RTOL), lo) if first and fk is not None else 0.5 * (lo + hi)
+            probe = first and fk is not None
+            mid = max(hi / (1.0 + STRETCH_RTOL), lo) if probe else 0.5 * (lo + hi)
             first = False
             o_mid = _solve_at(path, windows, opts, mid)
             if _ok(o_mid):
