@@ -97,14 +97,15 @@ class OCP:
         return X, body[:, nx:].T.copy()
 
     def pack_g(self, G_stage: np.ndarray, G_final: np.ndarray) -> np.ndarray:
-        """Constraint bounds ``[g_0 (ng_stage), dyn_0 (nx), ..., g_N (ng_stage)]``:
-        ``G_stage`` has shape ``(ng_stage, N+1)``; dynamics rows get ``G_final``'s value
-        (0 for both bounds)."""
+        """Constraint bounds ``[dyn_0 (nx), g_0 (ng_stage), dyn_1, g_1, ..., g_N]``
+        (a stage's dynamics first, as fatrop's structure detection needs): ``G_stage``
+        has shape ``(ng_stage, N+1)``; dynamics rows get ``G_final``'s value (0 for both
+        bounds)."""
         N, nx, ng = self.N, self.nx, self.ng_stage
         out = np.empty(N * (ng + nx) + ng)
         body = out[: N * (ng + nx)].reshape(N, ng + nx)
-        body[:, :ng] = G_stage[:, :N].T
-        body[:, ng:] = G_final
+        body[:, nx:] = G_stage[:, :N].T
+        body[:, :nx] = G_final
         out[N * (ng + nx) :] = G_stage[:, N]
         return out
 
@@ -160,7 +161,7 @@ def _options(solver: str, nx: int, N: int, ng_stage: int) -> dict[str, Any]:
             "ipopt.constr_viol_tol": 1e-8,
         }
     if solver == "fatrop":
-        equality = ([False] * ng_stage + [True] * nx) * N + [False] * ng_stage
+        equality = ([True] * nx + [False] * ng_stage) * N + [False] * ng_stage
         return {
             "print_time": False,
             "error_on_fail": False,
@@ -224,7 +225,7 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     stage = ca.vertcat(X[2, :] - X[3, :] * lo, X[2, :] - X[3, :] * hi)
     # ---- dynamics: exact integration of a constant acceleration -------------------------
     dyn = nxt - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h, f)
-    g = ca.vertcat(ca.vec(ca.vertcat(stage[:, :N], dyn)), stage[:, N])
+    g = ca.vertcat(ca.vec(ca.vertcat(dyn, stage[:, :N])), stage[:, N])
     # ---- objective: acceleration energy, arrival time, even steps, stretch --------------
     J = w[0] * ca.sum2(a * a * h) + w[1] * x_end[2] + w[2] * ca.sum2(h * h) + w[3] * x_end[3]
     nlp = {"x": z, "p": ca.vertcat(w, lo.T, hi.T), "f": J, "g": g}
@@ -303,7 +304,7 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     )
     # ---- dynamics: exact integration of a constant acceleration -------------------------
     dyn = X[:, 1:] - ca.vertcat(pk + vk * hd + 0.5 * a * (hd * hd), vk + a * hd, t[:, :N] + h)
-    g = ca.vertcat(ca.vec(ca.vertcat(stage[:, :N], dyn)), stage[:, N])
+    g = ca.vertcat(ca.vec(ca.vertcat(dyn, stage[:, :N])), stage[:, N])
     # ---- objective: acceleration energy and arrival time ------------------------------
     J = w[0] * ca.sum2(ca.sum1(a * a) * h) + w[1] * x_end[2 * dim]
     nlp = {"x": z, "p": ca.vertcat(ca.vec(P), w), "f": J, "g": g}
