@@ -159,6 +159,9 @@ def _options(solver: str, nx: int, N: int, ng_stage: int) -> dict[str, Any]:
             "ipopt.max_iter": MAX_ITER,
             "ipopt.tol": 1e-6,
             "ipopt.constr_viol_tol": 1e-8,
+            # An "acceptable" stop must be as feasible as an optimal one (the verifier
+            # checks the motion's continuity to 1e-5).
+            "ipopt.acceptable_constr_viol_tol": 1e-8,
         }
     if solver == "fatrop":
         equality = ([True] * nx + [False] * ng_stage) * N + [False] * ng_stage

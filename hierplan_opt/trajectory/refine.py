@@ -420,7 +420,8 @@ def _feasible(
             f[1:] - f[:-1],
         ]
     )
-    return bool(np.all(np.abs(res) <= tol * (1.0 + np.abs(t[-1]))))
+    # Continuity in metres, m/s and seconds (the verifier allows 1e-5 m, m/s).
+    return bool(np.all(np.abs(res) <= tol + 1e-9 * abs(float(t[-1]))))
 
 
 @dataclass(frozen=True, eq=False)
