@@ -237,6 +237,8 @@ class Trajectories:
             "corridor": self.corridor,
             "safety_distance": self.safety_distance,
             "schedule_safety_distance": self.schedule_safety_distance,
+            "margin": self.margin,
+            "clearance_guaranteed": self.enforced,
             "stretch": self.stretch,
             "makespan": self.makespan,
             "guarantee": self.guarantee,
