@@ -272,7 +272,7 @@ def trajectories_csv(traj: Trajectories, dt: float = DEFAULT_DT) -> str:
     ...     np.array([[0.0, 0.0], [0.5, 0.0]]), np.array([[0.0, 0.0], [1.0, 0.0]]),
     ...     np.array([[1.0, 0.0]]), np.zeros(2), np.zeros(2), np.zeros(1), np.zeros(2), {})
     >>> T = Trajectories((r,), "path", 0.0, 0.25, 0.25, 1.0, "")
-    >>> print(trajectories_csv(T, dt=0.5).split("\\n", 7)[-1].strip())
+    >>> print(trajectories_csv(T, dt=0.5).split("\\n", 9)[-1].strip())
     agent,t,x,y,vx,vy
     a,0,0,0,0,0
     a,0.5,0.125,0,0.5,0
