@@ -115,7 +115,7 @@ def test_windows_and_limits_are_kept() -> None:
     assert tw - tu >= net.arc_lb[0] - 1e-6
 
 
-def random_schedules(count: int):  # noqa: ANN201
+def random_schedules(count: int):
     rng = np.random.default_rng(7)
     made = 0
     while made < count:
@@ -279,7 +279,7 @@ def test_unicycle_model_needs_omega_max() -> None:
 
 
 # ---------------------------------------------------------------------- clearance, corridor
-def motion_in_windows(net, w, j: int, rng) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+def motion_in_windows(net, w, j: int, rng) -> tuple[np.ndarray, np.ndarray]:
     """A random motion of robot ``j`` forward along its path that passes every event with a
     window at a random time inside it (its ends included), the others in between, and
     between two events dawdles: it covers a random part of the piece at once, then stops
@@ -320,7 +320,7 @@ def motion_in_windows(net, w, j: int, rng) -> tuple[np.ndarray, np.ndarray]:  # 
     return np.array(ts), np.array(ps)
 
 
-def closest(ta, pa, tb, pb) -> float:  # noqa: ANN001
+def closest(ta, pa, tb, pb) -> float:
     """Exact minimum distance of two piecewise-linear motions (at rest outside them)."""
     T = np.union1d(ta, tb)
     A = np.stack([np.interp(T, ta, pa[:, d]) for d in range(pa.shape[1])], axis=1)
@@ -333,7 +333,7 @@ def closest(ta, pa, tb, pb) -> float:  # noqa: ANN001
     return float(min(d.min(initial=np.inf), np.linalg.norm(A[-1] - B[-1])))
 
 
-def worst_gap(sched, rng, motions: int) -> float:  # noqa: ANN001
+def worst_gap(sched, rng, motions: int) -> float:
     """Smallest ``distance - (r_i + r_j + margin)`` over random motions in the windows."""
     net = from_schedule(sched)
     worst = np.inf
@@ -443,7 +443,7 @@ def test_verifier_catches_broken_trajectories() -> None:
     assert not rep.ok and "they must keep" in rep.problems[-1]
 
 
-def test_output_files(tmp_path) -> None:  # noqa: ANN001
+def test_output_files(tmp_path) -> None:
     from hierplan_opt.trajectory import write_trajectories
 
     inst, plan = crossing()

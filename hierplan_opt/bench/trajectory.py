@@ -13,7 +13,6 @@ each NLP solver and reports per-robot solve times and iterations side by side.
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import statistics
 import time
@@ -34,7 +33,7 @@ def _root() -> Path:
     return Path(__file__).resolve().parents[2]
 
 
-def _formation():  # noqa: ANN202
+def _formation():
     import hierplan_opt as hp
 
     inst = hp.load_instance(str(_root() / "instances/paper/formation-usc.yaml"))
@@ -44,7 +43,7 @@ def _formation():  # noqa: ANN202
     return "formation-usc", inst, res.plan, "flow"
 
 
-def _warehouse(k: int, w: float, cache: str | None, time_limit: float):  # noqa: ANN202
+def _warehouse(k: int, w: float, cache: str | None, time_limit: float):
     from hierplan_opt.bench.post import make_plan
     from hierplan_opt.core.instance import Instance, Kinematics
     from hierplan_opt.io import load_plan, save_plan
@@ -66,7 +65,7 @@ def _warehouse(k: int, w: float, cache: str | None, time_limit: float):  # noqa:
     return f"warehouse-{k}", inst, plan, planner
 
 
-def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]:  # noqa: ANN001
+def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]:
     """Every robot once more in its final windows with ``solver``: (ok, seconds, iterations)."""
     R = importlib.import_module("hierplan_opt.trajectory.refine")
     from hierplan_opt.trajectory.model import path_ocp
@@ -97,23 +96,29 @@ def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]: 
 
 def main(argv: list[str] | None = None) -> int:
     import hierplan_opt as hp
+    from hierplan_opt.bench import BenchParser, time_limit
     from hierplan_opt.schedule import postprocess
     from hierplan_opt.trajectory import InfeasibleWindowsError, refine
     from hierplan_opt.trajectory.model import clear_cache
     from hierplan_opt.trajectory.verify import verify
 
-    ap = argparse.ArgumentParser(prog="hierplan bench trajectory", description=__doc__)
-    ap.add_argument("--quick", action="store_true", help="formation and 50 warehouse robots")
+    ap = BenchParser(
+        "trajectory",
+        __doc__ or "",
+        instance="unused (the cases are fixed)",
+        quick="formation and 50 warehouse robots",
+        time_limit="ECBS time limit for the warehouse plan (default 120, --quick 60)",
+    )
     ap.add_argument("--agents", type=int, default=200, help="warehouse robots (200)")
     ap.add_argument("--w", type=float, default=1.5, help="ECBS bound for the warehouse plan")
-    ap.add_argument("--time-limit", type=float, default=120.0, help="ECBS time limit")
     ap.add_argument("--cache", metavar="DIR", help="keep the warehouse plan in DIR and reuse it")
     ap.add_argument("--solvers", default="ipopt,fatrop", help="solvers compared per robot")
     ap.add_argument("--verify-dt", type=float, default=0.02, help="verification step (s)")
     args = ap.parse_args(argv)
     k = 50 if args.quick else args.agents
-    cases = [_formation(), _warehouse(k, args.w, args.cache, args.time_limit)]
-    print(  # noqa: T201
+    limit = time_limit(args.time_limit, args.quick, full=120.0, small=60.0)
+    cases = [_formation(), _warehouse(k, args.w, args.cache, limit)]
+    print(
         f"{'case':<16} {'K':>4} {'planner':>8} {'post':>6} {'refine':>7} {'verify':>7} "
         f"{'sched->ver':>10} {'target':>7} {'stretch':>7} {'T_sched':>8} {'T_traj':>8} "
         f"{'guarant.':>8} {'min d':>7} {'gap':>7} {'ok':>3} {'N max':>5}"
@@ -131,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             traj = refine(inst, sched, stretch="auto")
         except InfeasibleWindowsError as exc:
-            print(f"{name:<16} {inst.num_agents:>4} refine failed: {exc}")  # noqa: T201
+            print(f"{name:<16} {inst.num_agents:>4} refine failed: {exc}")
             continue
         t3 = time.perf_counter()
         rep = verify(traj, inst, dt=args.verify_dt)
@@ -140,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
         key = "formation-usc" if name.startswith("formation") else "warehouse"
         target = TARGETS[key]
         nmax = max((r.stats.get("intervals", 0) or 0) for r in traj.robots)
-        print(  # noqa: T201
+        print(
             f"{name:<16} {inst.num_agents:>4} {planner:>8} {t1 - t0:6.2f} {t3 - t2:7.2f} "
             f"{t4 - t3:7.2f} {e2e:10.2f} {target:7.1f} {traj.stretch:7.3f} "
             f"{sched.makespan:8.2f} {traj.makespan:8.2f} {traj.safety_distance:8.4f} "
@@ -148,8 +153,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{nmax:>5}"
         )
         results.append((name, inst, traj, e2e, target, rep))
-    print()  # noqa: T201
-    print(  # noqa: T201
+    print()
+    print(
         f"{'case':<16} {'solver':>7} {'ok':>9} {'median ms':>10} {'max ms':>8} "
         f"{'sum s':>7} {'it med':>7} {'it max':>7}"
     )
@@ -161,20 +166,20 @@ def main(argv: list[str] | None = None) -> int:
             ok = sum(r[0] for r in rows)
             times = [r[1] * 1e3 for r in rows]
             its = [r[2] for r in rows]
-            print(  # noqa: T201
+            print(
                 f"{name:<16} {solver:>7} {ok:>4}/{len(rows):<4} {statistics.median(times):10.1f} "
                 f"{max(times):8.1f} {sum(times) / 1e3:7.2f} {statistics.median(its):7.0f} "
                 f"{max(its):7d}"
             )
-    print()  # noqa: T201
+    print()
     for name, _, _, e2e, target, rep in results:
         met = e2e < target and rep.ok
-        print(  # noqa: T201
+        print(
             f"target {name}: schedule -> verified trajectories in {e2e:.2f} s "
             f"(< {target:g} s): {'MET' if met else 'NOT MET'}"
             + ("" if rep.ok else " (verification failed)")
         )
-    print(  # noqa: T201
+    print(
         "post = MAPF-POST earliest schedule; refine = windows + NLPs + stretch search "
         "(IPOPT/MUMPS, one process); guarant. = reported safety distance (smallest "
         "r_i + r_j); min d = verified minimum distance (lower bound over continuous time); "

@@ -109,7 +109,7 @@ def _check_plot(path: str) -> None:
         raise InputError(f"{path}: directory {parent} does not exist")
 
 
-def _clearance(traj) -> str:  # noqa: ANN001 - Trajectories
+def _clearance(traj) -> str:
     """``r_i + r_j + 0.1 (smallest pair 0.6 m)``: what the trajectories keep."""
     if not traj.enforced:
         return "none guaranteed (schedule without clearance)"

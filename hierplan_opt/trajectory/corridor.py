@@ -20,7 +20,7 @@ from hierplan_opt.trajectory.model import corridor_ocp
 INNER = 1.0 / np.sqrt(2.0)
 
 
-def solve_corridor(path, windows, opts: dict, warm=None) -> dict:  # noqa: ANN001
+def solve_corridor(path, windows, opts: dict, warm=None) -> dict:
     """Solve one robot's corridor problem; the same result layout as path mode."""
     from hierplan_opt.trajectory.refine import path_bounds, path_problem, path_warm_start
 
@@ -127,7 +127,7 @@ def solve_corridor(path, windows, opts: dict, warm=None) -> dict:  # noqa: ANN00
     }
 
 
-def _corridor_feasible(X, U, bounds, dim) -> bool:  # noqa: ANN001
+def _corridor_feasible(X, U, bounds, dim) -> bool:
     lower, upper = bounds
     x = X
     tol = 1e-6
@@ -146,7 +146,7 @@ def _corridor_feasible(X, U, bounds, dim) -> bool:  # noqa: ANN001
     return bool(np.all(np.abs(res) <= tol * (1.0 + np.abs(t[-1]))) and np.all(h >= -tol))
 
 
-def _trajectory(path, pp, X: np.ndarray, U: np.ndarray, dim: int) -> dict:  # noqa: ANN001
+def _trajectory(path, pp, X: np.ndarray, U: np.ndarray, dim: int) -> dict:
     p, v, t = X[:dim].T.copy(), X[dim : 2 * dim].T.copy(), np.maximum.accumulate(X[2 * dim])
     a = U[:dim].T.copy()
     speed = np.linalg.norm(v, axis=1)
@@ -170,7 +170,7 @@ def _trajectory(path, pp, X: np.ndarray, U: np.ndarray, dim: int) -> dict:  # no
     }
 
 
-def _event_times(path, pp, p, v, a, t) -> np.ndarray:  # noqa: ANN001
+def _event_times(path, pp, p, v, a, t) -> np.ndarray:
     """Knot events: the node time. Other events: the closest approach between the
     knots around them."""
     out = np.empty(len(path.event_ids))
@@ -193,7 +193,7 @@ def _event_times(path, pp, p, v, a, t) -> np.ndarray:  # noqa: ANN001
     return out
 
 
-def _event_pos(path, i: int) -> np.ndarray:  # noqa: ANN001
+def _event_pos(path, i: int) -> np.ndarray:
     s = path.event_axis[i]
     q = int(np.clip(np.searchsorted(path.knot_sigma, s, side="right") - 1, 0, path.num_pieces - 1))
     return path.knot_pos[q] + path.piece_dir[q] * (s - path.knot_sigma[q])

@@ -284,7 +284,7 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     P = ca.SX.sym("P", npar_stage, N + 1)
     w = ca.SX.sym("w", 2)
 
-    def inside(pt, par):  # noqa: ANN001, ANN202
+    def inside(pt, par):
         A, e, m = par[:dim, :], par[dim : 2 * dim, :], par[2 * dim, :]
         q = pt - A
         along = ca.sum1(q * e)
