@@ -331,6 +331,10 @@ _BUILTIN = [
      "Time-expanded network MIP (Pyomo + HiGHS)"),
     ("cpsat", "formulations.cpsat", "mapf tapf", "soc makespan", "optimal",
      "Time-expanded CP-SAT model (OR-Tools)"),
+    ("pibt", "search.pibt", "mapf", "soc", "heuristic",
+     "PIBT: one-step priority inheritance with backtracking (fast, incomplete)"),
+    ("lacam", "search.lacam", "mapf", "soc", "heuristic",
+     "LaCAM*: complete, anytime (search + LNS refinement), optimal given time"),
 ]  # fmt: skip
 for _name, _module, _problems, _objectives, _kind, _text in _BUILTIN:
     register(

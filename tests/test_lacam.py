@@ -1,0 +1,250 @@
+"""LaCAM*: completeness, anytime optimality against CBS, validity, seeds, time limits,
+the finished-flag bookkeeping of the sum of costs, and the LNS refiner."""
+
+from __future__ import annotations
+
+import itertools
+import time
+
+import pytest
+from canned import CASES
+from lacam_cases import (
+    check,
+    large_empty,
+    movingai,
+    random_grid,
+    random_roadmap,
+    swap_on_path,
+    tunnel,
+)
+
+import hierplan_opt as hp
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.timer import Deadline
+from hierplan_opt.search.lacam import _configs, _LaCAM, _paths
+from hierplan_opt.search.lns import Refiner
+from hierplan_opt.search.pibt import Space, sum_of_costs
+
+MAPF_CASES = {c.name: c for c in CASES if c.kind == "mapf"}
+
+
+# ---------------------------------------------------------------- completeness
+@pytest.mark.parametrize(
+    "inst", [tunnel(5, 1, 2, 3), tunnel(6, 1, 3, 4), tunnel(8, 1, 3, 4)], ids=lambda i: i.name
+)
+def test_tunnels_defeat_pibt_but_not_lacam(inst: Instance):
+    assert hp.solve(inst, "pibt", max_steps=300).status == hp.Status.TIME_LIMIT
+    res = hp.solve(inst, "lacam", time_limit=30, anytime=0)
+    check(inst, res)
+    assert res.solved
+
+
+@pytest.mark.parametrize("case", ["swap5_pocket2", "swap6_pocket1", "swap_three", "train5"])
+def test_corridors_and_sidings(case: str):
+    inst = MAPF_CASES[case].instance()
+    res = hp.solve(inst, "lacam", time_limit=30, anytime=0)
+    check(inst, res)
+    assert res.solved
+
+
+def test_exhausted_search_proves_infeasibility():
+    res = hp.solve(swap_on_path(4), "lacam", time_limit=30)
+    assert res.status == hp.Status.INFEASIBLE and res.plan is None
+    assert "exhausted" in res.stats["reason"]
+
+
+def test_cheap_infeasibility_checks():
+    g = Graph.grid(3, 1, obstacles=[(1, 0)])
+    res = hp.solve(Instance.mapf(g, [(0, 0)], [(2, 0)]), "lacam")
+    assert res.status == hp.Status.INFEASIBLE and "cannot reach" in res.stats["reason"]
+    shared = Instance.mapf(Graph.grid(3, 3), [(0, 0), (2, 2)], [(1, 1), (1, 1)])
+    res = hp.solve(shared, "lacam")
+    assert res.status == hp.Status.INFEASIBLE and "share a goal" in res.stats["reason"]
+
+
+# ---------------------------------------------------------------- optimality
+@pytest.mark.parametrize(
+    "case",
+    ["corridor_lmrp", "swap_three", "room9_s1_k3", "random8x8_s3_k4", "random4x4_s9_k6"],
+)
+def test_reaches_and_proves_the_cbs_optimum(case: str):
+    inst = MAPF_CASES[case].instance()
+    opt = hp.solve(inst, "cbs", time_limit=60)
+    res = hp.solve(inst, "lacam", time_limit=60)
+    check(inst, res)
+    assert opt.status == hp.Status.OPTIMAL
+    assert res.status == hp.Status.OPTIMAL
+    assert res.cost == opt.cost and res.lower_bound == opt.cost
+
+
+def test_tunnel_optimum_proven_by_exhaustion():
+    inst = tunnel(5, 1, 2, 3)
+    res = hp.solve(inst, "lacam", time_limit=60)
+    assert res.status == hp.Status.OPTIMAL and res.cost == 23  # CBS: 23
+    assert res.stats["first_cost"] > res.cost  # the first plan was improved
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", sorted(MAPF_CASES))
+def test_canned_suite_reaches_the_cbs_optimum(case: str):
+    inst = MAPF_CASES[case].instance()
+    opt = hp.solve(inst, "cbs", time_limit=120)
+    res = hp.solve(inst, "lacam", time_limit=30)
+    check(inst, res)
+    assert res.cost == opt.cost
+    assert res.status == hp.Status.OPTIMAL or res.lower_bound < res.cost
+
+
+@pytest.mark.slow
+def test_larger_tunnel_matches_cbs():
+    inst = tunnel(6, 1, 2, 3)
+    opt = hp.solve(inst, "cbs", time_limit=120)
+    res = hp.solve(inst, "lacam", time_limit=60)
+    assert res.status == hp.Status.OPTIMAL and res.cost == opt.cost == 29
+
+
+# ---------------------------------------------------------------- validity and seeds
+@pytest.mark.parametrize(
+    "inst",
+    [
+        random_grid(12, 12, None, 0.2, 40, 1),
+        random_grid(10, 10, None, 0.1, 50, 2),
+        random_grid(5, 5, 4, 0.15, 25, 3),
+        random_grid(4, 4, 3, 0.0, 30, 4),
+        random_roadmap(30, 12, 4),
+        random_roadmap(24, 10, 5, directed=True),
+    ],
+    ids=["grid2d-a", "grid2d-dense", "grid3d", "grid3d-dense", "roadmap", "roadmap-directed"],
+)
+def test_plans_are_valid_first_and_anytime(inst: Instance):
+    first = hp.solve(inst, "lacam", time_limit=20, anytime=0)
+    check(inst, first)
+    assert first.solved
+    better = hp.solve(inst, "lacam", time_limit=20, anytime=0.5)
+    check(inst, better)
+    assert better.cost <= first.cost
+    assert better.stats["first_cost"] == first.cost  # same seed, same first plan
+
+
+def test_same_seed_same_plan():
+    inst = movingai("random-32-32-10", "random-32-32-10-random-1.scen", 200)
+    a = hp.solve(inst, "lacam", seed=7, anytime=0)
+    b = hp.solve(inst, "lacam", seed=7, anytime=0)
+    c = hp.solve(inst, "lacam", seed=8, anytime=0)
+    check(inst, a)
+    assert a.plan == b.plan and c.plan != a.plan
+    small = MAPF_CASES["room9_s1_k3"].instance()  # anytime until proven: same path there
+    x = hp.solve(small, "lacam", seed=1, time_limit=60)
+    y = hp.solve(small, "lacam", seed=1, time_limit=60)
+    assert x.status == y.status == hp.Status.OPTIMAL
+    assert x.plan == y.plan and x.stats["iterations"] == y.stats["iterations"]
+
+
+def test_short_time_limit_on_a_large_instance():
+    inst = large_empty(2000)
+    t0 = time.perf_counter()
+    res = hp.solve(inst, "lacam", time_limit=0.1)
+    elapsed = time.perf_counter() - t0
+    assert res.status == hp.Status.TIME_LIMIT and res.plan is None
+    assert elapsed < 1.0  # the limit plus one distance batch or one PIBT step at most
+
+
+def test_time_limit_returns_the_best_plan_so_far():
+    inst = movingai("random-32-32-10", "random-32-32-10-random-1.scen", 150)
+    res = hp.solve(inst, "lacam", time_limit=1.5)
+    check(inst, res)
+    assert res.status == hp.Status.FEASIBLE
+    assert res.cost <= res.stats["first_cost"]
+    assert res.runtime < 3.0
+
+
+def test_refused_options():
+    inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    with pytest.raises(OptionError, match="anytime must be"):
+        hp.solve(inst, "lacam", anytime=-1)
+    with pytest.raises(OptionError, match="mc must be >= 1"):
+        hp.solve(inst, "lacam", mc=0)
+    with pytest.raises(OptionError, match="does not optimise 'makespan'"):
+        hp.solve(inst, "lacam", objective="makespan")
+
+
+# ---------------------------------------------------------------- bookkeeping
+def test_inserted_plan_costs_its_sum_of_costs():
+    # Agent 1 starts on its goal, is pushed off and comes back: the finished flags
+    # must charge it for the whole time until it is back, not just the steps away.
+    inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (1, 0)], [(2, 0), (1, 0)])
+    space = Space(inst)
+    configs = [(0, 1), (1, 4), (2, 1)]  # agent 1 steps down to (1, 1) and back up
+    assert sum_of_costs(configs, space.goals) == 2 + 2
+    search = _LaCAM(space, 0)
+    search.start_anytime(configs)
+    assert search.best == 4
+    assert search.plan_configs() == configs
+
+
+def test_monte_carlo_generation_and_no_refiner():
+    inst = MAPF_CASES["room9_s1_k3"].instance()
+    res = hp.solve(inst, "lacam", time_limit=60, mc=3, refine=False)
+    check(inst, res)
+    assert res.status == hp.Status.OPTIMAL and res.cost == 18
+
+
+# ---------------------------------------------------------------- the LNS refiner
+def _brute_force_path(r: Refiner, i: int, horizon: int) -> int | None:
+    """Cheapest final arrival of agent ``i`` around the others, by breadth-first search
+    over (vertex, time) written from scratch."""
+    space = r.space
+    paths = [p for j, p in enumerate(r.paths) if j != i]
+
+    def at(p: list[int], t: int) -> int:
+        return p[t] if t < len(p) else p[-1]
+
+    def free_forever(v: int, t: int) -> bool:
+        return all(at(p, tt) != v for p in paths for tt in range(t, horizon + 2))
+
+    frontier = {space.starts[i]}
+    for t in range(horizon + 1):
+        if space.goals[i] in frontier and free_forever(space.goals[i], t):
+            return t
+        nxt = set()
+        for v in frontier:
+            for u in [v, *space.adj[v]]:
+                if any(at(p, t + 1) == u for p in paths):
+                    continue
+                if u != v and any(at(p, t) == u and at(p, t + 1) == v for p in paths):
+                    continue
+                nxt.add(u)
+        frontier = nxt
+    return None
+
+
+def test_replanning_is_optimal_against_brute_force():
+    inst = random_grid(6, 6, None, 0.1, 8, 11)
+    space = Space(inst)
+    configs = _LaCAM(space, 0).first_solution(Deadline(10))
+    assert configs is not None
+    r = Refiner(space, _paths(configs, space.goals), seed=0)
+    horizon = len(configs) + 12
+    for i in range(inst.num_agents):
+        r._remove(i)
+        got = r.replan(i, horizon)
+        want = _brute_force_path(r, i, horizon)
+        assert (None if got is None else len(got) - 1) == want
+        r._add(i)
+
+
+def test_refiner_keeps_plans_valid_and_never_worse():
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 120)
+    space = Space(inst)
+    configs = _LaCAM(space, 0).first_solution(Deadline(30))
+    assert configs is not None
+    r = Refiner(space, _paths(configs, space.goals), seed=2)
+    costs = [r.cost]
+    for _ in itertools.repeat(None, 60):
+        r.step()
+        costs.append(r.cost)
+    assert costs == sorted(costs, reverse=True) and costs[-1] < costs[0]
+    plan = space.plan(_configs(r.paths))
+    assert hp.validate(inst, plan) == [] and plan.sum_of_costs == r.cost
