@@ -24,6 +24,7 @@ AREAS = {
     "post": "MAPF-POST: TPG/STN size and time, graph vs LP",
     "execution": "execution: STN re-solve vs re-plan, Monte Carlo runs/s, layers per delay rate",
     "trajectory": "trajectory refinement (CasADi): formation and 200 robots, IPOPT vs fatrop",
+    "lacam": "PIBT and LaCAM* on large fleets, side by side with lacam3 and the Python ports",
 }
 
 

@@ -46,11 +46,13 @@ import logging
 import random
 from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.search.guidance import guide_paths, guide_table
 from hierplan_opt.search.lns import Refiner
 from hierplan_opt.search.pibt import (
     NIL,
@@ -104,13 +106,23 @@ class _Node:
 class _LaCAM:
     """The search: :meth:`first_solution` (LaCAM), then :meth:`improve` (LaCAM*)."""
 
-    def __init__(self, space: Space, seed: int, *, swap: bool = True, mc: int = 1) -> None:
+    def __init__(
+        self,
+        space: Space,
+        seed: int,
+        *,
+        swap: bool = True,
+        mc: int = 1,
+        guide: list[dict[int, int]] | None = None,
+    ) -> None:
         self.space = space
         self.n = space.n_agents
         self.goals = space.goals
         self.goal_q: Conf = tuple(space.goals)
         self.rng = random.Random(seed)
-        self.pibts = [PIBT(space, seed * 1_000_003 + k, swap=swap) for k in range(max(1, mc))]
+        self.pibts = [
+            PIBT(space, seed * 1_000_003 + k, swap=swap, guide=guide) for k in range(max(1, mc))
+        ]
         self.star = False
         self.root: _Node | None = None
         self.explored: dict[object, _Node] = {}
@@ -292,6 +304,11 @@ class _LaCAM:
         out.reverse()
         return out
 
+    def use_guide(self, guide: list[dict[int, int]]) -> None:
+        """Let the configuration generators follow guide paths from now on."""
+        for pibt in self.pibts:
+            pibt.guide = guide
+
     # ------------------------------------------------------------------ LaCAM*
     def start_anytime(self, configs: list[Conf]) -> None:
         """Switch to the augmented search (finished flags) seeded with a first plan."""
@@ -456,6 +473,7 @@ def solve(
     objective: str = "soc",
     anytime: float | None = None,
     refine: bool = True,
+    guide: bool = True,
     swap: bool = True,
     mc: int = 1,
 ) -> Result:
@@ -469,6 +487,10 @@ def solve(
         proven (which on large instances does not happen in practice).
     refine
         Interleave large-neighbourhood-search refinement with the search.
+    guide
+        At the start of the anytime phase, plan guide paths that spread the agents
+        out (space utilisation optimisation) and restart LaCAM with them; the search
+        keeps using them.
     swap
         PIBT's swap technique (undirected graphs).
     mc
@@ -525,7 +547,8 @@ def solve(
     proven = first_cost == lb
     history = [(first_time, first_cost)]
     if not proven and anytime != 0:
-        proven = _anytime(search, space, configs, deadline, anytime, refine, seed, history, stats)
+        opts = _Options(anytime, refine, guide, swap, mc, seed)
+        proven = _anytime(search, space, configs, deadline, opts, history, stats)
     configs = search.plan_configs() if search.star else configs
     plan = space.plan(configs)
     cost = plan.sum_of_costs
@@ -536,21 +559,33 @@ def solve(
     return Result(status, plan, cost=cost, lower_bound=cost if proven else lb, stats=stats)
 
 
+@dataclass(frozen=True)
+class _Options:
+    anytime: float | None
+    refine: bool
+    guide: bool
+    swap: bool
+    mc: int
+    seed: int
+
+
 def _anytime(
     search: _LaCAM,
     space: Space,
     configs: list[Conf],
     deadline: Deadline,
-    anytime: float | None,
-    refine: bool,
-    seed: int,
+    opts: _Options,
     history: list[tuple[float, int]],
     stats: dict,
 ) -> bool:
     """Alternate LaCAM* and LNS refinement; True when the optimum is proven."""
-    end = Deadline(anytime) if anytime is not None else deadline
+    end = Deadline(opts.anytime) if opts.anytime is not None else deadline
+    seed = opts.seed
     search.start_anytime(configs)
-    refiner = Refiner(space, _paths(configs, space.goals), seed) if refine else None
+    refiner = Refiner(space, _paths(configs, space.goals), seed) if opts.refine else None
+    if opts.guide:
+        limit = _earliest(end, deadline)
+        _guided_restart(search, refiner, space, opts, limit, deadline, history, stats)
     proven = False
     # Work, not time, is shared between the two, so that the sequence of incumbents
     # depends only on the seed: per round the refiner tries REFINE_STEPS
@@ -595,6 +630,44 @@ def _anytime(
     if refiner is not None:
         stats.update(lns_replanned=refiner.replanned, lns_accepted=refiner.accepted)
     return proven
+
+
+def _guided_restart(
+    search: _LaCAM,
+    refiner: Refiner | None,
+    space: Space,
+    opts: _Options,
+    deadline: Deadline,
+    clock: Deadline,
+    history: list[tuple[float, int]],
+    stats: dict,
+) -> None:
+    """Guide paths, then LaCAM again with PIBT following them; keep the better plan."""
+    t0 = clock.elapsed()
+    paths = guide_paths(space, deadline, opts.seed)
+    if paths is None:
+        return
+    table = guide_table(paths)
+    again = _LaCAM(space, opts.seed, swap=opts.swap, guide=table)
+    try:
+        configs = again.first_solution(deadline)
+    except Expired:
+        return
+    search.use_guide(table)
+    if configs is None:  # pragma: no cover - the first search found a plan
+        return
+    soc = sum_of_costs(configs, space.goals)
+    stats.update(guided_cost=soc, guide_time=clock.elapsed() - t0)
+    if search.offer(configs, soc):
+        history.append((clock.elapsed(), soc))
+        if refiner is not None:
+            refiner.reset(_paths(configs, space.goals))
+
+
+def _earliest(*deadlines: Deadline) -> Deadline:
+    """A deadline that expires with the first of ``deadlines``."""
+    left = min(d.remaining() for d in deadlines)
+    return Deadline(None if left == float("inf") else left)
 
 
 def _paths(configs: Sequence[Conf], goals: Sequence[int]) -> list[list[int]]:
