@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import random
+import time
 from pathlib import Path
+
+from canned import _largest_component
 
 import hierplan_opt as hp
 from hierplan_opt.core.graph import Graph
@@ -39,7 +42,7 @@ def random_grid(w: int, h: int, d: int | None, density: float, k: int, seed: int
     dims = (w, h) if d is None else (w, h, d)
     obstacles = [c for c in _cells(dims) if rng.random() < density]
     g = Graph.grid(*dims, obstacles=obstacles)
-    comp = _component(g)
+    comp = _largest_component(g)
     rng.shuffle(comp)
     starts = comp[:k]
     goals = comp[:]
@@ -84,28 +87,19 @@ def _cells(dims: tuple[int, ...]) -> list[tuple[int, ...]]:
     return [(x, y, z) for z in range(dims[2]) for y in range(dims[1]) for x in range(dims[0])]
 
 
-def _component(g: Graph) -> list[int]:
-    """The largest connected component's vertex ids (sorted)."""
-    seen: set[int] = set()
-    best: list[int] = []
-    for s in range(g.n):
-        if not g.passable[s] or s in seen:
-            continue
-        comp = [s]
-        seen.add(s)
-        for v in comp:
-            for u in g.adj[v]:
-                if u not in seen:
-                    seen.add(u)
-                    comp.append(u)
-        if len(comp) > len(best):
-            best = comp
-    return sorted(best)
-
-
 def check(inst: Instance, res: hp.Result) -> None:
     """A result with a plan is valid and reports its own cost."""
     if res.plan is not None:
         assert hp.validate(inst, res.plan) == []
         assert res.cost == res.plan.sum_of_costs
         assert res.lower_bound is not None and res.lower_bound <= res.cost
+
+
+def assert_quick_time_limit(solver: str) -> None:
+    """0.1 s on 2000 agents: back within about the limit, without a plan, saying so."""
+    inst = large_empty(2000)
+    t0 = time.perf_counter()
+    res = hp.solve(inst, solver, time_limit=0.1)
+    elapsed = time.perf_counter() - t0
+    assert res.status == hp.Status.TIME_LIMIT and res.plan is None
+    assert elapsed < 1.0  # the limit plus one distance batch or one PIBT step at most

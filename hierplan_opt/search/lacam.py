@@ -61,6 +61,7 @@ from hierplan_opt.search.pibt import (
     Space,
     initial_priorities,
     next_priorities,
+    prepare,
     priority_order,
     sum_of_costs,
 )
@@ -521,14 +522,10 @@ def solve(
     if mc < 1:
         raise OptionError(f"mc must be >= 1, got {mc}")
     deadline = Deadline(time_limit)
-    try:
-        space = Space(instance, deadline, seed)
-    except Expired:
-        return Result(Status.TIME_LIMIT, None, stats={"reason": "time limit while preparing"})
-    lb = space.lower_bound()
-    why = space.infeasibility(instance)
-    if why is not None:
-        return Result(Status.INFEASIBLE, None, lower_bound=lb, stats={"reason": why})
+    prepared = prepare(instance, deadline, seed)
+    if isinstance(prepared, Result):
+        return prepared
+    space, lb = prepared
     search = _LaCAM(space, seed, swap=swap, mc=mc)
     stats: dict = {}
     try:

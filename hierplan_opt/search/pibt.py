@@ -440,6 +440,20 @@ def priority_order(prio: Sequence[float]) -> list[int]:
 
 
 # ---------------------------------------------------------------------- solver
+def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, int] | Result:
+    """The space and the sum of distances, or the Result that ends the solve early
+    (TIME_LIMIT while computing distances, INFEASIBLE by the cheap checks)."""
+    try:
+        space = Space(instance, deadline, seed)
+    except Expired:
+        return Result(Status.TIME_LIMIT, None, stats={"reason": "time limit while preparing"})
+    lb = space.lower_bound()
+    why = space.infeasibility(instance)
+    if why is not None:
+        return Result(Status.INFEASIBLE, None, lower_bound=lb, stats={"reason": why})
+    return space, lb
+
+
 def solve(
     instance: Instance,
     *,
@@ -480,14 +494,10 @@ def solve(
     if max_steps is not None and max_steps < 1:
         raise OptionError(f"max_steps must be >= 1, got {max_steps}")
     deadline = Deadline(time_limit)
-    try:
-        space = Space(instance, deadline, seed)
-    except Expired:
-        return Result(Status.TIME_LIMIT, None, stats={"reason": "time limit while preparing"})
-    lb = space.lower_bound()
-    why = space.infeasibility(instance)
-    if why is not None:
-        return Result(Status.INFEASIBLE, None, lower_bound=lb, stats={"reason": why})
+    prepared = prepare(instance, deadline, seed)
+    if isinstance(prepared, Result):
+        return prepared
+    space, lb = prepared
     limit = max_steps if max_steps is not None else 10 * space.nv + 1000
     pibt = PIBT(space, seed, swap=swap)
     goals = space.goals
