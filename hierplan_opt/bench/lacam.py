@@ -156,14 +156,16 @@ def _run(cmd: list[str], timeout: float) -> tuple[str, float, float]:
 
 
 # ---------------------------------------------------------------- measurements
-def _ours(solver: str, case: Case, time_limit: float, anytime: float | None) -> dict:
+def _ours(
+    solver: str, case: Case, time_limit: float, anytime: float | None, **options: object
+) -> dict:
     spec = {
         "solver": solver,
         "map": str(case.map_path),
         "scen": str(case.scen_path),
         "agents": case.agents,
         "time_limit": time_limit,
-        "anytime": anytime,
+        "options": dict(options, anytime=anytime) if solver == "lacam" else options,
     }
     out, wall, peak = _run(
         [sys.executable, "-m", "hierplan_opt.bench.lacam", "--worker", json.dumps(spec)],
@@ -185,9 +187,8 @@ def _worker(spec: dict) -> int:
     from hierplan_opt.io.movingai import load_movingai
 
     inst = load_movingai(spec["map"], spec["scen"], spec["agents"])
-    opts = {} if spec["solver"] == "pibt" else {"anytime": spec["anytime"]}
     t0 = time.perf_counter()
-    r = hp.solve(inst, spec["solver"], time_limit=spec["time_limit"], **opts)
+    r = hp.solve(inst, spec["solver"], time_limit=spec["time_limit"], **spec["options"])
     dt = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out = {
@@ -322,10 +323,17 @@ def main(argv: list[str] | None = None) -> int:
         metavar="MEASURE:CASE:K",
         help="run only these (measure first|anytime, case name, agents)",
     )
+    ap.add_argument(
+        "--ablation",
+        action="store_true",
+        help="our refinements switched off one at a time (first plan and anytime runs)",
+    )
     ap.add_argument("--worker", metavar="JSON", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.worker:
         return _worker(json.loads(args.worker))
+    if args.ablation:
+        return _ablation(10.0 if args.anytime == 60.0 else args.anytime)
     plan = FIRST + ANYTIME
     anytime = 5.0 if args.quick and args.anytime == 60.0 else args.anytime
     if args.quick:
@@ -430,6 +438,44 @@ def _anytime_rows(
                 f"30 s {ref}: ratio {final / ref:.3f} <= {QUALITY_FACTOR}: "
                 + ("met" if ok else "NOT met")
             )
+
+
+#: (label, solver, options) of the ablation runs: each switches one refinement off.
+FIRST_VARIANTS = [
+    ("lacam", "lacam", {}),
+    ("no swap", "lacam", {"swap": False}),
+    ("pibt", "pibt", {}),
+    ("pibt no swap", "pibt", {"swap": False, "max_steps": 2000}),
+]
+ANYTIME_VARIANTS = [
+    ("lacam*", {}),
+    ("no LNS", {"refine": False}),
+    ("no guide", {"guide": False}),
+    ("mc=4", {"mc": 4}),
+    ("search only", {"refine": False, "guide": False}),
+]
+
+
+def _ablation(anytime: float) -> int:
+    """Our own variants side by side (first plan; anytime cost and AUC)."""
+    print(HEAD)  # noqa: T201
+    print("-" * len(HEAD))  # noqa: T201
+    for name, k in (("random-32-32-10-random-1", 400), ("random-32-32-20-random-1", 409)):
+        case = Case(name, *CASES[name], k)
+        for label, solver, opts in FIRST_VARIANTS:
+            extra = {"anytime": 0.0} if solver == "lacam" else {}
+            r = _ours(solver, case, 60.0, extra.pop("anytime", None), **opts)
+            _row("first", case, label, r)
+        for label, opts in ANYTIME_VARIANTS:
+            r = _ours("lacam", case, anytime, None, **opts)
+            if "error" in r:
+                _row("anytime", case, label, r)
+                continue
+            hist = [(float(t), int(c)) for t, c in r["history"]]
+            c = _cost_at(hist, anytime, (r["first_time"], r["first_cost"]))
+            auc = _auc(hist, r["lb"], anytime)
+            _row("anytime", case, label, dict(r, time=anytime, cost=c), f"AUC {auc:.0f}")
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import logging
 import random
+from array import array
 from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -78,9 +79,9 @@ SEARCH_ITERATIONS = 64
 MIN_SEARCH_ITERATIONS = 4
 MAX_SEARCH_ITERATIONS = 4096
 REFINE_STEPS = 4
-#: The anytime search stops storing nodes beyond this many vertex entries (memory
-#: bound: about 8 bytes each); the refiner goes on alone.
-MAX_STORED = 40_000_000
+#: The anytime search stops storing nodes beyond this many per-agent entries
+#: (configurations, priorities, orders; about 8 bytes each); the refiner goes on alone.
+MAX_STORED = 30_000_000
 
 Conf = tuple[int, ...]
 
@@ -98,7 +99,7 @@ class _Node:
         self.g = g
         self.h = h
         self.f = g + h
-        self.prio: list[float] | None = None
+        self.prio: array[float] | None = None  # compact: many nodes, many agents
         self.order: list[int] | None = None
         self.tree: deque[tuple[tuple[int, ...], tuple[int, ...]]] | None = None
         self.goal = goal
@@ -155,10 +156,10 @@ class _LaCAM:
             x = x.parent
         for y in reversed(chain):
             if y.parent is None:
-                y.prio = initial_priorities(self.space)
+                y.prio = array("d", initial_priorities(self.space))
             else:
                 assert y.parent.prio is not None
-                y.prio = next_priorities(y.parent.prio, y.q, self.goals)
+                y.prio = array("d", next_priorities(y.parent.prio, y.q, self.goals))
         assert node.prio is not None
         order = priority_order(node.prio)
         if self.star:
@@ -166,6 +167,7 @@ class _LaCAM:
             order = [i for i in order if not fin[i]]
         node.order = order
         node.tree = deque([((), ())])
+        self.stored += 2 * self.n
 
     # ------------------------------------------------------------------ low level
     def next_constraints(self, node: _Node) -> tuple[tuple[int, ...], tuple[int, ...]] | None:
@@ -432,9 +434,11 @@ class _LaCAM:
                 stack.pop()
                 continue
             cons = self.next_constraints(node)
-            if cons is None:
+            if cons is None:  # every successor generated: the node is done for good
                 if top:
                     stack.pop()
+                    node.prio = None  # free the memory; an empty order marks it done
+                    node.order = []
                 continue
             res = self.successor(node, cons)
             if res is None:
