@@ -30,6 +30,9 @@ from hierplan_opt.search.pibt import Space
 
 #: Largest neighbourhood (agents replanned together).
 MAX_NEIGHBOURHOOD = 30
+#: Bits per field of the packed A* heap keys (vertex ids and times below 2**BITS).
+BITS = 24
+MASK = (1 << BITS) - 1
 #: Share of neighbourhoods built around the goal of a delayed agent.
 P_GOAL_NEIGHBOURHOOD = 0.5
 
@@ -55,7 +58,8 @@ class Refiner:
         self.rng = random.Random(seed)
         self.paths: list[list[int]] = []
         self.occ: dict[int, int] = {}  # t * nv + v -> agent
-        self.park: dict[int, int] = {}  # goal vertex -> time its agent rests there for good
+        # goal vertex -> time its agent rests there for good (MASK: nobody)
+        self.park_at = [MASK] * space.nv
         self.visits: list[list[int]] = [[] for _ in range(space.nv)]  # sorted times per vertex
         self.sweep: list[int] = []
         self.size = 1
@@ -71,7 +75,7 @@ class Refiner:
     def reset(self, paths: list[list[int]]) -> None:
         """Start over from another plan (e.g. a better one the search found)."""
         self.occ.clear()
-        self.park.clear()
+        self.park_at = [MASK] * self.nv
         for visits in self.visits:
             visits.clear()
         self.paths = [list(p) for p in paths]
@@ -92,7 +96,7 @@ class Refiner:
         for t, v in enumerate(p):
             occ[t * nv + v] = i
             insort(visits[v], t)
-        self.park[p[-1]] = len(p) - 1
+        self.park_at[p[-1]] = len(p) - 1
 
     def _remove(self, i: int) -> None:
         nv = self.nv
@@ -102,7 +106,7 @@ class Refiner:
         for t, v in enumerate(p):
             del occ[t * nv + v]
             visits[v].remove(t)
-        del self.park[p[-1]]
+        self.park_at[p[-1]] = MASK
 
     # ------------------------------------------------------------------ one agent
     def replan(self, i: int, bound: int) -> list[int] | None:
@@ -126,14 +130,16 @@ class Refiner:
         self.replanned += 1
         nv = self.nv
         occ = self.occ
-        park = self.park
+        park = self.park_at
         succ = self.succ
         parent: dict[int, int] = {s: -1}
-        heap = [(h0, 0, s)]
+        # Heap entries are single ints: estimate, then later time first, then vertex.
+        heap = [(h0 << 2 * BITS) | (MASK << BITS) | s]
         budget = self.expansion_limit
         while heap:
-            _, negt, v = heappop(heap)
-            t = -negt
+            e = heappop(heap)
+            v = e & MASK
+            t = MASK - ((e >> BITS) & MASK)
             if v == gl and t >= after:
                 path = [v]
                 key = parent[t * nv + v]
@@ -149,13 +155,11 @@ class Refiner:
             base0 = t * nv
             base1 = t1 * nv
             key0 = base0 + v
+            tbits = (MASK - t1) << BITS
             mover = occ.get(base1 + v)  # whoever enters v next: no swapping with them
             for u in succ[v]:
                 k1 = base1 + u
-                if k1 in parent or k1 in occ:
-                    continue
-                p = park.get(u)
-                if p is not None and p <= t1:
+                if k1 in parent or k1 in occ or park[u] <= t1:
                     continue
                 if mover is not None and u != v and occ.get(base0 + u) == mover:
                     continue
@@ -165,7 +169,7 @@ class Refiner:
                 if fu > bound:
                     continue
                 parent[k1] = key0
-                heappush(heap, (fu, -t1, u))
+                heappush(heap, (fu << 2 * BITS) | tbits | u)
         return None
 
     # ------------------------------------------------------------------ neighbourhoods
