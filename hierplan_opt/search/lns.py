@@ -68,7 +68,7 @@ class Refiner:
         #: Share of neighbourhoods built around a delayed agent's goal (else random).
         self.p_goal = P_GOAL_NEIGHBOURHOOD
         #: Give up on one agent after this many A* expansions.
-        self.expansion_limit = max(2000, 4 * space.nv)
+        self.expansion_limit = max(1000, 2 * space.nv)
         self.reset(paths)
 
     # ------------------------------------------------------------------ the plan

@@ -218,6 +218,10 @@ class PIBT:
         self.rng = random.Random(seed)
         # Swap reasons about corridors, which needs moves to be reversible.
         self.swap = swap and not space.directed
+        # Vertices with at least three neighbours that are not dead ends: from there
+        # two ways always lead on, so no swap is ever needed towards them.
+        adj = self.adj
+        self.wide = [sum(len(adj[u]) > 1 for u in nb) >= 3 for nb in adj]
         self.guide = guide
 
     # ------------------------------------------------------------------ one step
@@ -344,8 +348,10 @@ class PIBT:
         them pass. Case 2 looks one step ahead: after ``i`` moves on, would a
         neighbour ``k`` then be stuck behind it in the same way?
         """
-        occ_now = self.occ_now
         best = cands[0]
+        if self.wide[best]:  # a junction ahead: whoever is there can make way
+            return NIL
+        occ_now = self.occ_now
         j = occ_now[best]
         if (
             j != NIL
