@@ -10,7 +10,7 @@ Measures, in one run, the targets of issue 20 and prints one table:
 * anytime quality: sum of costs over the sum of distances after 10 s and after the
   full anytime run (60 s by default), and the MAPF-LNS area under the curve,
   ``integral over [0, T] of (cost(t) - sum of distances) dt`` (before the first plan
-  the first plan's cost counts), on the 400- and 409-agent instances.
+  the first plan's cost counts), on the same four instances.
 
 Peers are measured in the same run when their locations are given; each runs in its
 own process and is timed there around its own solve call:
@@ -89,6 +89,8 @@ FIRST = [
 ANYTIME = [
     ("anytime", "random-32-32-10-random-1", 400, None),
     ("anytime", "random-32-32-20-random-1", 409, None),
+    ("anytime", "warehouse-10-20-10-2-1-gen-1", 1000, None),
+    ("anytime", "empty-64-64-gen-1", 2000, None),
 ]
 #: Python ports are run on this measure only (they take minutes on the others).
 PY_PEERS_ON = ("random-32-32-10-random-1", 400)
