@@ -242,3 +242,57 @@ def test_refiner_keeps_plans_valid_and_never_worse():
     assert costs == sorted(costs, reverse=True) and costs[-1] < costs[0]
     plan = space.plan(_configs(r.paths))
     assert hp.validate(inst, plan) == [] and plan.sum_of_costs == r.cost
+
+
+def test_path_neighbourhood_starts_with_a_delayed_agent_and_weights_adapt():
+    from hierplan_opt.search.lns import MIN_WEIGHT, PATH
+
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 120)
+    space = Space(inst)
+    configs = _LaCAM(space, 0).first_solution(Deadline(30))
+    assert configs is not None
+    r = Refiner(space, _paths(configs, space.goals), seed=4)
+    for _ in range(20):
+        group = r._path_neighbourhood()
+        assert group is not None and len(group) == len(set(group)) >= 1
+        a = group[0]
+        assert len(r.paths[a]) - 1 > space.dist[a][space.starts[a]]  # delayed
+    for _ in range(40):
+        r.step()
+    assert all(w >= MIN_WEIGHT for w in r.weights) and r.weights != [1.0, 1.0, 1.0]
+    assert len(r.weights) == PATH + 1
+
+
+# ---------------------------------------------------------------- guide paths
+def test_guide_paths_are_short_walks_that_spread_out():
+    from hierplan_opt.search.guidance import MARGIN, _Table, guide_paths, guide_table
+
+    inst = movingai("random-32-32-10", "random-32-32-10-random-1.scen", 150)
+    space = Space(inst)
+    one = guide_paths(space, Deadline(30), seed=0, rounds=1)
+    two = guide_paths(space, Deadline(30), seed=0, rounds=2)
+    assert one is not None and two is not None
+
+    def meetings(paths: list[list[int]]) -> int:
+        table = _Table(space.nv)
+        for p in paths:
+            table.add(p, +1)
+        total = 0
+        for p in paths:
+            for t in range(1, len(p)):
+                total += table.meetings(p[t - 1], p[t], t) - 1 - (t == len(p) - 1)
+        return total
+
+    for i, p in enumerate(two):
+        assert p[0] == space.starts[i] and p[-1] == space.goals[i]
+        assert all(v in space.adj[u] for u, v in zip(p, p[1:], strict=False))
+        assert len(p) - 1 <= space.dist[i][space.starts[i]] + MARGIN
+    shortest = [[space.starts[i]] for i in range(inst.num_agents)]
+    for i, p in enumerate(shortest):  # greedy shortest paths, for comparison
+        d = space.dist[i]
+        while d[p[-1]]:
+            p.append(min(space.adj[p[-1]], key=d.__getitem__))
+    assert meetings(two) <= meetings(one) < meetings(shortest)
+    table = guide_table(two)
+    assert all(table[i][p[0]] == p[1] for i, p in enumerate(two) if len(p) > 1)
+    assert guide_paths(space, Deadline(0), seed=0) is None  # no time: no guidance

@@ -33,8 +33,11 @@ MAX_NEIGHBOURHOOD = 30
 #: Bits per field of the packed A* heap keys (vertex ids and times below 2**BITS).
 BITS = 24
 MASK = (1 << BITS) - 1
-#: Share of neighbourhoods built around the goal of a delayed agent.
-P_GOAL_NEIGHBOURHOOD = 0.5
+#: Neighbourhood kinds: random sweeps, around a delayed agent's goal, along its path.
+RANDOM, GOAL, PATH = 0, 1, 2
+#: Adaptive weights: reaction factor and floor.
+REACTION = 0.1
+MIN_WEIGHT = 0.05
 
 
 class Refiner:
@@ -65,8 +68,8 @@ class Refiner:
         self.size = 1
         self.replanned = 0
         self.accepted = 0
-        #: Share of neighbourhoods built around a delayed agent's goal (else random).
-        self.p_goal = P_GOAL_NEIGHBOURHOOD
+        #: Weights of the neighbourhood kinds (RANDOM, GOAL, PATH).
+        self.weights = [1.0, 1.0, 1.0]
         #: Give up on one agent after this many A* expansions.
         self.expansion_limit = max(1000, 2 * space.nv)
         self.reset(paths)
@@ -184,15 +187,12 @@ class Refiner:
         del self.sweep[-k:]
         return out
 
-    def _goal_neighbourhood(self) -> list[int] | None:
-        """A delayed agent (chosen with probability proportional to its delay) first,
-        then the agents that visit its goal after it could have arrived there: their
-        visits are what keeps it from finishing early."""
+    def _delayed_agent(self) -> int | None:
+        """An agent drawn with probability proportional to its delay (None: no delays)."""
         space = self.space
-        paths = self.paths
         dist = space.dist
         starts = space.starts
-        delays = [len(p) - 1 - dist[i][starts[i]] for i, p in enumerate(paths)]
+        delays = [len(p) - 1 - dist[i][starts[i]] for i, p in enumerate(self.paths)]
         total = sum(delays)
         if total <= 0:
             return None
@@ -201,11 +201,23 @@ class Refiner:
         while x >= delays[a]:
             x -= delays[a]
             a += 1
+        return a
+
+    def _size(self) -> int:
+        return self.rng.randint(2, max(2, min(MAX_NEIGHBOURHOOD, len(self.paths) // 4)))
+
+    def _goal_neighbourhood(self) -> list[int] | None:
+        """A delayed agent first, then the agents that visit its goal after it could
+        have arrived there: their visits keep it from finishing early."""
+        a = self._delayed_agent()
+        if a is None:
+            return None
+        space = self.space
         gl = space.goals[a]
-        early = dist[a][starts[a]]
+        early = space.dist[a][space.starts[a]]
         nv = self.nv
         occ = self.occ
-        want = self.rng.randint(2, max(2, min(MAX_NEIGHBOURHOOD, len(paths) // 4)))
+        want = self._size()
         group = [a]
         seen = {a}
         for t in reversed(self.visits[gl]):
@@ -217,11 +229,68 @@ class Refiner:
                 group.append(b)
         return group
 
-    def step(self) -> int:
-        """Try one neighbourhood; returns the cost saved (0 when nothing improved)."""
-        group = self._goal_neighbourhood() if self.rng.random() < self.p_goal else None
+    def _path_neighbourhood(self) -> list[int] | None:
+        """A delayed agent first, then the agents in the way of a shortest path of it
+        (on its vertices about when it would pass there), as in MAPF-LNS's agent-based
+        neighbourhoods."""
+        a = self._delayed_agent()
+        if a is None:
+            return None
+        space = self.space
+        d = space.dist[a]
+        adj = space.adj
+        nv = self.nv
+        occ = self.occ
+        rng = self.rng
+        want = self._size()
+        group = [a]
+        seen = {a}
+        v = space.starts[a]
+        t = 0
+        while len(group) < want:
+            for tt in (t, t + 1):
+                b = occ.get(tt * nv + v)
+                if b is not None and b not in seen:
+                    seen.add(b)
+                    group.append(b)
+            if d[v] == 0:
+                break
+            down = [u for u in adj[v] if d[u] < d[v]]
+            v = down[rng.randrange(len(down))]
+            t += 1
+        return group
+
+    def _neighbourhood(self) -> tuple[int, list[int]]:
+        """Which kind (drawn by adaptive weight) and the agents."""
+        w = self.weights
+        x = self.rng.random() * sum(w)
+        kind = 0
+        while kind < len(w) - 1 and x >= w[kind]:
+            x -= w[kind]
+            kind += 1
+        group = None
+        if kind == GOAL:
+            group = self._goal_neighbourhood()
+        elif kind == PATH:
+            group = self._path_neighbourhood()
         if group is None:
+            kind = RANDOM
             group = self._random_neighbourhood()
+        return kind, group
+
+    def step(self) -> int:
+        """Try one neighbourhood; returns the cost saved (0 when nothing improved).
+
+        The kinds of neighbourhood are drawn by weights that follow their recent
+        savings per replanned agent (adaptive LNS, as in MAPF-LNS).
+        """
+        kind, group = self._neighbourhood()
+        saved = self._replace(group)
+        w = self.weights
+        w[kind] = max(MIN_WEIGHT, (1 - REACTION) * w[kind] + REACTION * saved / len(group))
+        return saved
+
+    def _replace(self, group: list[int]) -> int:
         space = self.space
         old = {a: self.paths[a] for a in group}
         old_cost = sum(len(p) - 1 for p in old.values())
