@@ -296,3 +296,42 @@ def test_guide_paths_are_short_walks_that_spread_out():
     table = guide_table(two)
     assert all(table[i][p[0]] == p[1] for i, p in enumerate(two) if len(p) > 1)
     assert guide_paths(space, Deadline(0), seed=0) is None  # no time: no guidance
+
+
+# ---------------------------------------------------------------- ECBS / EECBS anytime
+@pytest.mark.parametrize("solver", ["ecbs", "eecbs"])
+def test_bounded_solvers_return_lacam_plan_when_their_limit_runs_out(solver: str):
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 250)
+    off = hp.solve(inst, solver, time_limit=1.5, lacam="off")
+    assert off.status == hp.Status.TIME_LIMIT and off.plan is None  # too many agents
+    r = hp.solve(inst, solver, time_limit=1.5)  # lacam="fallback" by default
+    assert r.status == hp.Status.FEASIBLE and r.stats["plan_from"] == "lacam"
+    assert r.plan is not None and hp.validate(inst, r.plan) == []
+    assert r.cost == r.plan.sum_of_costs == r.stats["lacam_cost"]
+    assert inst.soc_lower_bound() <= r.lower_bound <= r.cost  # the search's own bound
+    assert r.runtime < 1.5 + 1.0
+
+
+@pytest.mark.parametrize("solver", ["ecbs", "eecbs"])
+def test_bounded_solvers_start_from_lacam_plan(solver: str):
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 40)
+    plain = hp.solve(inst, solver, time_limit=30, w=1.5, lacam="off")
+    r = hp.solve(inst, solver, time_limit=30, w=1.5, lacam="start")
+    assert plain.stats["plan_from"] == "search" and r.solved
+    assert hp.validate(inst, r.plan) == [] and r.cost <= 1.5 * r.lower_bound + 1e-9
+    if r.stats["plan_from"] == "lacam":  # the bound covered LaCAM's plan: early stop
+        assert r.cost == r.stats["lacam_cost"]
+        assert r.stats["high_level_expanded"] <= plain.stats["high_level_expanded"]
+    else:  # the search's plan, cheaper than LaCAM's
+        assert r.cost < r.stats["lacam_cost"]
+    # A full one-way ring only rotates: no quick check proves the transposition
+    # impossible, LaCAM's exhausted search does (also without a time limit).
+    g = Graph.roadmap(
+        {"A": (0, 0), "B": (1, 0), "C": (0, 1)}, [("A", "B"), ("B", "C"), ("C", "A")], directed=True
+    )
+    ring = Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"])
+    assert hp.solve(ring, solver, time_limit=0.3, lacam="off").status == hp.Status.TIME_LIMIT
+    bad = hp.solve(ring, solver, lacam="start")
+    assert bad.status == hp.Status.INFEASIBLE and "lacam" in bad.stats["reason"]
+    with pytest.raises(OptionError, match="lacam must be one of"):
+        hp.solve(inst, solver, lacam="yes")

@@ -21,6 +21,13 @@ the others, never longer), which keeps the plan valid and the bound.
 
 EECBS (:mod:`hierplan_opt.search.eecbs`) is a subclass: explicit estimation search at
 the high level, and bypassing. See ``docs/ecbs.md``.
+
+Anytime (option ``lacam``): with a time limit, LaCAM (:mod:`hierplan_opt.search.lacam`)
+first computes a plan in at most ``LACAM_SHARE`` of it; when the search's limit runs
+out, that plan is returned (FEASIBLE, with the search's own lower bound; its cost need
+not be within ``w``), so a caller gets a plan whenever one was found. ``lacam="start"``
+also stops the search as soon as ``w * LB_min`` covers the LaCAM plan's cost and
+returns the cheaper of the two plans; ``"off"`` runs the plain search.
 """
 
 from __future__ import annotations
@@ -42,6 +49,10 @@ from hierplan_opt.search.focal import SearchTimeout, focal_path
 from hierplan_opt.search.reservations import Reservations
 
 log = logging.getLogger(__name__)
+
+#: Share of the time limit LaCAM may spend on its plan before the search starts.
+LACAM_SHARE = 0.25
+LACAM_MODES = ("fallback", "start", "off")
 
 #: Polishing may spend this share of the search's low-level expansions (at least
 #: ``_POLISH_MIN``): on warehouse-10-20-10-2-1 it otherwise doubles the run time.
@@ -114,7 +125,15 @@ class _ECBS:
     name = "ecbs"
 
     def __init__(
-        self, instance: Instance, deadline: Deadline, *, w: float, polish: bool, bypass: bool
+        self,
+        instance: Instance,
+        deadline: Deadline,
+        *,
+        w: float,
+        polish: bool,
+        bypass: bool,
+        lacam: str = "off",
+        incumbent: Result | None = None,
     ) -> None:
         g = instance.graph
         g.precompute_distances(instance.goals)  # one batch
@@ -149,6 +168,11 @@ class _ECBS:
         self.focal: list[tuple[int, float, int, _Node]] = []
         self.bound = -1.0
         self.nid = 0
+        # LaCAM's plan (option ``lacam``): returned when the limit runs out, and with
+        # "start" as soon as the bound covers it.
+        self.lacam = lacam
+        self.inc_plan = incumbent.plan if incumbent is not None else None
+        self.inc_cost = int(incumbent.cost or 0) if incumbent is not None else 0
 
     # ------------------------------------------------------------------ low level
     def plan(self, a: int, cons: AgentConstraints) -> tuple[Path, int] | None:
@@ -300,6 +324,8 @@ class _ECBS:
                 return self.result(Status.INFEASIBLE, None)
             if self.deadline.expired():
                 return self.timeout(max(lbm, self.best_known_lb))
+            if self.covers_lacam(lbm):
+                return self.from_lacam(max(lbm, self.best_known_lb))
             now = time.perf_counter()
             if now - last_log > 5.0:
                 last_log = now
@@ -405,11 +431,31 @@ class _ECBS:
         self.stats["runtime"] = self.deadline.elapsed()
         self.stats["depth"] = node.depth
         self.stats["cost_before_polish"] = node.cost
+        if self.lacam == "start" and self.inc_plan is not None and self.inc_cost < cost:
+            return self.from_lacam(lb)
+        self.stats["plan_from"] = "search"
         status = Status.OPTIMAL if cost <= lb else Status.FEASIBLE
         return self.result(status, plan, cost, min(lb, cost))
 
     def timeout(self, lb: float) -> Result:
+        if self.inc_plan is not None:
+            return self.from_lacam(lb)
         return self.result(Status.TIME_LIMIT, None, None, lb)
+
+    def covers_lacam(self, lbm: int) -> bool:
+        """With ``lacam="start"``: whether ``w * LB_min`` covers LaCAM's plan."""
+        return (
+            self.lacam == "start"
+            and self.inc_plan is not None
+            and self.inc_cost <= self.w * lbm + 1e-9
+        )
+
+    def from_lacam(self, lb: float) -> Result:
+        """LaCAM's plan with this search's own lower bound."""
+        self.stats["plan_from"] = "lacam"
+        cost = self.inc_cost
+        status = Status.OPTIMAL if cost <= lb else Status.FEASIBLE
+        return self.result(status, self.inc_plan, cost, min(lb, cost))
 
     def result(
         self, status: Status, plan: Plan | None, cost: float | None = None, lb: float | None = None
@@ -421,9 +467,60 @@ class _ECBS:
 #: The option of the suboptimality factor, shared with EECBS.
 W_OPTION = Option("w", "float", "suboptimality bound: cost <= w * optimum", low=1.0, high=1e9)
 POLISH_OPTION = Option("polish", "bool", "shorten paths one by one after the search")
+LACAM_OPTION = Option(
+    "lacam",
+    "choice",
+    "LaCAM's plan when the limit runs out (fallback), also as an early stop (start), or off",
+    choices=LACAM_MODES,
+)
 
 
-@solver("ecbs", W_OPTION, POLISH_OPTION)
+def _lacam_plan(
+    instance: Instance, mode: str, time_limit: float | None, seed: int, stats: dict[str, Any]
+) -> Result | None:
+    """LaCAM's first plan for ``mode`` (None when not asked for or not found in time)."""
+    if mode == "off" or (mode == "fallback" and time_limit is None):
+        return None
+    from hierplan_opt.search.lacam import solve as lacam_solve
+
+    budget = None if time_limit is None else LACAM_SHARE * time_limit
+    # The bare function: the front door has checked the instance already.
+    r = lacam_solve.fn(instance, time_limit=budget, seed=seed, anytime=0)
+    stats["lacam_status"] = r.status.value
+    stats["lacam_time"] = r.stats.get("first_time", budget)
+    if r.status == Status.INFEASIBLE or r.plan is None:
+        return r if r.status == Status.INFEASIBLE else None
+    stats["lacam_cost"] = r.cost
+    return r
+
+
+def run_search(
+    cls: type[_ECBS],
+    instance: Instance,
+    time_limit: float | None,
+    seed: int,
+    *,
+    w: float,
+    polish: bool,
+    bypass: bool,
+    lacam: str,
+) -> Result:
+    """LaCAM's plan first (option ``lacam``), then the search ``cls`` in the rest."""
+    deadline = Deadline(time_limit)
+    extra: dict[str, Any] = {}
+    incumbent = _lacam_plan(instance, lacam, time_limit, seed, extra)
+    if incumbent is not None and incumbent.status == Status.INFEASIBLE:
+        extra["reason"] = f"lacam: {incumbent.stats.get('reason', 'no plan exists')}"
+        extra["runtime"] = deadline.elapsed()
+        return Result(Status.INFEASIBLE, None, stats=extra, objective="soc")
+    search = cls(
+        instance, deadline, w=w, polish=polish, bypass=bypass, lacam=lacam, incumbent=incumbent
+    )
+    search.stats.update(extra)
+    return search.search()
+
+
+@solver("ecbs", W_OPTION, POLISH_OPTION, LACAM_OPTION)
 def solve(
     instance: Instance,
     *,
@@ -432,6 +529,7 @@ def solve(
     objective: str = "soc",
     w: float = 1.2,
     polish: bool = True,
+    lacam: str = "fallback",
 ) -> Result:
     """ECBS(w): a plan whose sum of costs is at most ``w`` times the optimum.
 
@@ -443,12 +541,19 @@ def solve(
         After the search, give each agent in turn a shortest path around the others'
         paths when that is shorter (keeps the plan valid and the bound; typically
         2-4 % lower cost). ``False`` returns the plain ECBS solution.
+    lacam
+        ``"fallback"`` (default): with a time limit, LaCAM's plan (found in at most a
+        quarter of it) is returned when the search runs out of time; ``"start"``: also
+        without a time limit, and the search stops as soon as its bound covers that
+        plan; ``"off"``: no LaCAM.
 
     Returns
     -------
     Result
         FEASIBLE (OPTIMAL when the cost meets the lower bound) with ``lower_bound`` the
-        smallest LB in OPEN; TIME_LIMIT with the lower bound; INFEASIBLE when proven.
+        smallest LB in OPEN; when the limit runs out, FEASIBLE with LaCAM's plan if it
+        found one (``stats["plan_from"] == "lacam"``; cost not bounded by ``w``), else
+        TIME_LIMIT with the lower bound; INFEASIBLE when proven.
 
     Example
     -------
@@ -459,5 +564,7 @@ def solve(
     >>> r.cost <= 1.5 * 8, r.cost / r.lower_bound <= 1.5
     (True, True)
     """
-    del seed, objective  # deterministic; the sum of costs only
-    return _ECBS(instance, Deadline(time_limit), w=w, polish=polish, bypass=False).search()
+    del objective  # the sum of costs only; the seed is LaCAM's
+    return run_search(
+        _ECBS, instance, time_limit, seed, w=w, polish=polish, bypass=False, lacam=lacam
+    )

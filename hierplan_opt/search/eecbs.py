@@ -29,7 +29,7 @@ from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
-from hierplan_opt.search.ecbs import _ECBS, POLISH_OPTION, W_OPTION, _Node
+from hierplan_opt.search.ecbs import _ECBS, LACAM_OPTION, POLISH_OPTION, W_OPTION, _Node, run_search
 
 #: Cap on the learned one-step error of "conflicts left" as a distance-to-go. The
 #: estimate ``d / (1 - eps_d)`` explodes as ``eps_d -> 1`` (resolving one conflict often
@@ -44,9 +44,19 @@ class _EECBS(_ECBS):
     name = "eecbs"
 
     def __init__(
-        self, instance: Instance, deadline: Deadline, *, w: float, polish: bool, bypass: bool
+        self,
+        instance: Instance,
+        deadline: Deadline,
+        *,
+        w: float,
+        polish: bool,
+        bypass: bool,
+        lacam: str = "off",
+        incumbent: Result | None = None,
     ) -> None:
-        super().__init__(instance, deadline, w=w, polish=polish, bypass=bypass)
+        super().__init__(
+            instance, deadline, w=w, polish=polish, bypass=bypass, lacam=lacam, incumbent=incumbent
+        )
         self.open_fhat: list[tuple[float, int, _Node]] = []
         # Online error estimates: expansions seen, summed cost increase per expansion,
         # summed error of the number of conflicts as a distance-to-go.
@@ -99,6 +109,7 @@ class _EECBS(_ECBS):
     W_OPTION,
     Option("bypass", "bool", "adopt a child's path when it lowers the conflicts in the bound"),
     POLISH_OPTION,
+    LACAM_OPTION,
 )
 def solve(
     instance: Instance,
@@ -109,6 +120,7 @@ def solve(
     w: float = 1.2,
     bypass: bool = True,
     polish: bool = True,
+    lacam: str = "fallback",
 ) -> Result:
     """EECBS(w): a plan whose sum of costs is at most ``w`` times the optimum.
 
@@ -122,6 +134,10 @@ def solve(
     polish
         After the search, give each agent in turn a shortest path around the others'
         paths when that is shorter (keeps validity and the bound).
+    lacam
+        LaCAM's plan as a fallback when the limit runs out (``"fallback"``, default),
+        also as an early stop once the bound covers it (``"start"``), or ``"off"``;
+        see :func:`hierplan_opt.search.ecbs.solve`.
 
     Example
     -------
@@ -131,5 +147,7 @@ def solve(
     >>> r.cost <= 1.2 * 5 and r.lower_bound <= 5 <= r.cost
     True
     """
-    del seed, objective  # deterministic; the sum of costs only
-    return _EECBS(instance, Deadline(time_limit), w=w, polish=polish, bypass=bypass).search()
+    del objective  # the sum of costs only; the seed is LaCAM's
+    return run_search(
+        _EECBS, instance, time_limit, seed, w=w, polish=polish, bypass=bypass, lacam=lacam
+    )
