@@ -1,17 +1,18 @@
 """A large valid plan for timing MAPF-POST: 1000 robots on the warehouse map.
 
-The MovingAI warehouse scenarios stop at 450 agents, and no solver of the toolkit plans
-1000 robots on ``warehouse-10-20-10-2-1`` quickly yet (at 17 % of the free cells, random
-starts and goals need a coupled planner; prioritized planning and trip-by-trip plans
-get stuck). :func:`fleet_plan` therefore builds the plan first and the instance from
-it: robots start on distinct random cells and make a few *trips* in rounds; in each
-round, one after another, robots pick a random cell 10-40 steps away that a shortest
-path reaches avoiding every other robot's cell and the paths already taken this round,
-and take that path; everybody else waits. Movers' paths are vertex-disjoint and nobody
-stands on them, so the plan has no conflicts (the validator checks it anyway). A
-robot's goal is where its last trip ends. The plan is not a MAPF solution of anything
-a user asked for; its size (about one visit per robot and path cell) and its sharing of
-cells between robots are what the MAPF-POST benchmark needs.
+The MovingAI warehouse scenarios stop at 450 agents. :func:`lacam_fleet` draws random
+starts and goals (the recipe of ``instances/large/generate.py``: with seed 1 on
+``warehouse-10-20-10-2-1`` these are the robots of
+``instances/large/warehouse-10-20-10-2-1-gen-1.scen``) and plans them with LaCAM (its
+first plan, a few seconds for 1000 robots); this is the plan the MAPF-POST benchmark
+times. When LaCAM finds no plan in its time limit, :func:`fleet_plan` is the fallback:
+it builds a plan first and the instance from it: robots start on distinct random
+cells and make a few *trips* in rounds; in each round, one after another, robots pick
+a random cell 10-40 steps away that a shortest path reaches avoiding every other
+robot's cell and the paths already taken this round, and take that path; everybody
+else waits. Movers' paths are vertex-disjoint and nobody stands on them, so the plan
+has no conflicts (the validator checks it anyway). A robot's goal is where its last
+trip ends.
 """
 
 from __future__ import annotations
@@ -106,17 +107,59 @@ def fleet_plan(
     return inst, Plan.from_paths(paths)
 
 
-def fleet_row(graph: Graph, agents: int, repeats: int, seed: int = 0) -> str:
+def lacam_fleet(
+    graph: Graph, agents: int, *, seed: int = 1, time_limit: float = 60.0
+) -> tuple[Instance, Plan, float] | None:
+    """Random starts and goals for ``agents`` robots, LaCAM's first plan and its time.
+
+    Starts are the first ``agents`` free cells (row by row) of one ``random.Random(seed)``
+    shuffle, goals of a second one. None when LaCAM finds no plan within ``time_limit``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.validate import validate
+    >>> inst, plan, seconds = lacam_fleet(Graph.grid(8, 8), 20)
+    >>> validate(inst, plan), inst.num_agents
+    ([], 20)
+    """
+    import random
+
+    from hierplan_opt.search.lacam import solve
+
+    cells = sorted(
+        (graph.location(int(v)) for v in np.flatnonzero(graph.passable)),
+        key=lambda c: (c[1], c[0]),
+    )
+    rng = random.Random(seed)
+    starts = cells[:]
+    rng.shuffle(starts)
+    goals = cells[:]
+    rng.shuffle(goals)
+    inst = Instance.mapf(graph, starts[:agents], goals[:agents], name=f"fleet-{agents}-seed{seed}")
+    r = solve(inst, time_limit=time_limit, seed=0, anytime=0)
+    if r.plan is None:
+        return None
+    return inst, r.plan, float(r.stats["first_time"])
+
+
+def fleet_row(graph: Graph, agents: int, repeats: int, seed: int = 1) -> str:
     """One line of ``hierplan bench post``: MAPF-POST's earliest schedule of a
-    :func:`fleet_plan` (medians of ``repeats`` runs of ``postprocess`` without the
-    validator, which is timed once on its own)."""
+    :func:`lacam_fleet` plan (:func:`fleet_plan` if LaCAM finds none); medians of
+    ``repeats`` runs of ``postprocess`` without the validator, which is timed once on
+    its own."""
     import statistics
     import time
 
     from hierplan_opt.core.validate import validate
     from hierplan_opt.schedule import postprocess, replay
 
-    inst, plan = fleet_plan(graph, agents, seed=seed)
+    found = lacam_fleet(graph, agents, seed=seed)
+    if found is not None:
+        inst, plan, t_plan = found
+        source = f"lacam first plan {t_plan:.1f} s, random starts/goals seed {seed}"
+    else:
+        inst, plan = fleet_plan(graph, agents, seed=seed)
+        source = f"fleet_plan, {agents * 4} trips: lacam found no plan"
     t0 = time.perf_counter()
     bad = validate(inst, plan)
     t_valid = time.perf_counter() - t0
@@ -131,7 +174,7 @@ def fleet_row(graph: Graph, agents: int, repeats: int, seed: int = 0) -> str:
     rep = replay(s, inst)
     st = s.stats
     return (
-        f"fleet {agents} robots (fleet_plan, {agents * 4} trips): SOC {plan.sum_of_costs}, "
+        f"fleet {agents} robots ({source}): SOC {plan.sum_of_costs}, "
         f"{st['tpg_nodes']} nodes, {st['type2_arcs']} type-2 arcs; earliest schedule "
         f"{statistics.median(runs):.3f} s (median of {repeats}: build {st['tpg_time']:.3f} + "
         f"{st['stn_time']:.3f}, solve {st['solve_time']:.3f}, windows "
