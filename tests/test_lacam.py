@@ -158,8 +158,12 @@ def test_refused_options():
     inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     with pytest.raises(OptionError, match="anytime must be"):
         hp.solve(inst, "lacam", anytime=-1)
-    with pytest.raises(OptionError, match="mc must be >= 1"):
+    with pytest.raises(OptionError, match="mc must be an integer >= 1"):
         hp.solve(inst, "lacam", mc=0)
+    with pytest.raises(OptionError, match="anytime must be"):
+        hp.solve(inst, "lacam", anytime="soon")
+    with pytest.raises(OptionError, match="refine must be true or false"):
+        hp.solve(inst, "lacam", refine=1)
     with pytest.raises(OptionError, match="does not optimise 'makespan'"):
         hp.solve(inst, "lacam", objective="makespan")
 
@@ -335,3 +339,27 @@ def test_bounded_solvers_start_from_lacam_plan(solver: str):
     assert bad.status == hp.Status.INFEASIBLE and "lacam" in bad.stats["reason"]
     with pytest.raises(OptionError, match="lacam must be one of"):
         hp.solve(inst, solver, lacam="yes")
+
+
+# ---------------------------------------------------------------- command line
+@pytest.mark.parametrize("solver", ["pibt", "lacam"])
+def test_cli_solve_and_validate(solver: str, tmp_path, capsys: pytest.CaptureFixture[str]):
+    from lacam_cases import MOVINGAI
+
+    from hierplan_opt.cli import main
+
+    map_, scen = (
+        str(MOVINGAI / "random-32-32-20.map"),
+        str(MOVINGAI / "random-32-32-20-random-1.scen"),
+    )
+    plan = tmp_path / "plan.yaml"
+    argv = ["solve", map_, "--scen", scen, "--agents", "100", "--solver", solver]
+    argv += ["--time-limit", "5", "--seed", "3"]
+    if solver == "lacam":
+        argv += ["--set", "anytime=0.5"]
+    assert main([*argv, "--out", str(plan)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("FEASIBLE") or out.startswith("OPTIMAL")
+    assert main(["validate", map_, "--scen", scen, "--agents", "100", str(plan)]) == 0
+    assert main([*argv, "--set", "swap=maybe", "--out", str(tmp_path / "x.yaml")]) == 2
+    assert not (tmp_path / "x.yaml").exists()

@@ -60,6 +60,7 @@ from hierplan_opt.search.pibt import (
     PIBT,
     Expired,
     Space,
+    check_options,
     initial_priorities,
     next_priorities,
     prepare,
@@ -521,10 +522,7 @@ def solve(
     """
     if objective != "soc":
         raise OptionError(f"lacam does not optimise {objective!r}")
-    if anytime is not None and not anytime >= 0:
-        raise OptionError(f"anytime must be a number of seconds >= 0, got {anytime!r}")
-    if mc < 1:
-        raise OptionError(f"mc must be >= 1, got {mc}")
+    check_options(anytime=anytime, refine=refine, guide=guide, swap=swap, mc=mc)
     deadline = Deadline(time_limit)
     prepared = prepare(instance, deadline, seed)
     if isinstance(prepared, Result):

@@ -446,6 +446,32 @@ def priority_order(prio: Sequence[float]) -> list[int]:
 
 
 # ---------------------------------------------------------------------- solver
+def check_options(**options: object) -> None:
+    """Refuse option values of the wrong kind: flags must be bools, counts positive
+    ints (``None`` allowed where the solver has a default), seconds numbers >= 0.
+
+    Example
+    -------
+    >>> check_options(swap=True, max_steps=None)
+    >>> check_options(swap="maybe")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OptionError: swap must be true or false, got 'maybe'
+    """
+    for name, value in options.items():
+        if name in ("swap", "refine", "guide"):
+            if not isinstance(value, bool):
+                raise OptionError(f"{name} must be true or false, got {value!r}")
+        elif name in ("max_steps", "mc"):
+            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
+            if not ok and not (name == "max_steps" and value is None):
+                raise OptionError(f"{name} must be an integer >= 1, got {value!r}")
+        elif name == "anytime" and value is not None:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            if not ok or not value >= 0:
+                raise OptionError(f"anytime must be a number of seconds >= 0, got {value!r}")
+
+
 def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, int] | Result:
     """The space and the sum of distances, or the Result that ends the solve early
     (TIME_LIMIT while computing distances, INFEASIBLE by the cheap checks)."""
@@ -497,8 +523,7 @@ def solve(
     """
     if objective != "soc":
         raise OptionError(f"pibt does not optimise {objective!r}")
-    if max_steps is not None and max_steps < 1:
-        raise OptionError(f"max_steps must be >= 1, got {max_steps}")
+    check_options(max_steps=max_steps, swap=swap)
     deadline = Deadline(time_limit)
     prepared = prepare(instance, deadline, seed)
     if isinstance(prepared, Result):
