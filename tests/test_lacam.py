@@ -233,12 +233,17 @@ def test_replanning_is_optimal_against_brute_force():
         r._add(i)
 
 
-def test_refiner_keeps_plans_valid_and_never_worse():
+def _refiner(seed: int) -> tuple[Instance, Space, Refiner]:
+    """A refiner on LaCAM's first plan for 120 agents of random-32-32-20."""
     inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 120)
     space = Space(inst)
     configs = _LaCAM(space, 0).first_solution(Deadline(30))
     assert configs is not None
-    r = Refiner(space, _paths(configs, space.goals), seed=2)
+    return inst, space, Refiner(space, _paths(configs, space.goals), seed=seed)
+
+
+def test_refiner_keeps_plans_valid_and_never_worse():
+    inst, space, r = _refiner(2)
     costs = [r.cost]
     for _ in itertools.repeat(None, 60):
         r.step()
@@ -251,11 +256,7 @@ def test_refiner_keeps_plans_valid_and_never_worse():
 def test_path_neighbourhood_starts_with_a_delayed_agent_and_weights_adapt():
     from hierplan_opt.search.lns import MIN_WEIGHT, PATH
 
-    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 120)
-    space = Space(inst)
-    configs = _LaCAM(space, 0).first_solution(Deadline(30))
-    assert configs is not None
-    r = Refiner(space, _paths(configs, space.goals), seed=4)
+    _, space, r = _refiner(4)
     for _ in range(20):
         group = r._path_neighbourhood()
         assert group is not None and len(group) == len(set(group)) >= 1
