@@ -440,6 +440,11 @@ def _anytime_rows(
                 f"30 s {ref}: ratio {final / ref:.3f} <= {QUALITY_FACTOR}: "
                 + ("met" if ok else "NOT met")
             )
+    if case.agents >= 2000:
+        verdicts.append(
+            f"{case.name} x{case.agents}: anytime run peak {ours['peak']:.0f} MB < "
+            f"{MEMORY_LIMIT_MB} MB: " + ("met" if ours["peak"] < MEMORY_LIMIT_MB else "NOT met")
+        )
 
 
 #: (label, solver, options) of the ablation runs: each switches one refinement off.
