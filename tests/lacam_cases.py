@@ -92,7 +92,8 @@ def check(inst: Instance, res: hp.Result) -> None:
     if res.plan is not None:
         assert hp.validate(inst, res.plan) == []
         assert res.cost == res.plan.sum_of_costs
-        assert res.lower_bound is not None and res.lower_bound <= res.cost
+        assert res.cost is not None and res.lower_bound is not None
+        assert res.lower_bound <= res.cost
 
 
 def assert_quick_time_limit(solver: str) -> None:

@@ -92,7 +92,7 @@ def test_canned_suite_reaches_the_cbs_optimum(case: str):
     opt = hp.solve(inst, "cbs", time_limit=120)
     res = hp.solve(inst, "lacam", time_limit=30)
     check(inst, res)
-    assert res.cost == opt.cost
+    assert res.cost == opt.cost and res.cost is not None and res.lower_bound is not None
     assert res.status == hp.Status.OPTIMAL or res.lower_bound < res.cost
 
 
@@ -123,7 +123,7 @@ def test_plans_are_valid_first_and_anytime(inst: Instance):
     assert first.solved
     better = hp.solve(inst, "lacam", time_limit=20, anytime=0.5)
     check(inst, better)
-    assert better.cost <= first.cost
+    assert better.cost is not None and first.cost is not None and better.cost <= first.cost
     assert better.stats["first_cost"] == first.cost  # same seed, same first plan
 
 
@@ -313,7 +313,8 @@ def test_bounded_solvers_return_lacam_plan_when_their_limit_runs_out(solver: str
     assert r.status == hp.Status.FEASIBLE and r.stats["plan_from"] == "lacam"
     assert r.plan is not None and hp.validate(inst, r.plan) == []
     assert r.cost == r.plan.sum_of_costs == r.stats["lacam_cost"]
-    assert inst.soc_lower_bound() <= r.lower_bound <= r.cost  # the search's own bound
+    assert r.lower_bound is not None and r.cost is not None  # the search's own bound:
+    assert inst.soc_lower_bound() <= r.lower_bound <= r.cost
     assert r.runtime < 1.5 + 1.0
 
 
@@ -323,6 +324,7 @@ def test_bounded_solvers_start_from_lacam_plan(solver: str):
     plain = hp.solve(inst, solver, time_limit=30, w=1.5, lacam="off")
     r = hp.solve(inst, solver, time_limit=30, w=1.5, lacam="start")
     assert plain.stats["plan_from"] == "search" and r.solved
+    assert r.plan is not None and r.cost is not None and r.lower_bound is not None
     assert hp.validate(inst, r.plan) == [] and r.cost <= 1.5 * r.lower_bound + 1e-9
     if r.stats["plan_from"] == "lacam":  # the bound covered LaCAM's plan: early stop
         assert r.cost == r.stats["lacam_cost"]

@@ -466,10 +466,13 @@ def check_options(**options: object) -> None:
             ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
             if not ok and not (name == "max_steps" and value is None):
                 raise OptionError(f"{name} must be an integer >= 1, got {value!r}")
-        elif name == "anytime" and value is not None:
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-            if not ok or not value >= 0:
-                raise OptionError(f"anytime must be a number of seconds >= 0, got {value!r}")
+        elif name == "anytime" and value is not None and not _seconds(value):
+            raise OptionError(f"anytime must be a number of seconds >= 0, got {value!r}")
+
+
+def _seconds(value: object) -> bool:
+    """Whether ``value`` is a number of seconds >= 0 (not a bool)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float)) and value >= 0
 
 
 def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, int] | Result:
