@@ -11,9 +11,9 @@ from lacam_cases import (
     assert_quick_time_limit,
     check,
     movingai,
+    one_way_ring,
     random_grid,
     random_roadmap,
-    swap_on_path,
     tunnel,
 )
 
@@ -49,7 +49,7 @@ def test_corridors_and_sidings(case: str):
 
 
 def test_exhausted_search_proves_infeasibility():
-    res = hp.solve(swap_on_path(4), "lacam", time_limit=30)
+    res = hp.solve(one_way_ring(), "lacam", time_limit=30)
     assert res.status == hp.Status.INFEASIBLE and res.plan is None
     assert "exhausted" in res.stats["reason"]
 
@@ -60,7 +60,7 @@ def test_cheap_infeasibility_checks():
     assert res.status == hp.Status.INFEASIBLE and "cannot reach" in res.stats["reason"]
     shared = Instance.mapf(Graph.grid(3, 3), [(0, 0), (2, 2)], [(1, 1), (1, 1)])
     res = hp.solve(shared, "lacam")
-    assert res.status == hp.Status.INFEASIBLE and "share a goal" in res.stats["reason"]
+    assert res.status == hp.Status.INFEASIBLE and "share the goal" in res.stats["reason"]
 
 
 # ---------------------------------------------------------------- optimality
@@ -158,7 +158,7 @@ def test_refused_options():
     inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     with pytest.raises(OptionError, match="anytime must be"):
         hp.solve(inst, "lacam", anytime=-1)
-    with pytest.raises(OptionError, match="mc must be an integer >= 1"):
+    with pytest.raises(OptionError, match="lacam option mc must be >= 1"):
         hp.solve(inst, "lacam", mc=0)
     with pytest.raises(OptionError, match="anytime must be"):
         hp.solve(inst, "lacam", anytime="soon")
@@ -333,10 +333,7 @@ def test_bounded_solvers_start_from_lacam_plan(solver: str):
         assert r.cost < r.stats["lacam_cost"]
     # A full one-way ring only rotates: no quick check proves the transposition
     # impossible, LaCAM's exhausted search does (also without a time limit).
-    g = Graph.roadmap(
-        {"A": (0, 0), "B": (1, 0), "C": (0, 1)}, [("A", "B"), ("B", "C"), ("C", "A")], directed=True
-    )
-    ring = Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"])
+    ring = one_way_ring()
     assert hp.solve(ring, solver, time_limit=0.3, lacam="off").status == hp.Status.TIME_LIMIT
     bad = hp.solve(ring, solver, lacam="start")
     assert bad.status == hp.Status.INFEASIBLE and "lacam" in bad.stats["reason"]

@@ -223,7 +223,7 @@ def test_gap_is_relative_to_the_cost() -> None:
 
 
 # ---------------------------------------------------------------- benchmarks
-@pytest.mark.parametrize("area", ["cbs", "ecbs", "teams", "formulations", "post"])
+@pytest.mark.parametrize("area", ["cbs", "ecbs", "teams", "formulations", "post", "lacam"])
 def test_bench_flags_are_uniform(area: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         main(["bench", area, "--help"])

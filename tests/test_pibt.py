@@ -125,7 +125,7 @@ def test_infeasible_and_refused_options():
     res = hp.solve(Instance.mapf(g, [(0, 0)], [(2, 0)]), "pibt")
     assert res.status == hp.Status.INFEASIBLE and "cannot reach" in res.stats["reason"]
     inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
-    with pytest.raises(OptionError, match="max_steps must be an integer >= 1"):
+    with pytest.raises(OptionError, match="pibt option max_steps must be >= 1"):
         hp.solve(inst, "pibt", max_steps=0)
     with pytest.raises(OptionError, match="swap must be true or false"):
         hp.solve(inst, "pibt", swap="no")

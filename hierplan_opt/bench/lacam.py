@@ -28,7 +28,7 @@ Without peers only our rows are printed. Our runs each use a fresh process too
 
 Example
 -------
->>> main(["--quick", "--only", "first:random-32-32-10-random-1:20"])  # doctest: +ELLIPSIS
+>>> main(["--quick", "--instance", "first:random-32-32-10-random-1:20"])  # doctest: +ELLIPSIS
 measure ...
 first ... lacam ...
 0
@@ -203,7 +203,7 @@ def _worker(spec: dict) -> int:
         "history": r.stats.get("history", []),
         "self_peak": peak,
     }
-    print(json.dumps(out))  # noqa: T201
+    print(json.dumps(out))
     return 0
 
 
@@ -290,7 +290,7 @@ HEAD = (
 
 def _row(measure: str, case: Case, solver: str, r: dict, note: str = "") -> None:
     if "error" in r:
-        print(  # noqa: T201
+        print(
             f"{measure:8} {case.name:29} {case.agents:>6} {solver:9} {'ERROR':10} "
             f"{'-':>8} {'-':>7} {'-':>6} {'-':>7} {r.get('peak', 0):>8.0f}  {r['error']}",
             flush=True,
@@ -300,7 +300,7 @@ def _row(measure: str, case: Case, solver: str, r: dict, note: str = "") -> None
     lb = r.get("lb")
     gap = f"{cost / lb:.3f}" if cost and lb else "-"
     t = r.get("time")
-    print(  # noqa: T201
+    print(
         f"{measure:8} {case.name:29} {case.agents:>6} {solver:9} {r.get('status', 'solved'):10} "
         f"{t if t is not None else float('nan'):>8.3f} {cost if cost is not None else '-':>7} "
         f"{lb if lb is not None else '-':>6} {gap:>7} {r.get('peak', 0):>8.0f}  {note}",
@@ -309,22 +309,20 @@ def _row(measure: str, case: Case, solver: str, r: dict, note: str = "") -> None
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="hierplan bench lacam", description=(__doc__ or "").split("\n\n")[0]
+    from hierplan_opt.bench import BenchParser
+
+    ap = BenchParser(
+        "lacam",
+        (__doc__ or "").split("\n\n")[0],
+        instance="run only these, MEASURE:CASE:K (measure first|anytime, case name, agents)",
+        quick="smaller instances, 5 s anytime runs (a smoke run)",
+        time_limit="seconds per first-solution run (default 60)",
+        instance_aliases=("--only",),
     )
     ap.add_argument("--peer-lacam3", metavar="PATH", help="lacam3 `main` binary (Release build)")
     ap.add_argument("--peer-pylacam", metavar="PYTHON", help="interpreter that imports pycam")
     ap.add_argument("--peer-pypibt", metavar="PYTHON", help="interpreter that imports pypibt")
     ap.add_argument("--anytime", type=float, default=60.0, help="seconds of our anytime runs")
-    ap.add_argument(
-        "--quick", action="store_true", help="smaller instances, 5 s anytime runs (a smoke run)"
-    )
-    ap.add_argument(
-        "--only",
-        nargs="+",
-        metavar="MEASURE:CASE:K",
-        help="run only these (measure first|anytime, case name, agents)",
-    )
     ap.add_argument(
         "--ablation",
         action="store_true",
@@ -340,49 +338,52 @@ def main(argv: list[str] | None = None) -> int:
     anytime = 5.0 if args.quick and args.anytime == 60.0 else args.anytime
     if args.quick:
         plan = [(m, c, min(k, 100), None) for m, c, k, _ in plan[:1] + ANYTIME[:1]]
-    if args.only:
+    limit = args.time_limit or 60.0
+    if args.instance:
         plan = []
         targets = {(c, k): t for _, c, k, t in FIRST}
-        for spec in args.only:
-            m, c, k = spec.split(":")
-            if c not in CASES or m not in ("first", "anytime"):
+        for spec in args.instance:
+            m, c, k = (spec.split(":") + ["", ""])[:3]
+            if c not in CASES or m not in ("first", "anytime") or not k.isdigit():
                 raise InputError(
-                    f"--only {spec}: expected first|anytime:CASE:K, CASE one of {list(CASES)}"
+                    f"--instance {spec}: expected first|anytime:CASE:K, CASE one of {list(CASES)}"
                 )
             plan.append((m, c, int(k), targets.get((c, int(k))) if m == "first" else None))
-    print(HEAD)  # noqa: T201
-    print("-" * len(HEAD))  # noqa: T201
+    print(HEAD)
+    print("-" * len(HEAD))
     verdicts: list[str] = []
     for measure, name, k, target in plan:
         map_path, scen_path = CASES[name]
         case = Case(name, map_path, scen_path, k)
         if measure == "first":
-            _first(case, target, args, verdicts)
+            _first(case, target, args, verdicts, limit)
         else:
             _anytime_rows(case, anytime, args, verdicts)
     if verdicts:
-        print()  # noqa: T201
-        print("targets (issue 20):")  # noqa: T201
+        print()
+        print("targets (issue 20):")
         for v in verdicts:
-            print("  " + v)  # noqa: T201
+            print("  " + v)
     return 0
 
 
-def _first(case: Case, target: float | None, args: argparse.Namespace, verdicts: list[str]) -> None:
-    ours = _ours("lacam", case, 60.0, 0.0)
+def _first(
+    case: Case, target: float | None, args: argparse.Namespace, verdicts: list[str], limit: float
+) -> None:
+    ours = _ours("lacam", case, limit, 0.0)
     _row("first", case, "lacam", ours, "whole solve call")
-    pibt = _ours("pibt", case, 60.0, None)
+    pibt = _ours("pibt", case, limit, None)
     _row("first", case, "pibt", pibt, "whole solve call")
     peers: dict[str, dict] = {}
     if args.peer_lacam3:
-        peers["lacam3"] = _lacam3(args.peer_lacam3, case, 60, star=False)
+        peers["lacam3"] = _lacam3(args.peer_lacam3, case, int(limit), star=False)
         _row("first", case, "lacam3", peers["lacam3"], "comp_time, --no-star")
     if (case.name, case.agents) == PY_PEERS_ON:
         if args.peer_pylacam:
-            peers["py-lacam"] = _python_peer(args.peer_pylacam, _PYLACAM, case, 60.0)
+            peers["py-lacam"] = _python_peer(args.peer_pylacam, _PYLACAM, case, limit)
             _row("first", case, "py-lacam", peers["py-lacam"], "solve call")
         if args.peer_pypibt:
-            peers["pypibt"] = _python_peer(args.peer_pypibt, _PYPIBT, case, 60.0)
+            peers["pypibt"] = _python_peer(args.peer_pypibt, _PYPIBT, case, limit)
             _row("first", case, "pypibt", peers["pypibt"], "PIBT() + run()")
     if target is None or "error" in ours or ours.get("cost") is None:
         if target is not None:
@@ -465,8 +466,8 @@ ANYTIME_VARIANTS = [
 
 def _ablation(anytime: float) -> int:
     """Our own variants side by side (first plan; anytime cost and AUC)."""
-    print(HEAD)  # noqa: T201
-    print("-" * len(HEAD))  # noqa: T201
+    print(HEAD)
+    print("-" * len(HEAD))
     for name, k in (("random-32-32-10-random-1", 400), ("random-32-32-20-random-1", 409)):
         case = Case(name, *CASES[name], k)
         for label, solver, opts in FIRST_VARIANTS:

@@ -51,16 +51,18 @@ from dataclasses import dataclass
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.registry import solver
 from hierplan_opt.search.guidance import guide_paths, guide_table
 from hierplan_opt.search.lns import Refiner
 from hierplan_opt.search.pibt import (
     NIL,
     PIBT,
+    SWAP_OPTION,
     Expired,
     Space,
-    check_options,
     initial_priorities,
     next_priorities,
     prepare,
@@ -471,6 +473,20 @@ class _LaCAM:
 
 
 # ---------------------------------------------------------------------- solver
+@solver(
+    "lacam",
+    Option(
+        "anytime",
+        "float",
+        "seconds of improvement after the first plan (none: until the time limit)",
+        low=0,
+        optional=True,
+    ),
+    Option("refine", "bool", "interleave LNS refinement with the search"),
+    Option("guide", "bool", "guide paths (space utilisation) in the anytime phase"),
+    SWAP_OPTION,
+    Option("mc", "int", "PIBT runs per successor in the anytime search (Monte-Carlo)", low=1),
+)
 def solve(
     instance: Instance,
     *,
@@ -522,7 +538,6 @@ def solve(
     """
     if objective != "soc":
         raise OptionError(f"lacam does not optimise {objective!r}")
-    check_options(anytime=anytime, refine=refine, guide=guide, swap=swap, mc=mc)
     deadline = Deadline(time_limit)
     prepared = prepare(instance, deadline, seed)
     if isinstance(prepared, Result):

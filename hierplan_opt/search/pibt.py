@@ -37,9 +37,11 @@ from scipy.sparse.csgraph import shortest_path
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)
 
@@ -446,35 +448,6 @@ def priority_order(prio: Sequence[float]) -> list[int]:
 
 
 # ---------------------------------------------------------------------- solver
-def check_options(**options: object) -> None:
-    """Refuse option values of the wrong kind: flags must be bools, counts positive
-    ints (``None`` allowed where the solver has a default), seconds numbers >= 0.
-
-    Example
-    -------
-    >>> check_options(swap=True, max_steps=None)
-    >>> check_options(swap="maybe")
-    Traceback (most recent call last):
-    ...
-    hierplan_opt.core.errors.OptionError: swap must be true or false, got 'maybe'
-    """
-    for name, value in options.items():
-        if name in ("swap", "refine", "guide"):
-            if not isinstance(value, bool):
-                raise OptionError(f"{name} must be true or false, got {value!r}")
-        elif name in ("max_steps", "mc"):
-            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
-            if not ok and not (name == "max_steps" and value is None):
-                raise OptionError(f"{name} must be an integer >= 1, got {value!r}")
-        elif name == "anytime" and value is not None and not _seconds(value):
-            raise OptionError(f"anytime must be a number of seconds >= 0, got {value!r}")
-
-
-def _seconds(value: object) -> bool:
-    """Whether ``value`` is a number of seconds >= 0 (not a bool)."""
-    return not isinstance(value, bool) and isinstance(value, (int, float)) and value >= 0
-
-
 def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, int] | Result:
     """The space and the sum of distances, or the Result that ends the solve early
     (TIME_LIMIT while computing distances, INFEASIBLE by the cheap checks)."""
@@ -489,6 +462,20 @@ def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, i
     return space, lb
 
 
+SWAP_OPTION = Option("swap", "bool", "PIBT's swap technique (undirected graphs)")
+
+
+@solver(
+    "pibt",
+    Option(
+        "max_steps",
+        "int",
+        "give up after this many steps (none: 10 |V| + 1000)",
+        low=1,
+        optional=True,
+    ),
+    SWAP_OPTION,
+)
 def solve(
     instance: Instance,
     *,
@@ -526,7 +513,6 @@ def solve(
     """
     if objective != "soc":
         raise OptionError(f"pibt does not optimise {objective!r}")
-    check_options(max_steps=max_steps, swap=swap)
     deadline = Deadline(time_limit)
     prepared = prepare(instance, deadline, seed)
     if isinstance(prepared, Result):
