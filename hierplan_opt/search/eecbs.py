@@ -23,6 +23,7 @@ at most ``w * LB_min``, its path replaces the parent's without adding a constrai
 from __future__ import annotations
 
 from heapq import heappop, heappush
+from typing import Any
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
@@ -43,20 +44,8 @@ class _EECBS(_ECBS):
 
     name = "eecbs"
 
-    def __init__(
-        self,
-        instance: Instance,
-        deadline: Deadline,
-        *,
-        w: float,
-        polish: bool,
-        bypass: bool,
-        lacam: str = "off",
-        incumbent: Result | None = None,
-    ) -> None:
-        super().__init__(
-            instance, deadline, w=w, polish=polish, bypass=bypass, lacam=lacam, incumbent=incumbent
-        )
+    def __init__(self, instance: Instance, deadline: Deadline, **options: Any) -> None:
+        super().__init__(instance, deadline, **options)  # see _ECBS
         self.open_fhat: list[tuple[float, int, _Node]] = []
         # Online error estimates: expansions seen, summed cost increase per expansion,
         # summed error of the number of conflicts as a distance-to-go.
