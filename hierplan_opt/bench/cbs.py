@@ -9,11 +9,29 @@ Example
 60 s each), ``hierplan bench cbs --instance room-32-32-4-even-1:20 --time-limit 30
 --option symmetry=false``; ``--rectangle-ablation`` adds a run without rectangle
 reasoning per instance (column ``rect``: rectangle splits).
+
+``hierplan bench cbs --reference [--quick] [--anchor PATH]``: the 31 MovingAI instances
+with known optima of issue 22 (``reference_optimal_soc.json`` beside the maps), each
+checked against its optimum, beside CBSH2-RTC: its times as recorded in that file, or,
+with ``--anchor`` (a CBSH2-RTC binary), run here instance by instance right after ours
+(interleaved), with its high-level and low-level node counts. The summary gives the
+solved counts and the geometric mean of our time over the C++'s on the instances both
+solve. Times compared: ours is :attr:`Result.runtime` (distances included), the C++'s is
+its ``runtime`` plus ``preprocessing runtime`` (its heuristic tables) when run here.
 """
 
 from __future__ import annotations
 
+import csv
+import json
+import math
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import Any
+
 from hierplan_opt.bench import SEARCH_HEAD, BenchParser, scenario, search_columns, time_limit
+from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.options import parse_pairs
 
 #: (scenario stem, agents): the optimal-search targets.
@@ -30,6 +48,17 @@ QUICK = [
     ("empty-16-16-even-1", 16),
     ("room-32-32-4-even-1", 8),
     ("maze-32-32-2-even-1", 8),
+]
+#: ``--reference --quick``: reference instances that take both solvers under a second.
+REFERENCE_QUICK = [
+    "empty-8-8-even-1:16",
+    "empty-32-32-even-1:50",
+    "random-32-32-10-random-1:50",
+    "random-32-32-20-random-1:30",
+    "maze-32-32-2-even-1:10",
+    "room-32-32-4-even-1:10",
+    "den312d-even-2:20",
+    "warehouse-10-20-10-2-1-even-1:30",
 ]
 
 
@@ -53,7 +82,15 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="also run each instance with each acceleration switched off",
     )
+    p.add_argument(
+        "--reference",
+        action="store_true",
+        help="the 31 instances with known optima, beside CBSH2-RTC (see the module doc)",
+    )
+    p.add_argument("--anchor", metavar="PATH", help="a CBSH2-RTC binary to run beside ours")
     args = p.parse_args(argv)
+    if args.reference or args.anchor:
+        return reference(args.instance, args.quick, args.time_limit, args.anchor)
 
     import hierplan_opt
     from hierplan_opt import registry
@@ -90,6 +127,125 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
     return 0
+
+
+def reference_table() -> dict[str, dict[str, Any]]:
+    """``"SCEN:K"`` -> optimum (None if unknown), lower bound, CBSH2-RTC's recorded time.
+
+    Example
+    -------
+    >>> ref = reference_table()
+    >>> len(ref), ref["room-32-32-4-even-1:20"]["optimal_soc"]
+    (31, 506)
+    """
+    from hierplan_opt.experiments.data import instances_dir
+
+    path = instances_dir() / "movingai" / "reference_optimal_soc.json"
+    data = json.loads(path.read_text(encoding="utf-8"))
+    return {k: v for k, v in data.items() if not k.startswith("_")}
+
+
+def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
+    """Run the CBSH2-RTC binary on ``spec``: solved, time, cost and node counts."""
+    from hierplan_opt.experiments.data import movingai_files
+
+    mp, scen = movingai_files(spec.partition(":")[0])
+    k = spec.partition(":")[2]
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "stats.csv"
+        cmd = [binary, "-m", str(mp), "-a", str(scen), "-k", k, "-t", f"{time_limit:g}"]
+        cmd += ["-o", str(out), "-s", "0"]
+        try:
+            subprocess.run(cmd, capture_output=True, timeout=time_limit + 60, check=False)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise InputError(f"--anchor {binary}: {exc}") from None
+        if not out.is_file():
+            raise InputError(f"--anchor {binary}: wrote no statistics for {spec}")
+        with out.open(newline="") as fh:
+            row = next(csv.DictReader(fh))
+    cost = int(float(row["solution cost"]))
+    hl_exp = int(float(row["#high-level expanded"]))
+    hl_gen = int(float(row["#high-level generated"]))
+    return {
+        "solved": cost >= 0,
+        "time": float(row["runtime"]) + float(row.get("preprocessing runtime") or 0),
+        "cost": cost,
+        "hl": f"{hl_exp}/{hl_gen}",
+        "ll": int(float(row["#low-level expanded"])),
+    }
+
+
+def geomean(xs: list[float]) -> float:
+    """Geometric mean (nan for an empty list).
+
+    Example
+    -------
+    >>> round(geomean([1.0, 4.0]), 6)
+    2.0
+    """
+    return math.exp(sum(math.log(x) for x in xs) / len(xs)) if xs else math.nan
+
+
+def reference(
+    specs: list[str] | None, quick: bool, tl_given: float | None, anchor: str | None
+) -> int:
+    """The reference table (see the module doc); 1 if any optimum differs from the known one."""
+    import hierplan_opt
+
+    ref = reference_table()
+    names = specs or (REFERENCE_QUICK if quick else sorted(ref))
+    for name in names:
+        if name not in ref:
+            raise InputError(f"--instance {name}: not a reference instance (SCEN:K of {len(ref)})")
+    tl = time_limit(tl_given, False)
+    # Warm-up: the first solve of a process pays the solver's lazy imports.
+    hierplan_opt.solve(scenario("empty-8-8-even-1:2")[1], "cbs")
+    head = (
+        f"{'instance':36} {'opt':>6} {'status':9} {'ours_s':>7} {'C++_s':>7} {'ratio':>6} "
+        f"{'HL ours':>11} {'HL C++':>11} {'LL ours':>9} {'LL C++':>9}"
+    )
+    print(head)
+    print("-" * len(head))
+    ratios: list[tuple[float, str]] = []
+    ours_solved = cpp_solved = wrong = 0
+    for name in names:
+        known = ref[name]["optimal_soc"]
+        _, inst = scenario(name)
+        r = hierplan_opt.solve(inst, "cbs", time_limit=tl)
+        ok = r.cost is not None
+        if ok and known is not None and r.cost != known:
+            wrong += 1
+            status = "WRONG"
+        else:
+            status = "solved" if ok else r.status.value[:9]
+        ours_solved += ok
+        if anchor:
+            cpp = run_anchor(anchor, name, tl)
+        else:
+            t = ref[name]["cbsh2_rtc_runtime_s"]
+            cpp = {"solved": t < tl, "time": t, "hl": "-", "ll": "-"}
+        cpp_solved += cpp["solved"]
+        ratio = "-"
+        if ok and cpp["solved"]:
+            x = r.runtime / max(cpp["time"], 1e-4)
+            ratios.append((x, name))
+            ratio = f"{x:.1f}"
+        st = r.stats
+        hl = f"{st.get('high_level_expanded', 0)}/{st.get('high_level_generated', 0)}"
+        print(
+            f"{name:36} {known if known is not None else '-':>6} {status:9} "
+            f"{r.runtime:>7.3f} {cpp['time'] if cpp['solved'] else math.inf:>7.3f} {ratio:>6} "
+            f"{hl:>11} {cpp['hl']:>11} {st.get('low_level_expanded', 0):>9} {cpp['ll']:>9}",
+            flush=True,
+        )
+    worst = max(ratios, default=(math.nan, "-"))
+    print(
+        f"solved ours {ours_solved}/{len(names)}, CBSH2-RTC {cpp_solved}/{len(names)}"
+        f"{' (recorded)' if not anchor else ''}; ours/C++ time over the {len(ratios)} both solve: "
+        f"geometric mean {geomean([x for x, _ in ratios]):.2f}x, worst {worst[0]:.1f}x "
+        f"({worst[1]}); optima differing from the known ones: {wrong}"
+    )
+    return 1 if wrong else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,60 @@
+"""``hierplan bench cbs --reference``: the issue-22 reference set and its table."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import pytest
+
+from hierplan_opt.bench import cbs as bench
+from hierplan_opt.bench import scenario
+from hierplan_opt.core.errors import InputError
+
+
+def test_reference_set_is_shipped_complete() -> None:
+    ref = bench.reference_table()
+    assert len(ref) == 31
+    for name, row in ref.items():
+        stem, k = name.split(":")
+        _, inst = scenario(name)  # map and scenario are in the package data
+        assert inst.num_agents == int(k)
+        if row["optimal_soc"] is not None:
+            assert row["optimal_soc"] == row["lower_bound"]
+            assert inst.soc_lower_bound() <= row["optimal_soc"]
+    assert set(bench.REFERENCE_QUICK) <= set(ref)
+
+
+def test_reference_row_checks_the_optimum(capsys) -> None:
+    assert bench.main(["--reference", "--instance", "empty-8-8-even-1:16"]) == 0
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("empty-8-8-even-1:16"))
+    assert row.split()[1:3] == ["74", "solved"]
+    assert "solved ours 1/1, CBSH2-RTC 1/1 (recorded)" in out
+    assert "optima differing from the known ones: 0" in out
+
+
+def test_reference_refuses_unknown_instance() -> None:
+    with pytest.raises(InputError, match="not a reference instance"):
+        bench.main(["--reference", "--instance", "empty-8-8-even-1:3"])
+
+
+def test_anchor_output_is_read(tmp_path, capsys) -> None:
+    # A stand-in for the C++ binary: writes the statistics row CBSH2-RTC writes.
+    fake = tmp_path / "cbs"
+    fake.write_text(
+        "#!/bin/sh\n"
+        'while [ "$1" != "-o" ]; do shift; done\n'
+        "printf 'runtime,#high-level expanded,#high-level generated,#low-level expanded,"
+        'solution cost,preprocessing runtime\\n0.5,7,13,99,74,0.25\\n\' > "$2"\n'
+    )
+    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
+    if os.name != "posix":  # pragma: no cover
+        pytest.skip("shell script stand-in")
+    argv = ["--reference", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
+    assert bench.main(argv) == 0
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("empty-8-8-even-1:16"))
+    cols = row.split()
+    assert cols[4] == "0.750" and cols[7] == "7/13" and cols[9] == "99"
+    assert "CBSH2-RTC 1/1;" in out
