@@ -13,19 +13,23 @@ geometric edge lengths matter only to scheduling (MAPF-POST).
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import cached_property
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import shortest_path
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 from hierplan_opt.core.errors import InputError
 
 #: Timestep distance of a vertex that cannot reach the target. Large, so that any
 #: sum of a few of them still fits in a Python int comparison without special cases.
 UNREACHABLE = 1 << 30
+#: Vertices times targets up to which a distance batch is a Python BFS (no scipy import).
+SMALL_BFS_WORK = 60_000
 
 Location = tuple[int, ...] | str
 
@@ -418,6 +422,8 @@ class Graph:
             return self.dist_to(source)
         d = self._dist_from_cache.get(source)
         if d is None:
+            from scipy.sparse.csgraph import shortest_path
+
             row = shortest_path(self._csgraph, directed=True, unweighted=True, indices=[source])
             d = np.where(np.isfinite(row[0]), row[0], UNREACHABLE).astype(np.int64)
             d.setflags(write=False)
@@ -437,10 +443,28 @@ class Graph:
         return int(self.dist_to(target)[source])
 
     def precompute_distances(self, targets: Iterable[int]) -> list[np.ndarray]:
-        """Fill the distance cache for many targets in one C-level BFS batch."""
+        """Fill the distance cache for many targets in one C-level BFS batch.
+
+        A small batch on an undirected graph is a pure-Python BFS while scipy is not
+        loaded yet (importing it costs more than the BFS; the distances are the same).
+
+        Example
+        -------
+        >>> g = Graph.grid(3, 2, obstacles=[(1, 0)])
+        >>> d = g.precompute_distances([g.vertex((0, 0))])[0].tolist()
+        >>> d[g.vertex((2, 0))], d[1] == UNREACHABLE  # around the blocked cell 1
+        (4, True)
+        """
         targets = list(targets)
         todo = [t for t in dict.fromkeys(targets) if t not in self._dist_cache]
-        if todo:
+        if todo and self._small_bfs(len(todo)):
+            for t in todo:
+                arr = np.array(_bfs(self.adj, t), dtype=np.int64)
+                arr.setflags(write=False)
+                self._dist_cache[t] = arr
+        elif todo:
+            from scipy.sparse.csgraph import shortest_path
+
             # Distances *to* a target are distances *from* it on the reversed graph.
             mat = self._csgraph.T if self.directed else self._csgraph
             res = shortest_path(mat, directed=self.directed, unweighted=True, indices=todo)
@@ -451,8 +475,18 @@ class Graph:
                 self._dist_cache[t] = arr
         return [self._dist_cache[t] for t in targets]
 
+    def _small_bfs(self, count: int) -> bool:
+        """Whether ``count`` BFS runs in Python beat importing scipy (not yet loaded)."""
+        return (
+            not self.directed
+            and "scipy.sparse.csgraph" not in sys.modules
+            and self.n * count <= SMALL_BFS_WORK
+        )
+
     @cached_property
     def _csgraph(self) -> sp.csr_matrix:
+        import scipy.sparse as sp
+
         data = np.ones(len(self.indices), dtype=float)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
@@ -465,6 +499,24 @@ class Graph:
 
 #: Types accepted as grid coordinates (whole numbers only).
 _NUMBER: tuple[type, ...] = (int, np.integer, float)
+
+
+def _bfs(adj: Sequence[Sequence[int]], target: int) -> list[int]:
+    """Hop distances to ``target`` on an undirected graph (:data:`UNREACHABLE` if none)."""
+    dist = [UNREACHABLE] * len(adj)
+    dist[target] = 0
+    frontier = [target]
+    d = 0
+    while frontier:
+        d += 1
+        nxt: list[int] = []
+        for v in frontier:
+            for u in adj[v]:
+                if dist[u] == UNREACHABLE:
+                    dist[u] = d
+                    nxt.append(u)
+        frontier = nxt
+    return dist
 
 
 def _cell_index(c: tuple[int, ...], dims: Sequence[int]) -> int:

@@ -1,0 +1,77 @@
+"""Start-up cost: ``import hierplan_opt`` and a small MAPF solve stay light (issue 22).
+
+Each check runs in a fresh interpreter and lists the heavy modules it ended up importing.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+HEAVY = (
+    "ortools",
+    "pyomo",
+    "highspy",
+    "casadi",
+    "matplotlib",
+    "networkx",
+    "scipy.optimize",
+    "scipy.sparse",
+)
+
+
+def _heavy_after(code: str) -> list[str]:
+    probe = (
+        f"{code}\nimport json, sys\nprint(json.dumps([m for m in {HEAVY!r} if m in sys.modules]))"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=120
+    )
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_import_loads_no_heavy_dependency() -> None:
+    assert _heavy_after("import hierplan_opt") == []
+
+
+def test_cli_help_loads_no_heavy_dependency() -> None:
+    code = (
+        "import contextlib, io\n"
+        "from hierplan_opt.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+        "    main(['--help'])"
+    )
+    assert _heavy_after(code) == []
+
+
+def test_small_cbs_solve_loads_no_solver_backend() -> None:
+    code = (
+        "import hierplan_opt\n"
+        "from hierplan_opt.core.graph import Graph\n"
+        "from hierplan_opt.core.instance import Instance\n"
+        "g = Graph.grid(6, 6, obstacles=[(2, 2), (3, 3)])\n"
+        "inst = Instance.mapf(g, [(0, 0), (5, 5), (0, 5), (5, 0)], "
+        "[(5, 5), (0, 0), (5, 0), (0, 5)])\n"
+        "assert hierplan_opt.solve(inst, 'cbs').cost is not None"
+    )
+    # scipy.sparse: the exact feasibility test (core/pebble_motion.py) still uses it.
+    assert set(_heavy_after(code)) <= {"scipy.sparse"}
+
+
+def test_python_bfs_matches_scipy_distances() -> None:
+    # Small batches use a Python BFS while scipy is not loaded; it must agree with scipy.
+    import random
+
+    from hierplan_opt.core import graph as graph_mod
+    from hierplan_opt.core.graph import Graph
+
+    rng = random.Random(3)
+    for _ in range(5):
+        obstacles = {(rng.randrange(9), rng.randrange(7)) for _ in range(20)}
+        g = Graph.grid(9, 7, obstacles=sorted(obstacles))
+        free = [v for v in range(g.n) if g.adj[v] or g.is_vertex(v)]
+        for t in rng.sample(free, 4):
+            ref = Graph.grid(9, 7, obstacles=sorted(obstacles))
+            ref._small_bfs = lambda count: False  # type: ignore[method-assign]
+            assert graph_mod._bfs(g.adj, t) == ref.precompute_distances([t])[0].tolist()
