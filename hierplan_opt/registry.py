@@ -212,14 +212,13 @@ class SolverInfo:
 def cheap_infeasibility(instance: Instance) -> str | None:
     """A one-line reason why no plan exists, from the checks that take milliseconds."""
     from hierplan_opt.core.feasibility import quick_infeasibility
-    from hierplan_opt.search.symmetry import path_order_infeasibility
 
     if instance.is_tapf:
         targets = {v for team in instance.teams for v in team.targets}
     else:
         targets = set(instance.goals)
     instance.graph.precompute_distances(targets)  # one batch, which the solvers reuse
-    return quick_infeasibility(instance) or path_order_infeasibility(instance)
+    return quick_infeasibility(instance)
 
 
 def run(

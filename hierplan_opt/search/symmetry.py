@@ -29,8 +29,9 @@ from __future__ import annotations
 
 from collections import deque
 
+import numpy as np
+
 from hierplan_opt.core.graph import UNREACHABLE, Graph
-from hierplan_opt.core.instance import Instance
 from hierplan_opt.search.constraints import NEG_RANGE, NEG_V, AgentConstraints, Constraint
 
 
@@ -183,15 +184,15 @@ class Rectangles:
         if len(shape) == 3 and shape[2] != 1:
             return
         w = int(shape[0])
-        xs = [int(x) for x in graph.coords[:, 0]]
-        ys = [int(y) for y in graph.coords[:, 1]]
-        for v in range(graph.n):
-            if xs[v] + w * ys[v] != v:
-                return
-            for u in graph.adj[v]:
-                if abs(xs[u] - xs[v]) + abs(ys[u] - ys[v]) != 1:
-                    return
-        self.width, self.xs, self.ys = w, xs, ys
+        cx = graph.coords[:, 0].astype(np.int64)
+        cy = graph.coords[:, 1].astype(np.int64)
+        if not np.array_equal(cx + w * cy, np.arange(graph.n)):
+            return
+        src = np.repeat(np.arange(graph.n), np.diff(graph.indptr))
+        dst = graph.indices
+        if np.any(np.abs(cx[dst] - cx[src]) + np.abs(cy[dst] - cy[src]) != 1):
+            return
+        self.width, self.xs, self.ys = w, cx.tolist(), cy.tolist()
         self.enabled = True
 
 
@@ -306,75 +307,4 @@ def rectangle_split(
                     (i1, [(NEG_V, i1, u, -1, tt) for u, tt in b1]),
                     (i2, [(NEG_V, i2, u, -1, tt) for u, tt in b2]),
                 ]
-    return None
-
-
-def path_order_infeasibility(instance: Instance) -> str | None:
-    """A reason why agents on a path-shaped component can never reach their goals.
-
-    On a connected component that is a simple path (no vertex of degree > 2, no
-    cycle) agents can never pass each other, so their order along the path is fixed:
-    if the goals' order differs from the starts' order, there is no plan.
-
-    Example
-    -------
-    >>> g = Graph.grid(4, 1)
-    >>> inst = Instance.mapf(g, [(0, 0), (3, 0)], [(3, 0), (0, 0)])
-    >>> path_order_infeasibility(inst) is not None
-    True
-    """
-    g = instance.graph
-    if g.directed or instance.is_tapf:
-        return None
-    adj = g.adj
-    comp_of: dict[int, int] = {}
-    order_of: dict[int, int] = {}
-    for a in instance.agents:
-        s = a.start
-        if s in comp_of:
-            continue
-        # BFS the component; check it is a path and number its vertices from one end.
-        comp = [s]
-        seen = {s}
-        i = 0
-        edges = 0
-        ok = True
-        while i < len(comp):
-            u = comp[i]
-            i += 1
-            if len(adj[u]) > 2:
-                ok = False
-            edges += len(adj[u])
-            for w in adj[u]:
-                if w not in seen:
-                    seen.add(w)
-                    comp.append(w)
-        if not ok or edges // 2 != len(comp) - 1:
-            for u in comp:
-                comp_of[u] = -1
-            continue
-        end = next((u for u in comp if len(adj[u]) <= 1), comp[0])
-        prev, cur, pos = -1, end, 0
-        cid = len(order_of) + 1
-        while True:
-            comp_of[cur] = cid
-            order_of[cur] = pos
-            pos += 1
-            nxt = [w for w in adj[cur] if w != prev]
-            if not nxt:
-                break
-            prev, cur = cur, nxt[0]
-    groups: dict[int, list[tuple[int, int, str]]] = {}
-    for a in instance.agents:
-        c = comp_of.get(a.start, -1)
-        if c > 0 and a.goal is not None and comp_of.get(a.goal) == c:
-            groups.setdefault(c, []).append((order_of[a.start], order_of[a.goal], a.name))
-    for members in groups.values():
-        by_start = [name for _, _, name in sorted(members)]
-        by_goal = [name for _, _, name in sorted(members, key=lambda m: m[1])]
-        if by_start != by_goal:
-            return (
-                "agents on a path-shaped part of the graph cannot pass each other, "
-                f"but their goals are in a different order ({', '.join(map(repr, by_start))})"
-            )
     return None
