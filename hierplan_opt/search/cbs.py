@@ -193,6 +193,8 @@ class _CBS:
         # shared with the two-agent sub-searches of WDG.
         self.mdd_cache: dict[int, MDD] = mdd_cache if mdd_cache is not None else {}
         self.pair_cache: dict[tuple[int, int, int, int], int] = {}
+        # The same weights keyed by the constraints' content (see AgentConstraints.content).
+        self.pair_memo: dict[tuple[int, int, tuple[object, ...], tuple[object, ...]], int] = {}
         self.lower_bound = 0
         self.seq = 0
 
@@ -449,7 +451,15 @@ class _CBS:
                 ck = (a, ca.ver, b, cb.ver)
                 w = self.pair_cache.get(ck)
                 if w is None:
-                    w = self._pair_weight(node, a, b, cs)
+                    # Another CT node may have had the same constraints on a and b
+                    # (reached by another branch): the weight depends on them only.
+                    content = (a, b, ca.content(), cb.content())
+                    w = self.pair_memo.get(content)
+                    if w is None:
+                        w = self._pair_weight(node, a, b, cs)
+                        self.pair_memo[content] = w
+                    else:
+                        self.stats["pair_memo_hits"] = self.stats.get("pair_memo_hits", 0) + 1
                     self.pair_cache[ck] = w
                 if w < 0:
                     return None

@@ -84,6 +84,7 @@ class AgentConstraints:
         "parent",
         "delta",
         "derived",
+        "_content",
     )
 
     def __init__(self) -> None:
@@ -103,6 +104,7 @@ class AgentConstraints:
         self.parent: AgentConstraints | None = None
         self.delta: list[Constraint] = []
         self.derived: list[tuple[Constraint, int]] = []
+        self._content: tuple[object, ...] | None = None
 
     @classmethod
     def root(cls, n: int, goal: int, max_finish: int = NO_BOUND) -> AgentConstraints:
@@ -126,6 +128,35 @@ class AgentConstraints:
         c.parent = self
         c.delta = []
         c.derived = []
+        c._content = None
+        return c
+
+    def content(self) -> tuple[object, ...]:
+        """A hashable value equal for two objects exactly when they constrain alike.
+
+        Unlike ``ver`` (one per object), two CT nodes that reach the same constraints
+        by different branches share it, so a result that depends only on the
+        constraints (a WDG pair weight) is computed once. Cached; the object is
+        treated as immutable.
+
+        Example
+        -------
+        >>> a = AgentConstraints.root(10, 3).add((NEG_V, 0, 5, -1, 2), n=10, goal=3)
+        >>> b = AgentConstraints.root(10, 3).add((NEG_V, 0, 5, -1, 2), n=10, goal=3)
+        >>> a.ver != b.ver, a.content() == b.content()
+        (True, True)
+        """
+        c = self._content
+        if c is None:
+            c = self._content = (
+                frozenset(self.vertex),
+                frozenset(self.edge),
+                frozenset(self.forbid_from.items()),
+                frozenset(self.landmarks.items()),
+                self.min_finish,
+                self.max_finish,
+                self.infeasible,
+            )
         return c
 
     # ------------------------------------------------------------------ building
