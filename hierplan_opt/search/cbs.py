@@ -89,6 +89,7 @@ class _Node:
         "depth",
         "seq",
         "pairw",
+        "ranks",
     )
 
     def __init__(
@@ -113,6 +114,13 @@ class _Node:
         # A descendant has more constraints, so a weight stays a valid lower bound on
         # the pair's extra cost while both costs are unchanged.
         self.pairw: dict[tuple[int, int], tuple[int, int, int]] = {}
+        # Classes (0 cardinal, 1 semi, 2 non) of conflicts classified here or inherited
+        # from the parent for agents it did not replan: their paths and costs are the
+        # same, their constraints can only have grown, so a conflict's MDD levels can
+        # only have narrowed and the inherited class is at most too low (a heuristic
+        # choice and a smaller CG bound, never a wrong one). Saves rebuilding the MDDs
+        # of agents whose constraints changed but whose paths did not.
+        self.ranks: dict[Conflict, int] = {}
 
 
 class _CBS:
@@ -303,6 +311,13 @@ class _CBS:
             cb = mb.single(t, v)
         return 2 - int(ca) - int(cb)
 
+    def rank(self, node: _Node, c: Conflict) -> int:
+        """:meth:`classify`, remembered in the node (see ``_Node.ranks``)."""
+        r = node.ranks.get(c)
+        if r is None:
+            r = node.ranks[c] = self.classify(node, c)
+        return r
+
     def choose(self, node: _Node) -> tuple[Conflict, int]:
         confs = node.conflicts
         if not self.prioritize:
@@ -310,8 +325,11 @@ class _CBS:
             return c, 2
         best = None
         best_key = None
+        ranks = node.ranks
         for c in confs:
-            r = self.classify(node, c)
+            r = ranks.get(c)
+            if r is None:
+                r = ranks[c] = self.classify(node, c)
             key = (r, c[1] != TARGET, c[0])
             if best_key is None or key < best_key:
                 best_key = key
@@ -388,6 +406,7 @@ class _CBS:
         if replan:
             gone = set(replan)
             confs = [c for c in node.conflicts if c[2] not in gone and c[3] not in gone]
+            ranks = {c: r for c, r in node.ranks.items() if c[2] not in gone and c[3] not in gone}
             occ = self._occ
             occ.sync(paths)
             done: set[int] = set()
@@ -396,7 +415,10 @@ class _CBS:
                 done.add(y)
         else:
             confs = list(node.conflicts)
+            ranks = dict(node.ranks)
         ch = _Node(paths, costs, cons, g, confs, node.depth + 1)
+        if not self.sub:  # measured: in the short WDG sub-searches stale classes cost time
+            ch.ranks = ranks
         ch.f = max(g, node.f) if not self.greedy else g
         ch.pairw = node.pairw
         return ch
@@ -434,7 +456,7 @@ class _CBS:
         weights: dict[tuple[int, int], int] = {}
         if self.heuristic == "cg":
             for key, cs in pairs.items():
-                if any(self.classify(node, c) == 0 for c in cs):
+                if any(self.rank(node, c) == 0 for c in cs):
                     weights[key] = 1
             return min_vertex_cover(weights)
         known = node.pairw
@@ -470,7 +492,7 @@ class _CBS:
 
     def _pair_weight(self, node: _Node, a: int, b: int, cs: list[Conflict]) -> int:
         # A cardinal conflict already proves the pair dependent.
-        if not (self.prioritize and any(self.classify(node, c) == 0 for c in cs)) and not dependent(
+        if not (self.prioritize and any(self.rank(node, c) == 0 for c in cs)) and not dependent(
             self.mdd(node, a), self.mdd(node, b)
         ):
             return 0
@@ -597,6 +619,7 @@ class _CBS:
                     node.paths = ch.paths
                     node.costs = ch.costs
                     node.conflicts = ch.conflicts
+                    node.ranks = ch.ranks
                     st["bypasses"] += 1
                     adopted = True
                     break
