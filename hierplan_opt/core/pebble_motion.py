@@ -168,9 +168,13 @@ class PebbleStructure:
         return s
 
     def __init__(self, graph: Graph) -> None:
+        import sys
+
         import numpy as np
-        import scipy.sparse as sp
-        from scipy.sparse.csgraph import connected_components, depth_first_order
+
+        # scipy's graph routines cost ~0.2 s to import: a process that has not loaded
+        # them (a single small solve from the command line) uses the Python ones below.
+        use_scipy = "scipy.sparse.csgraph" in sys.modules
 
         adj = graph.adj
         n = graph.n
@@ -180,10 +184,20 @@ class PebbleStructure:
         passable = graph.passable
         deg = np.diff(indptr)
         rows = np.repeat(np.arange(n), deg)
-        mat = sp.csr_matrix((np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n))
+        mat = None
+        if use_scipy:
+            import scipy.sparse as sp
+            from scipy.sparse.csgraph import connected_components
+
+            mat = sp.csr_matrix(
+                (np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n)
+            )
 
         # Connected components (blocked cells are isolated and get -1).
-        _, labels = connected_components(mat, directed=False)
+        if mat is not None:
+            _, labels = connected_components(mat, directed=False)
+        else:
+            labels = np.array(_component_labels(adj), dtype=np.int64)
         comp = np.full(n, -1, dtype=np.int64)
         free = np.flatnonzero(passable)
         _, first, inv = np.unique(labels[free], return_index=True, return_inverse=True)
@@ -208,7 +222,12 @@ class PebbleStructure:
         offset = 0
         for c in range(ncomp):
             root = self.comps[c][0]
-            order, pred = depth_first_order(mat, root, directed=False, return_predecessors=True)
+            if mat is not None:
+                from scipy.sparse.csgraph import depth_first_order
+
+                order, pred = depth_first_order(mat, root, directed=False, return_predecessors=True)
+            else:
+                order, pred = _dfs_order(adj, root)
             disc[order] = offset + np.arange(len(order))
             parent[order] = pred[order]
             parent[root] = -1
@@ -241,10 +260,21 @@ class PebbleStructure:
         child_br = is_br_child[indices] & (parent[indices] == rows)
         parent_br = is_br_child[rows] & (parent[rows] == indices)
         keep = ~(child_br | parent_br)
-        mat2 = sp.csr_matrix(
-            (np.ones(int(keep.sum()), dtype=np.int8), (rows[keep], indices[keep])), shape=(n, n)
-        )
-        _, elabels = connected_components(mat2, directed=False)
+        if use_scipy:
+            import scipy.sparse as sp
+            from scipy.sparse.csgraph import connected_components
+
+            mat2 = sp.csr_matrix(
+                (np.ones(int(keep.sum()), dtype=np.int8), (rows[keep], indices[keep])),
+                shape=(n, n),
+            )
+            _, elabels = connected_components(mat2, directed=False)
+        else:
+            adj2 = [
+                [w for w in nb if w not in bridge_nbrs[v]] if v in bridge_nbrs else nb
+                for v, nb in enumerate(adj)
+            ]
+            elabels = np.array(_component_labels(adj2), dtype=np.int64)
         ecc = np.full(n, -1, dtype=np.int64)
         _, efirst, einv = np.unique(elabels[free], return_index=True, return_inverse=True)
         ecc[free] = einv
@@ -742,3 +772,59 @@ def arrangement_key(graph: Graph, positions: Sequence[int]) -> tuple:
             order = s.cycle_order(s.ecc[members[0]])
             key.append(("ring", cid, _min_rotation([at[v] for v in order if v in at])))
     return tuple(key)
+
+
+def _component_labels(adj: Sequence[Sequence[int]]) -> list[int]:
+    """A component label per vertex of an undirected graph (scipy-free).
+
+    Example
+    -------
+    >>> _component_labels([[1], [0], [], [4], [3]])
+    [0, 0, 1, 2, 2]
+    """
+    labels = [-1] * len(adj)
+    c = 0
+    for s in range(len(adj)):
+        if labels[s] >= 0:
+            continue
+        labels[s] = c
+        stack = [s]
+        while stack:
+            v = stack.pop()
+            for w in adj[v]:
+                if labels[w] < 0:
+                    labels[w] = c
+                    stack.append(w)
+        c += 1
+    return labels
+
+
+def _dfs_order(adj: Sequence[Sequence[int]], root: int):
+    """Depth-first preorder from ``root`` and the predecessor array (-9999 off the tree),
+    as ``scipy.sparse.csgraph.depth_first_order`` returns them (scipy-free).
+
+    Example
+    -------
+    >>> order, pred = _dfs_order([[1, 2], [0, 2], [0, 1], []], 0)
+    >>> order.tolist(), pred.tolist()
+    ([0, 1, 2], [-9999, 0, 1, -9999])
+    """
+    import numpy as np
+
+    pred = [-9999] * len(adj)
+    seen = [False] * len(adj)
+    seen[root] = True
+    order = [root]
+    stack = [(root, iter(adj[root]))]
+    while stack:
+        v, it = stack[-1]
+        for w in it:
+            if not seen[w]:
+                seen[w] = True
+                pred[w] = v
+                order.append(w)
+                stack.append((w, iter(adj[w])))
+                break
+        else:
+            stack.pop()
+    return np.array(order, dtype=np.int64), np.array(pred, dtype=np.int64)
