@@ -269,7 +269,7 @@ def _solve_highs(
     row_hi.append(np.full(K, inf))
     r0 += K
     if objective == "safety":
-        assert not isinstance(net, _Projected)  # safety networks keep their pieces
+        assert isinstance(net, _PieceNetwork)  # safety networks keep their pieces
         pieces = np.flatnonzero((net.kind == PIECE) & (net.length > 0))
         P = len(pieces)
         # t_dst - t_src - len * R <= 0
@@ -279,7 +279,7 @@ def _solve_highs(
         row_lo.append(np.full(P, -inf))
         row_hi.append(np.zeros(P))
         r0 += P
-        gen = getattr(net, "gen", None)
+        gen = net.gen if isinstance(net, _Markers) else None
         if gen is not None:  # t_dst - t_src - alpha * R >= beta
             g_src, g_dst, g_beta, g_alpha = gen
             G = len(g_src)
@@ -358,9 +358,7 @@ def _solve_highs(
     return LPSolution(times, float(times[finals].max()), obj_val, R_val, "highs", stats)
 
 
-def _reduce(
-    stn: STN, objective: str, reduction: str = "auto", markers: bool = False
-) -> _Reduced | _Projected | _Markers:
+def _reduce(stn: STN, objective: str, reduction: str = "auto", markers: bool = False) -> _Network:
     """The network the LP is written on.
 
     ``"auto"``: the exact projection (:func:`_eliminate`) for makespan and flowtime,
@@ -378,7 +376,39 @@ def _reduce(
 
 
 @dataclass(frozen=True, eq=False)
-class _Reduced:
+class _Network:
+    """The network an LP is written on: ``n`` nodes, arcs ``src -> dst`` with
+    ``lb <= t_dst - t_src <= ub``, node bounds ``release`` / ``deadline`` and the robots'
+    last nodes ``finals`` (all in the network's own node ids). :meth:`expand` maps the
+    LP's node times back to one time per STN node.
+    """
+
+    n: int
+    src: np.ndarray
+    dst: np.ndarray
+    lb: np.ndarray
+    ub: np.ndarray
+    release: np.ndarray
+    deadline: np.ndarray
+    finals: np.ndarray
+    R_lb: float  # lower bound on R from merged pieces (0: none merged)
+
+    def expand(self, x: np.ndarray, R: float | None, R_x: float | None = None) -> np.ndarray:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, eq=False)
+class _PieceNetwork(_Network):
+    """A network that keeps its pieces (the safety LP's ``t_dst - t_src <= len R``):
+    the arcs' kinds and lengths.
+    """
+
+    kind: np.ndarray
+    length: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Reduced(_PieceNetwork):
     """The STN with chains of plain nodes merged (for the direct HiGHS LP).
 
     A node is merged away when it is neither a robot's first nor last node, has
@@ -391,25 +421,14 @@ class _Reduced:
     piece within its bounds.
     """
 
-    n: int
-    src: np.ndarray
-    dst: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    kind: np.ndarray
-    length: np.ndarray
-    release: np.ndarray
-    deadline: np.ndarray
-    finals: np.ndarray
-    R_lb: float
     stn: STN
     kept: np.ndarray | None  # original ids of the reduced nodes (None: identity)
 
     @classmethod
     def identity(cls, stn: STN) -> _Reduced:
         return cls(
-            stn.num_nodes, stn.arc_src, stn.arc_dst, stn.lb, stn.ub, stn.arc_kind,
-            stn.arc_length, stn.release, stn.deadline, stn.tpg.final_nodes(), 0.0, stn, None,
+            stn.num_nodes, stn.arc_src, stn.arc_dst, stn.lb, stn.ub, stn.release, stn.deadline,
+            stn.tpg.final_nodes(), 0.0, stn.arc_kind, stn.arc_length, stn, None,
         )  # fmt: skip
 
     def expand(self, x: np.ndarray, R: float | None, R_x: float | None = None) -> np.ndarray:
@@ -506,7 +525,7 @@ def _clean(times: np.ndarray, stn: STN) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class _Projected:
+class _Projected(_Network):
     """The STN with plain nodes eliminated exactly (makespan and flowtime LPs).
 
     Fourier-Motzkin elimination of a time variable that has lower-bound arcs only: a
@@ -522,18 +541,9 @@ class _Projected:
     predecessor) or ``t_w = t_x - b`` (latest before its one successor), both feasible.
     """
 
-    n: int
-    src: np.ndarray
-    dst: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    release: np.ndarray
-    deadline: np.ndarray
-    finals: np.ndarray
     stn: STN
     kept: np.ndarray
     steps: tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]  # (nodes, anchors, offsets)
-    R_lb: float = 0.0
 
     def expand(self, x: np.ndarray, R: float | None = None, R_x: float | None = None) -> np.ndarray:
         t = np.full(self.stn.num_nodes, np.nan)
@@ -610,6 +620,7 @@ def _eliminate(stn: STN) -> _Projected:
         release=stn.release[kept],
         deadline=stn.deadline[kept],
         finals=new_id[tpg.final_nodes()],
+        R_lb=0.0,
         stn=stn,
         kept=kept,
         steps=tuple(steps),
@@ -617,7 +628,7 @@ def _eliminate(stn: STN) -> _Projected:
 
 
 @dataclass(frozen=True, eq=False)
-class _Markers:
+class _Markers(_PieceNetwork):
     """The merged-chain network of the safety LP with single-precedence nodes
     eliminated (Fourier-Motzkin with ``R`` as a parameter; HiGHS back end).
 
@@ -633,17 +644,6 @@ class _Markers:
     seed 0). ``t_w`` comes back as the largest of its lower bounds.
     """
 
-    n: int
-    src: np.ndarray
-    dst: np.ndarray
-    lb: np.ndarray
-    ub: np.ndarray
-    kind: np.ndarray
-    length: np.ndarray
-    release: np.ndarray
-    deadline: np.ndarray
-    finals: np.ndarray
-    R_lb: float
     gen: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     inner: _Reduced
     kept: np.ndarray
