@@ -30,6 +30,7 @@ from hierplan_opt.experiments import store
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
 SOLVED = ("OPTIMAL", "FEASIBLE", "INFEASIBLE")
@@ -165,6 +166,23 @@ def _time_limit(df: pd.DataFrame) -> float:
     return float(largest)
 
 
+def _figure() -> tuple[Figure, Axes]:
+    """A new figure of the reports' size and its one Axes."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _finish(fig: Figure, ax: Axes, title: str | None) -> Figure:
+    """Grid, legend and the optional title of a report figure."""
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize="small")
+    if title:
+        ax.set_title(title)
+    return fig
+
+
 def success_rate_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
     """Success rate against the number of agents, one curve per solver.
 
@@ -177,10 +195,7 @@ def success_rate_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure
     >>> [ln.get_label() for ln in fig.axes[0].get_lines()]
     ['a', 'b']
     """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-    ax = fig.add_subplot()
+    fig, ax = _figure()
     table = success_table(df)
     for i, (label, row) in enumerate(table.iterrows()):
         row = row.dropna()
@@ -189,11 +204,7 @@ def success_rate_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure
     ax.set_xlabel("agents")
     ax.set_ylabel("solved runs (%)")
     ax.set_ylim(-5, 105)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    if title:
-        ax.set_title(title)
-    return fig
+    return _finish(fig, ax, title)
 
 
 def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
@@ -210,10 +221,7 @@ def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
     >>> ax.get_lines()[0].get_ydata().tolist()
     [2.0]
     """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-    ax = fig.add_subplot()
+    fig, ax = _figure()
     for i, label in enumerate(_labels(df)):
         d: Any = df[(df["label"] == label) & df["solved"]]
         med = d.groupby("agents")["runtime"].median()
@@ -225,11 +233,7 @@ def runtime_figure(df: pd.DataFrame, *, title: str | None = None) -> Figure:
     ax.set_yscale("log")
     ax.set_xlabel("agents")
     ax.set_ylabel("median runtime of solved runs (s)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    if title:
-        ax.set_title(title)
-    return fig
+    return _finish(fig, ax, title)
 
 
 def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = True) -> Figure:
@@ -244,10 +248,7 @@ def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = Tr
     >>> [ln.get_label() for ln in fig.axes[0].get_lines()][:2]
     ['a', 'b']
     """
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(6.5, 4.0), layout="constrained")
-    ax = fig.add_subplot()
+    fig, ax = _figure()
     for label in _labels(df):
         t = sorted(df.loc[(df["label"] == label) & df["solved"], "runtime"].astype(float))
         ax.step(t, range(1, len(t) + 1), where="post", label=label, marker=".")
@@ -261,11 +262,7 @@ def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = Tr
     ax.set_ylabel("runs solved within that time")
     if logx:
         ax.set_xscale("log")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    if title:
-        ax.set_title(title)
-    return fig
+    return _finish(fig, ax, title)
 
 
 def save_figures(db: str | Path, folder: str | Path) -> list[Path]:
