@@ -362,9 +362,7 @@ def write_schedule(schedule: Schedule, path: str | Path) -> Path:
     Example
     -------
     >>> import tempfile, os
-    >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.core.plan import Plan
+    >>> from hierplan_opt import Graph, Instance, Plan
     >>> from hierplan_opt.schedule import postprocess
     >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> s = postprocess(inst, Plan.from_paths([[0, 1, 2]]))
