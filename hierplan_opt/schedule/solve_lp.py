@@ -683,17 +683,13 @@ def _eliminate_markers(net: _Reduced) -> _Reduced | _Markers:
     if not elig.any():
         return net
     # Neighbours: piece predecessor / successor, precedence partner.
-    pred = np.full(n, -1)
-    succ = np.full(n, -1)
-    a_in = np.full(n, -1)
-    a_out = np.full(n, -1)
+    pred, succ, a_in, a_out = np.full((4, n), -1)  # -1: none
     pi = np.flatnonzero(piece)
     pred[dst[pi]] = src[pi]
     succ[src[pi]] = dst[pi]
     a_in[dst[pi]] = pi
     a_out[src[pi]] = pi
-    partner = np.full(n, -1)
-    a_prec = np.full(n, -1)
+    partner, a_prec = np.full((2, n), -1)
     oi = np.flatnonzero(other)
     partner[src[oi]] = dst[oi]
     partner[dst[oi]] = src[oi]
