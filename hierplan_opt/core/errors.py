@@ -32,3 +32,11 @@ class UnknownSolverError(InputError):
 
 class OptionError(InputError):
     """An option a solver does not know, or a value it cannot take."""
+
+
+class OutputError(InputError):
+    """An output that cannot be written: a missing folder, a device, a full disk, ...
+
+    Raised before any work when the path is checked, or when writing fails; the
+    message names the file, and the CLI exits with code 2 like for bad input.
+    """

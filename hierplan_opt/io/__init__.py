@@ -16,6 +16,7 @@ from pathlib import Path
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.io.files import write_text
 from hierplan_opt.io.plans import load_plan, save_plan
 
 FORMATS = ("hierplan", "lmrp", "movingai")
@@ -30,13 +31,19 @@ _ALIASES = {
 
 
 def load_instance(
-    path: str | Path, scen: str | Path | None = None, agents: int | None = None
+    path: str | Path,
+    scen: str | Path | None = None,
+    agents: int | None = None,
+    *,
+    check_scen_map: bool = True,
 ) -> Instance:
     """Read an instance: a MovingAI ``.map`` with ``scen``, or a YAML instance file.
 
     A YAML file with a top-level ``graph:`` is the hierplan format; one with ``map:``
-    and ``agents:`` is the libMultiRobotPlanning format. ``agents`` keeps the first K
-    agents (MovingAI scenarios and MAPF YAML instances).
+    and ``agents:`` (or ``roadmap:`` and ``agents:``) is the libMultiRobotPlanning
+    format. ``agents`` keeps the first K agents (MovingAI scenarios and MAPF YAML
+    instances). A scenario must name the map it is read with, unless
+    ``check_scen_map`` is False.
 
     Example
     -------
@@ -62,7 +69,7 @@ def load_instance(
     if suffix == ".map":
         if scen is None:
             raise InputError(f"{p}: a MovingAI .map instance needs a scenario (--scen FILE.scen)")
-        return movingai.load_movingai(p, scen, agents)
+        return movingai.load_movingai(p, scen, agents, check_scen_map=check_scen_map)
     if suffix == ".scen":
         raise InputError(f"{p}: give the .map file as INSTANCE and this scenario with --scen")
     if scen is not None:
@@ -122,7 +129,7 @@ def save_instance(path: str | Path, instance: Instance, format: str | None = Non
         map_path, scen_path = p.with_suffix(".map"), p.with_suffix(".scen")
         scen_text = movingai.scen_text(instance, map_path.name)  # checks before writing
         movingai.save_map(map_path, instance.graph)
-        scen_path.write_text(scen_text, encoding="utf-8")
+        write_text(scen_path, scen_text)
 
 
 __all__ = ["FORMATS", "load_instance", "load_plan", "save_instance", "save_plan"]

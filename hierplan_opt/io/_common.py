@@ -71,6 +71,13 @@ class Unique:
         self.seen[v] = who
 
 
+def check_grid(ctx: Ctx, dims: list[int], line: int | None) -> None:
+    """Refuse a grid too large to allocate (see :func:`hierplan_opt.io.files.check_grid`)."""
+    from hierplan_opt.io.files import check_grid as _check
+
+    _check(dims, f"{ctx.file}:{line}: " if line else f"{ctx.file}: ")
+
+
 def wrap(ctx: Ctx, line: int | None, fn: Callable[[], T]) -> T:
     """Run ``fn``; an :class:`InputError` it raises gets the ``file:line:`` prefix."""
     try:

@@ -14,6 +14,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from hierplan_opt.core.errors import InputError
@@ -84,19 +85,27 @@ def one_line(text: str) -> str:
     return re.sub(r"\s+", " ", str(text)).strip()
 
 
+#: Longest message text; a value quoted from a hostile file is cut to fit.
+MAX_MESSAGE = 400
+
+
+def clip(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` cut to ``limit`` characters (with "...").
+
+    Example
+    -------
+    >>> clip("x" * 10, 6)
+    'xxx...'
+    """
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def read_text(path: str | Path) -> str:
-    """The text of ``path``; missing files and bad encodings become :class:`InputError`."""
-    p = Path(path)
-    if not p.exists():
-        raise InputError(f"{p}: no such file")
-    if p.is_dir():
-        raise InputError(f"{p}: is a directory, expected a file")
-    try:
-        return p.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{p}: not a text file (UTF-8 decoding failed: {exc.reason})") from None
-    except OSError as exc:
-        raise InputError(f"{p}: cannot be read ({exc.strerror})") from None
+    """The text of ``path``: a regular file within the size limit (see
+    :func:`hierplan_opt.io.files.read_text`); every problem is an :class:`InputError`."""
+    from hierplan_opt.io.files import read_text as _read
+
+    return _read(path)
 
 
 def read_yaml(path: str | Path, text: str | None = None) -> Any:
@@ -118,7 +127,7 @@ def read_yaml(path: str | Path, text: str | None = None) -> Any:
     if text is None:
         text = read_text(path)
     try:
-        return yaml.load(text, Loader=_Loader)
+        return _load(text, name)
     except _KeyProblem as exc:
         raise InputError(f"{name}:{exc.line}: {exc.message}") from None
     except RecursionError:
@@ -127,11 +136,127 @@ def read_yaml(path: str | Path, text: str | None = None) -> Any:
         error = _yaml_error(name, exc)
     if name.lower().endswith(".json"):
         # JSON that YAML 1.1 does not read (tabs, ...): plain data, without line numbers
+        _check_depth(text, name)
         try:
             return json.loads(text)
         except json.JSONDecodeError as exc:
             raise InputError(f"{name}:{exc.lineno}: JSON syntax error: {exc.msg}") from None
+        except RecursionError:
+            raise InputError(f"{name}: JSON nesting is too deep") from None
     raise error
+
+
+def _load(text: str, name: str) -> Any:
+    """Compose, check nesting and aliases, then construct (one document)."""
+    _check_depth(text, name)
+    loader = _Loader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        _check_aliases(node, name)
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+_OPEN = np.zeros(256, dtype=np.int8)
+_OPEN[[ord("["), ord("{")]] = 1
+_OPEN[[ord("]"), ord("}")]] = -1
+
+
+def _check_depth(text: str, name: str) -> None:
+    """Refuse nesting deeper than the limit before the (recursive, C) composer sees it.
+
+    A cheap upper bound comes first: bracket depth plus, per line, indentation and
+    compact ``- `` / ``? `` markers. Only when it exceeds the limit are the parser's
+    events counted exactly (the event parser is not recursive).
+    """
+    from hierplan_opt.io.files import limits
+
+    cap = limits().max_depth
+    raw = text.encode("utf-8", "surrogatepass")
+    flow = int(np.cumsum(_OPEN[np.frombuffer(raw, dtype=np.uint8)]).max(initial=0))
+    if flow + _block_bound(text) <= cap:
+        return
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=_Base):
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > cap:
+                    line = event.start_mark.line + 1 if event.start_mark else None
+                    where = f"{name}:{line}" if line else name
+                    raise InputError(
+                        f"{where}: YAML nesting is deeper than {cap} levels; "
+                        "an instance or plan file never needs that"
+                    )
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+    except yaml.YAMLError:
+        return  # the loader reports the syntax error with its line
+
+
+def _block_bound(text: str) -> int:
+    """An upper bound on block nesting: the deepest indentation plus compact markers."""
+    best = 0
+    for m in re.finditer(r"^([ \t]*)((?:[-?:][ \t]+)*)", text, flags=re.M):
+        best = max(best, len(m.group(1)) + m.group(2).count(" ") + m.group(2).count("\t"))
+    return best + 1
+
+
+def _check_aliases(root: yaml.Node, name: str) -> None:
+    """Refuse recursive aliases and aliases that expand the document too much.
+
+    PyYAML shares the object of an anchor between its aliases, but code that walks the
+    data (printing a value in a message, iterating nested lists) sees the expanded
+    tree: ten levels of ten aliases are 10^10 nodes from a 100-line file.
+    """
+    from hierplan_opt.io.files import limits
+
+    size: dict[int, int] = {}
+    unique = 0
+    state: dict[int, int] = {}  # 1 = on the stack, 2 = done
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        if done:
+            total = 1 + sum(size[id(c)] for c in _children(node))
+            size[key] = total
+            state[key] = 2
+            continue
+        if state.get(key) == 2:
+            continue
+        if state.get(key) == 1:
+            line = node.start_mark.line + 1 if node.start_mark else None
+            where = f"{name}:{line}" if line else name
+            raise InputError(f"{where}: recursive YAML alias (a value contains itself)")
+        state[key] = 1
+        unique += 1
+        stack.append((node, True))
+        for c in _children(node):
+            if state.get(id(c)) == 1:
+                line = c.start_mark.line + 1 if c.start_mark else None
+                where = f"{name}:{line}" if line else name
+                raise InputError(f"{where}: recursive YAML alias (a value contains itself)")
+            if state.get(id(c)) != 2:
+                stack.append((c, False))
+    lim = limits()
+    bound = lim.max_alias_factor * unique + 10000
+    if size[id(root)] > bound:
+        raise InputError(
+            f"{name}: YAML aliases expand the document to {size[id(root)]} values "
+            f"(it has {unique}); refusing more than {bound} (an alias bomb?)"
+        )
+
+
+def _children(node: yaml.Node) -> list[yaml.Node]:
+    if isinstance(node, yaml.SequenceNode):
+        return list(node.value)
+    if isinstance(node, yaml.MappingNode):
+        return [x for kv in node.value for x in kv]
+    return []
 
 
 def _yaml_error(name: str, exc: yaml.YAMLError) -> InputError:
@@ -157,7 +282,7 @@ class Ctx:
 
     def error(self, message: str, line: int | None = None) -> InputError:
         where = f"{self.file}:{line}" if line else self.file
-        return InputError(f"{where}: {one_line(message)}")
+        return InputError(f"{where}: {clip(one_line(message))}")
 
     # ------------------------------------------------------------ typed access
     def mapping(self, value: Any, what: str, line: int | None) -> LDict:
@@ -269,7 +394,37 @@ def _describe(value: Any) -> str:
 
 
 def _short(value: Any) -> str:
-    text = json.dumps(value, default=str)
+    """A JSON-like text of ``value``, at most 40 characters; never walks all of it."""
+    out: list[str] = []
+    budget = [41]
+
+    def emit(text: str) -> bool:
+        out.append(text)
+        budget[0] -= len(text)
+        return budget[0] > 0
+
+    def walk(v: Any) -> bool:
+        if isinstance(v, list):
+            if not emit("["):
+                return False
+            for i, x in enumerate(v):
+                if (i and not emit(", ")) or not walk(x):
+                    return False
+            return emit("]")
+        if isinstance(v, dict):
+            if not emit("{"):
+                return False
+            for i, (k, x) in enumerate(v.items()):
+                if (i and not emit(", ")) or not emit(f"{json.dumps(str(k))}: ") or not walk(x):
+                    return False
+            return emit("}")
+        try:
+            return emit(json.dumps(v)[:41])
+        except (TypeError, ValueError):
+            return emit(str(v)[:41])
+
+    walk(value)
+    text = "".join(out)
     return text if len(text) <= 40 else text[:37] + "..."
 
 

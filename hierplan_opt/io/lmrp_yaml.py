@@ -25,8 +25,9 @@ from typing import Any
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, Agent, Instance, Team
-from hierplan_opt.io._common import Unique, loc_text, location, wrap
+from hierplan_opt.io._common import Unique, check_grid, loc_text, location, wrap
 from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
+from hierplan_opt.io.files import write_text
 
 TOP_KEYS = ("map", "agents")
 MAP_KEYS = ("dimensions", "obstacles")
@@ -72,6 +73,7 @@ def from_data(data: Any, path: str | Path) -> Instance:
     if len(dims) != 2:
         raise ctx.error(f"map dimensions must be [W, H], got {list(dims)}", dline)
     width, height = (ctx.integer(d, "a map dimension", dline, minimum=1) for d in dims)
+    check_grid(ctx, [width, height], dline)
     obstacles: list[tuple[int, int]] = []
     if m.get("obstacles") is not None:
         obs = ctx.sequence(m["obstacles"], "map obstacles", ctx.line_of(m, "obstacles"))
@@ -251,7 +253,7 @@ def save(path: str | Path, instance: Instance) -> None:
     >>> load(f).num_agents
     1
     """
-    Path(path).write_text(dumps(instance), encoding="utf-8")
+    write_text(path, dumps(instance))
 
 
 def looks_like(data: Any) -> bool:

@@ -26,8 +26,9 @@ import numpy as np
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.io._common import wrap
+from hierplan_opt.io._common import check_grid, wrap
 from hierplan_opt.io._yaml import Ctx, read_text
+from hierplan_opt.io.files import write_text
 
 FREE = frozenset(".GS")
 BLOCKED = frozenset("@OTW")
@@ -86,6 +87,7 @@ def parse_map(text: str, name: str = "<map>") -> Graph:
     if header(3) != ["map"]:
         raise ctx.error(f"expected the header line 'map', got {lines[3].strip()!r}", 4)
     width, height = size["width"], size["height"]
+    check_grid(ctx, [width, height], 2)
     rows = [ln.rstrip("\r\n") for ln in lines[4:]]
     while rows and not rows[-1].strip():
         rows.pop()
@@ -131,12 +133,16 @@ def load_scen(
     agents: int | None = None,
     *,
     name: str | None = None,
+    map_name: str | None = None,
 ) -> Instance:
     """Read the first ``agents`` agents (default: all) of a ``.scen`` file on ``graph``.
 
     Agents are named ``agent0..agentK-1`` in file order. Bad lines, agents outside the
     map or on obstacles, duplicate starts or goals among the chosen agents and a map
-    size that differs from ``graph`` are refused with ``file:line: problem``.
+    size that differs from ``graph`` are refused with ``file:line: problem``. With
+    ``map_name`` (the map's file name), a scenario line written for another map is
+    refused too: a scenario of another map of the same size would otherwise be read
+    as if it were this map's (folders and the ``.map`` suffix are ignored, case too).
 
     Example
     -------
@@ -153,6 +159,7 @@ def load_scen(
     ctx = Ctx(path)
     text = read_text(path)
     entries = parse_scen(text, str(path))
+    e_maps = scen_map_names(text) if map_name is not None else []
     if graph.kind != "grid" or graph.shape is None or len(graph.shape) != 2:
         raise ctx.error("a scenario needs a 2D grid map")
     width, height = graph.shape
@@ -172,6 +179,12 @@ def load_scen(
     g_list: list[tuple[int, int]] = []
     for i, e in enumerate(entries[:k]):
         lineno, (mw, mh), s, g = e
+        if map_name is not None and not same_map(e_maps[i], map_name):
+            raise ctx.error(
+                f"the scenario is for map {e_maps[i]!r}, not {map_name!r} (rename the "
+                "files or pass --ignore-scen-map / check_scen_map=False)",
+                lineno,
+            )
         if (mw, mh) != (width, height):
             raise ctx.error(
                 f"the scenario says the map is {mw}x{mh} but the map is {width}x{height}", lineno
@@ -199,6 +212,43 @@ def load_scen(
 
 
 ScenEntry = tuple[int, tuple[int, int], tuple[int, int], tuple[int, int]]
+
+
+def scen_map_names(text: str) -> list[str]:
+    """The map field of every agent line of a ``.scen`` text (after :func:`parse_scen`).
+
+    Example
+    -------
+    >>> scen_map_names("version 1\\n0\\tmaps/m.map\\t3\\t1\\t0\\t0\\t2\\t0\\t2\\n")
+    ['maps/m.map']
+    """
+    out = []
+    for raw in text.splitlines()[1:]:
+        if not raw.strip():
+            continue
+        fields = raw.rstrip("\r\n").split("\t")
+        if len(fields) != 9:
+            fields = raw.split()
+        out.append(fields[1].strip())
+    return out
+
+
+def same_map(scen_field: str, map_name: str) -> bool:
+    """Whether a scenario's map field names the map file ``map_name``.
+
+    Only the file name counts (not the folder), without ``.map`` and case.
+
+    Example
+    -------
+    >>> same_map("maps\\\\Random-32-32-20.map", "random-32-32-20.map"), same_map("a.map", "b.map")
+    (True, False)
+    """
+
+    def stem(text: str) -> str:
+        base = text.replace("\\", "/").rsplit("/", 1)[-1].strip().lower()
+        return base[:-4] if base.endswith(".map") else base
+
+    return stem(scen_field) == stem(map_name)
 
 
 def parse_scen(text: str, name: str = "<scen>") -> list[ScenEntry]:
@@ -253,9 +303,16 @@ def parse_scen(text: str, name: str = "<scen>") -> list[ScenEntry]:
 
 
 def load_movingai(
-    map_path: str | Path, scen_path: str | Path, agents: int | None = None
+    map_path: str | Path,
+    scen_path: str | Path,
+    agents: int | None = None,
+    *,
+    check_scen_map: bool = True,
 ) -> Instance:
     """Read a ``.map`` and the first ``agents`` agents of a ``.scen``.
+
+    The scenario must name this map (see :func:`load_scen`) unless ``check_scen_map``
+    is False.
 
     Example
     -------
@@ -268,7 +325,8 @@ def load_movingai(
     2
     """
     graph = load_map(map_path)
-    inst = load_scen(scen_path, graph, agents)
+    name = Path(map_path).name if check_scen_map else None
+    inst = load_scen(scen_path, graph, agents, map_name=name)
     inst.meta["map"] = str(map_path)
     return inst
 
@@ -305,7 +363,7 @@ def save_map(path: str | Path, graph: Graph) -> None:
     >>> load_map(f).num_vertices
     7
     """
-    Path(path).write_text(map_text(graph), encoding="utf-8")
+    write_text(path, map_text(graph))
 
 
 def scen_text(instance: Instance, map_name: str) -> str:
@@ -350,4 +408,4 @@ def save_scen(path: str | Path, instance: Instance, map_name: str | None = None)
     [0]
     """
     name = map_name or Path(path).with_suffix(".map").name
-    Path(path).write_text(scen_text(instance, name), encoding="utf-8")
+    write_text(path, scen_text(instance, name))

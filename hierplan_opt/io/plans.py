@@ -30,6 +30,7 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result
 from hierplan_opt.io._yaml import Ctx, LDict, LList, read_text, read_yaml, yaml_scalar
+from hierplan_opt.io.files import write_text
 
 #: Solver statistics written under libMultiRobotPlanning's names.
 _LMRP_NAMES = {
@@ -335,7 +336,7 @@ def save_plan(path: str | Path, instance: Instance, result_or_plan: Result | Pla
     doc = plan_document(instance, result_or_plan)
     p = Path(path)
     text = json.dumps(doc, indent=1) + "\n" if p.suffix.lower() == ".json" else plan_yaml(doc)
-    p.write_text(text, encoding="utf-8")
+    write_text(p, text)
 
 
 def plan_yaml(doc: dict[str, Any]) -> str:

@@ -23,8 +23,9 @@ import numpy as np
 
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, DRIVES, Agent, Instance, Kinematics, Team
-from hierplan_opt.io._common import Unique, loc_text, location, wrap
+from hierplan_opt.io._common import Unique, check_grid, loc_text, location, wrap
 from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
+from hierplan_opt.io.files import write_text
 from hierplan_opt.io.movingai import blocked_cells, load_map
 
 FORMAT_TAG = "hierplan/1"
@@ -143,6 +144,7 @@ def _grid(ctx: Ctx, g: LDict, path: Path) -> Graph:
         if len(dims) not in (2, 3):
             raise ctx.error(f"dimensions must be [W, H] or [W, H, D], got {list(dims)}", dline)
         size = [ctx.integer(d, "a grid dimension", dline, minimum=1) for d in dims]
+        check_grid(ctx, size, dline)
         obstacles: list[tuple[int, ...]] = []
         if g.get("obstacles") is not None:
             oline = ctx.line_of(g, "obstacles")
@@ -167,6 +169,7 @@ def _grid(ctx: Ctx, g: LDict, path: Path) -> Graph:
             raise ctx.error("rows must list at least one row", rline)
         texts = [ctx.string(r, "a row", ctx.line_of(rows, i)) for i, r in enumerate(rows)]
         width = len(texts[0])
+        check_grid(ctx, [width, len(texts)], rline)
         blocked = np.zeros((len(texts), width), dtype=bool)
         for y, row in enumerate(texts):
             line = ctx.line_of(rows, y)
@@ -177,9 +180,9 @@ def _grid(ctx: Ctx, g: LDict, path: Path) -> Graph:
     mline = ctx.line_of(g, "map")
     ref = ctx.string(g["map"], "map", mline)
     map_path = (path.parent / ref) if not Path(ref).is_absolute() else Path(ref)
-    if not map_path.is_file():
+    if not map_path.exists():
         raise ctx.error(f"map file {ref!r} not found (looked at {map_path})", mline)
-    base = load_map(map_path)
+    base = wrap(ctx, mline, lambda: load_map(map_path))
     if cell == 1.0:
         return base
     assert base.shape is not None
@@ -562,7 +565,7 @@ def save(path: str | Path, instance: Instance, *, rows: bool | None = None) -> N
     >>> load(f).graph.shape
     (2, 1, 2)
     """
-    Path(path).write_text(dumps(instance, rows=rows), encoding="utf-8")
+    write_text(path, dumps(instance, rows=rows))
 
 
 __all__ = ["FORMAT_TAG", "dumps", "from_data", "load", "looks_like", "save"]
