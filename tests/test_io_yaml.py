@@ -177,8 +177,8 @@ def test_lmrp_round_trip(tmp_path: Path, name: str) -> None:
 
 def test_lmrp_refuses_what_it_cannot_hold(tmp_path: Path) -> None:
     for inst, match in [
-        (_samples()[2], "only 2D grids"),
-        (_samples()[1], "only 2D grids"),
+        (_samples()[2], "2D grids and roadmaps, not 3D"),
+        (_samples()[1], "no highways"),
         (load_instance(DATA / "corridor.yaml"), "no highways"),
     ]:
         with pytest.raises(InputError, match=match):

@@ -4,7 +4,12 @@
 - libMultiRobotPlanning YAML instances (:mod:`hierplan_opt.io.lmrp_yaml`),
 - the project's own YAML format (:mod:`hierplan_opt.io.yaml_format`, see
   ``docs/yaml-format.md``),
-- plans in the libMultiRobotPlanning output layout (:mod:`hierplan_opt.io.plans`).
+- plans in the libMultiRobotPlanning output layout (:mod:`hierplan_opt.io.plans`), and
+  the plan files of EECBS / CBSH2-RTC (:mod:`~hierplan_opt.io.eecbs`), LaCAM
+  (:mod:`~hierplan_opt.io.lacam`) and MAPF Tracker submissions
+  (:mod:`~hierplan_opt.io.tracker`),
+- safe file access for all of them (:mod:`hierplan_opt.io.files`: regular files only,
+  size and nesting limits, checked and atomic outputs).
 
 Every reader refuses bad input with an :class:`~hierplan_opt.core.errors.InputError`
 whose one-line message names the file, the line and the problem.
@@ -17,7 +22,7 @@ from pathlib import Path
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.io.files import write_text
-from hierplan_opt.io.plans import load_plan, save_plan
+from hierplan_opt.io.plans import PLAN_FORMATS, load_plan, read_plan, save_plan
 
 FORMATS = ("hierplan", "lmrp", "movingai")
 _ALIASES = {
@@ -132,4 +137,12 @@ def save_instance(path: str | Path, instance: Instance, format: str | None = Non
         write_text(scen_path, scen_text)
 
 
-__all__ = ["FORMATS", "load_instance", "load_plan", "save_instance", "save_plan"]
+__all__ = [
+    "FORMATS",
+    "PLAN_FORMATS",
+    "load_instance",
+    "load_plan",
+    "read_plan",
+    "save_instance",
+    "save_plan",
+]

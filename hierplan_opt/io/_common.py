@@ -7,6 +7,7 @@ from typing import Any, TypeVar
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
 from hierplan_opt.io._yaml import Ctx
 
 T = TypeVar("T")
@@ -16,6 +17,14 @@ def loc_text(graph: Graph, v: int) -> str:
     """A vertex as the files write it: ``[x, y]`` or ``'name'``."""
     loc = graph.location(v)
     return repr(loc) if isinstance(loc, str) else str(list(loc))
+
+
+def loc_yaml(graph: Graph, v: int) -> str:
+    """A vertex as YAML that reads back as the same location: ``[x, y]`` or a name."""
+    from hierplan_opt.io._yaml import yaml_scalar
+
+    loc = graph.location(v)
+    return yaml_scalar(loc) if isinstance(loc, str) else str(list(loc))
 
 
 def location(
@@ -76,6 +85,26 @@ def check_grid(ctx: Ctx, dims: list[int], line: int | None) -> None:
     from hierplan_opt.io.files import check_grid as _check
 
     _check(dims, f"{ctx.file}:{line}: " if line else f"{ctx.file}: ")
+
+
+def grid_2d(instance: Instance, what: str) -> Graph:
+    """The instance's graph, refusing anything but a 2D grid for format ``what``."""
+    g = instance.graph
+    if g.kind != "grid" or g.shape is None or len(g.shape) != 2:
+        raise InputError(f"{what} holds plans on 2D grids only")
+    return g
+
+
+def grid_cell(ctx: Ctx, graph: Graph, x: int, y: int, what: str, line: int | None) -> int:
+    """The vertex id of cell ``(x, y)`` of a 2D grid, refusing cells outside the map.
+
+    Blocked cells are allowed: the validator names them with the timestep.
+    """
+    assert graph.shape is not None
+    width, height = graph.shape
+    if not (0 <= x < width and 0 <= y < height):
+        raise ctx.error(f"{what} is outside the {width}x{height} map", line)
+    return x + width * y
 
 
 def wrap(ctx: Ctx, line: int | None, fn: Callable[[], T]) -> T:

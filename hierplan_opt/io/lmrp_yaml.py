@@ -9,6 +9,22 @@
       - {name: agent0, start: [0, 0], goal: [4, 0]}
       - {name: agent1, start: [1, 0], potentialGoals: [[3, 0], [2, 0]]}
 
+Roadmaps (``cbs_roadmap``) replace ``map`` with ``roadmap``; locations are vertex
+names::
+
+    roadmap:
+      undirected: true              # default true
+      allow_wait_actions: true      # default true; false needs a self-edge [v, v] at
+                                    # every vertex (this toolkit always lets robots wait)
+      vertices: {A: [0, 0], B: [1, 0], C: [2, 0]}   # optional positions
+      edges: [[A, B], [B, C]]
+    agents:
+      - {name: agent0, start: A, goal: C}
+
+Without ``vertices`` the vertices are the edges' ends, every edge has length 1 and
+there are no positions (all coordinates 0): fine for planning, not for MAPF-POST.
+Annotated roadmaps (``conflicts``, edge-conflict sets) are refused.
+
 ``potentialGoals`` (the target-assignment variant, ``cbs_ta``) becomes a TAPF
 instance: agents with the same set of potential goals form one team whose targets are
 that set. This toolkit's teams need disjoint target sets with as many targets as
@@ -22,15 +38,18 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, Agent, Instance, Team
-from hierplan_opt.io._common import Unique, check_grid, loc_text, location, wrap
-from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
+from hierplan_opt.io._common import Unique, check_grid, loc_text, loc_yaml, location, wrap
+from hierplan_opt.io._yaml import Ctx, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
 
 TOP_KEYS = ("map", "agents")
 MAP_KEYS = ("dimensions", "obstacles")
+ROADMAP_KEYS = ("undirected", "allow_wait_actions", "vertices", "edges", "conflicts")
 AGENT_KEYS = ("name", "start", "goal", "potentialGoals")
 
 
@@ -65,27 +84,12 @@ def from_data(data: Any, path: str | Path) -> Instance:
     """
     ctx = Ctx(path)
     top = ctx.mapping(data, "a libMultiRobotPlanning instance", 1)
-    ctx.check_keys(top, "the instance", TOP_KEYS, TOP_KEYS)
-    m = ctx.mapping(top["map"], "map", ctx.line_of(top, "map"))
-    ctx.check_keys(m, "map", MAP_KEYS, ("dimensions",))
-    dline = ctx.line_of(m, "dimensions")
-    dims = ctx.sequence(m["dimensions"], "map dimensions", dline)
-    if len(dims) != 2:
-        raise ctx.error(f"map dimensions must be [W, H], got {list(dims)}", dline)
-    width, height = (ctx.integer(d, "a map dimension", dline, minimum=1) for d in dims)
-    check_grid(ctx, [width, height], dline)
-    obstacles: list[tuple[int, int]] = []
-    if m.get("obstacles") is not None:
-        obs = ctx.sequence(m["obstacles"], "map obstacles", ctx.line_of(m, "obstacles"))
-        for i, o in enumerate(obs):
-            oline = ctx.line_of(obs, i)
-            if not isinstance(o, list) or len(o) != 2:
-                raise ctx.error(f"an obstacle must be [x, y], got {o!r}", oline)
-            x, y = (ctx.integer(c, "an obstacle coordinate", oline) for c in o)
-            if not (0 <= x < width and 0 <= y < height):
-                raise ctx.error(f"obstacle [{x}, {y}] is outside the {width}x{height} map", oline)
-            obstacles.append((x, y))
-    graph = Graph.grid(width, height, obstacles=obstacles)
+    if "roadmap" in top:
+        ctx.check_keys(top, "the instance", ("roadmap", "agents"), ("roadmap", "agents"))
+        graph = _roadmap(ctx, top["roadmap"], ctx.line_of(top, "roadmap"))
+    else:
+        ctx.check_keys(top, "the instance", TOP_KEYS, TOP_KEYS)
+        graph = _grid(ctx, top["map"], ctx.line_of(top, "map"))
 
     agents_raw = ctx.sequence(top["agents"], "agents", ctx.line_of(top, "agents"))
     if not agents_raw:
@@ -143,6 +147,89 @@ def from_data(data: Any, path: str | Path) -> Instance:
     return inst
 
 
+def _grid(ctx: Ctx, value: Any, line: int | None) -> Graph:
+    m = ctx.mapping(value, "map", line)
+    ctx.check_keys(m, "map", MAP_KEYS, ("dimensions",))
+    dline = ctx.line_of(m, "dimensions")
+    dims = ctx.sequence(m["dimensions"], "map dimensions", dline)
+    if len(dims) != 2:
+        raise ctx.error(f"map dimensions must be [W, H], got {list(dims)}", dline)
+    width, height = (ctx.integer(d, "a map dimension", dline, minimum=1) for d in dims)
+    check_grid(ctx, [width, height], dline)
+    obstacles: list[tuple[int, int]] = []
+    if m.get("obstacles") is not None:
+        obs = ctx.sequence(m["obstacles"], "map obstacles", ctx.line_of(m, "obstacles"))
+        for i, o in enumerate(obs):
+            oline = ctx.line_of(obs, i)
+            if not isinstance(o, list) or len(o) != 2:
+                raise ctx.error(f"an obstacle must be [x, y], got {o!r}", oline)
+            x, y = (ctx.integer(c, "an obstacle coordinate", oline) for c in o)
+            if not (0 <= x < width and 0 <= y < height):
+                raise ctx.error(f"obstacle [{x}, {y}] is outside the {width}x{height} map", oline)
+            obstacles.append((x, y))
+    return Graph.grid(width, height, obstacles=obstacles)
+
+
+def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
+    r = ctx.mapping(value, "roadmap", line)
+    ctx.check_keys(r, "roadmap", ROADMAP_KEYS, ("edges",))
+    if r.get("conflicts") is not None:
+        raise ctx.error(
+            "annotated roadmaps ('conflicts') are not supported: this toolkit's conflicts "
+            "are vertex and swap conflicts; remove 'conflicts'",
+            ctx.line_of(r, "conflicts"),
+        )
+    undirected = True
+    if "undirected" in r:
+        undirected = ctx.boolean(r["undirected"], "undirected", ctx.line_of(r, "undirected"))
+    waits = True
+    if "allow_wait_actions" in r:
+        waits = ctx.boolean(
+            r["allow_wait_actions"], "allow_wait_actions", ctx.line_of(r, "allow_wait_actions")
+        )
+    coords: dict[str, list[float]] = {}
+    positions = r.get("vertices") is not None
+    if positions:
+        vline = ctx.line_of(r, "vertices")
+        verts = ctx.mapping(r["vertices"], "vertices", vline)
+        for key, c in verts.items():
+            vl = verts.lines.get(key, vline)
+            vname = ctx.string(key, "a vertex name", vl)
+            if not isinstance(c, list) or len(c) not in (2, 3):
+                raise ctx.error(f"vertex {vname!r} needs [x, y] or [x, y, z], got {c!r}", vl)
+            coords[vname] = [ctx.number(x, f"a coordinate of vertex {vname!r}", vl) for x in c]
+    eline = ctx.line_of(r, "edges")
+    elist = ctx.sequence(r["edges"], "edges", eline)
+    edges: list[tuple[Any, ...]] = []
+    self_loops: set[str] = set()
+    for i, e in enumerate(elist):
+        el = ctx.line_of(elist, i)
+        if not isinstance(e, list) or len(e) != 2:
+            raise ctx.error(f"an edge must be [u, v], got {e!r}", el)
+        u, v = (ctx.string(x, "an edge end", el) for x in e)
+        for x in (u, v):
+            if x not in coords:
+                if positions:
+                    raise ctx.error(f"edge [{u}, {v}] names unknown vertex {x!r}", el)
+                coords[x] = [0.0, 0.0]
+        if u == v:
+            self_loops.add(u)  # a wait action
+            continue
+        edges.append((u, v) if positions else (u, v, 1.0))
+    if not coords:
+        raise ctx.error("a roadmap needs at least one vertex", eline)
+    if not waits:
+        missing = [x for x in coords if x not in self_loops]
+        if missing:
+            raise ctx.error(
+                f"allow_wait_actions is false and vertex {missing[0]!r} has no self-edge; "
+                "this toolkit always lets robots wait",
+                ctx.line_of(r, "allow_wait_actions"),
+            )
+    graph = wrap(ctx, eline, lambda: Graph.roadmap(coords, edges, directed=not undirected))
+    return graph
+
+
 def _tapf(
     ctx: Ctx,
     graph: Graph,
@@ -188,11 +275,11 @@ def _tapf(
 
 # ---------------------------------------------------------------- writing
 def dumps(instance: Instance) -> str:
-    """The libMultiRobotPlanning YAML text of a 2D-grid instance.
+    """The libMultiRobotPlanning YAML text of an instance on a 2D grid or a roadmap.
 
     TAPF teams become ``potentialGoals`` (every robot lists its team's targets).
-    Refuses what the format cannot hold: 3D grids, roadmaps, highways, kinematics,
-    a cell size other than 1.
+    Refuses what the format cannot hold: 3D grids, highways, kinematics, a cell size
+    other than 1, roadmap edges whose length is not the distance of their ends.
 
     Example
     -------
@@ -207,8 +294,8 @@ def dumps(instance: Instance) -> str:
         goal: [1, 0]
     """
     g = instance.graph
-    if g.kind != "grid" or g.shape is None or len(g.shape) != 2:
-        raise InputError("the libMultiRobotPlanning format holds only 2D grids")
+    if g.kind == "grid" and (g.shape is None or len(g.shape) != 2):
+        raise InputError("the libMultiRobotPlanning format holds 2D grids and roadmaps, not 3D")
     if instance.highways is not None:
         raise InputError(
             "the libMultiRobotPlanning format has no highways; use the hierplan format"
@@ -217,10 +304,26 @@ def dumps(instance: Instance) -> str:
         raise InputError(
             "the libMultiRobotPlanning format has no robot kinematics; use the hierplan format"
         )
+    lines = _roadmap_lines(g) if g.kind == "roadmap" else _map_lines(g)
+    lines.append("agents:")
+    for a in instance.agents:
+        lines.append(f"  - name: {yaml_scalar(a.name)}")
+        lines.append(f"    start: {loc_yaml(g, a.start)}")
+        if a.team is None:
+            assert a.goal is not None
+            lines.append(f"    goal: {loc_yaml(g, a.goal)}")
+        else:
+            targets = instance.teams[a.team].targets
+            lines.append(f"    potentialGoals: [{', '.join(loc_yaml(g, t) for t in targets)}]")
+    return "\n".join(lines) + "\n"
+
+
+def _map_lines(g: Graph) -> list[str]:
     if g.cell_size != 1.0:
         raise InputError(
             "the libMultiRobotPlanning format has no cell_size; use the hierplan format"
         )
+    assert g.shape is not None
     width, height = g.shape
     lines = ["map:", f"  dimensions: [{width}, {height}]"]
     blocked = [v for v in range(g.n) if not g.passable[v]]
@@ -229,17 +332,32 @@ def dumps(instance: Instance) -> str:
         lines += [f"    - {loc_text(g, v)}" for v in blocked]
     else:
         lines.append("  obstacles: []")
-    lines.append("agents:")
-    for a in instance.agents:
-        lines.append(f"  - name: {yaml_scalar(a.name)}")
-        lines.append(f"    start: {loc_text(g, a.start)}")
-        if a.team is None:
-            assert a.goal is not None
-            lines.append(f"    goal: {loc_text(g, a.goal)}")
-        else:
-            targets = instance.teams[a.team].targets
-            lines.append(f"    potentialGoals: [{', '.join(loc_text(g, t) for t in targets)}]")
-    return "\n".join(lines) + "\n"
+    return lines
+
+
+def _roadmap_lines(g: Graph) -> list[str]:
+    assert g.names is not None
+    lines = [
+        "roadmap:",
+        f"  undirected: {'false' if g.directed else 'true'}",
+        "  allow_wait_actions: true",
+        "  vertices:",
+    ]
+    for v, vname in enumerate(g.names):
+        c = ", ".join(repr(float(x)) for x in g.coords[v])
+        lines.append(f"    {yaml_scalar(vname)}: [{c}]")
+    edges = []
+    for u, v in g.edges():
+        if not g.directed and u > v:
+            continue
+        euclid = float(np.linalg.norm(g.coords[u] - g.coords[v]))
+        if abs(g.edge_length(u, v) - euclid) > 1e-12 * max(1.0, euclid):
+            raise InputError(
+                f"edge [{g.names[u]}, {g.names[v]}] has a length other than the distance of "
+                "its ends; the libMultiRobotPlanning format has no edge lengths"
+            )
+        edges.append(f"    - [{yaml_scalar(g.names[u])}, {yaml_scalar(g.names[v])}]")
+    return [*lines, "  edges:", *edges] if edges else [*lines, "  edges: []"]
 
 
 def save(path: str | Path, instance: Instance) -> None:
@@ -263,5 +381,9 @@ def looks_like(data: Any) -> bool:
     -------
     >>> looks_like({"map": {}, "agents": []}), looks_like({"graph": {}})
     (True, False)
+    >>> looks_like({"roadmap": {}, "agents": []})
+    True
     """
-    return isinstance(data, LDict | dict) and "map" in data and "agents" in data
+    if not isinstance(data, dict) or "agents" not in data:
+        return False
+    return "map" in data or "roadmap" in data

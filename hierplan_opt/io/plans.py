@@ -39,12 +39,32 @@ _LMRP_NAMES = {
 }
 
 
-def load_plan(path: str | Path, instance: Instance) -> Plan:
-    """Read a plan file (libMultiRobotPlanning layout) for ``instance``.
+#: Plan file formats: read by content, written by ``format=`` (or the extension).
+PLAN_FORMATS = ("yaml", "json", "eecbs", "lacam", "tracker")
 
-    Every agent of the instance must appear under ``schedule`` (by name), times must be
-    ``0, 1, 2, ...`` and every location must be on the map; other mistakes (blocked
-    cells, jumps, conflicts) are left to :func:`hierplan_opt.validate`.
+
+def plan_format(text: str) -> str:
+    """Which plan format ``text`` is in: ``"eecbs"``, ``"lacam"``, ``"tracker"`` or
+    ``"lmrp"`` (the libMultiRobotPlanning YAML/JSON layout, the default).
+
+    Example
+    -------
+    >>> plan_format("Agent 0: (0,0)->"), plan_format("agents=1\\nsolution=\\n")
+    ('eecbs', 'lacam')
+    """
+    from hierplan_opt.io import eecbs, lacam, tracker
+
+    if eecbs.looks_like(text):
+        return "eecbs"
+    if lacam.looks_like(text):
+        return "lacam"
+    if tracker.looks_like(text):
+        return "tracker"
+    return "lmrp"
+
+
+def load_plan(path: str | Path, instance: Instance) -> Plan:
+    """Read a plan file for ``instance``, in any of the formats of :func:`read_plan`.
 
     Example
     -------
@@ -56,17 +76,60 @@ def load_plan(path: str | Path, instance: Instance) -> Plan:
     >>> load_plan(f, inst).paths
     ((0, 1, 2),)
     """
+    return read_plan(path, instance)[0]
+
+
+def read_plan(path: str | Path, instance: Instance) -> tuple[Plan, dict[str, Any]]:
+    """A plan file's plan and statistics; the format is recognised by the content.
+
+    - the libMultiRobotPlanning layout (YAML or JSON, as :func:`save_plan` writes):
+      every agent of the instance appears under ``schedule`` by name, times run
+      ``0, 1, 2, ...``; the statistics are its ``statistics`` block;
+    - EECBS / CBSH2-RTC path files (``Agent 0: (r,c)->...``, :mod:`~hierplan_opt.io.eecbs`);
+    - LaCAM result files (``solution=``, :mod:`~hierplan_opt.io.lacam`), statistics
+      from its ``key=value`` lines;
+    - MAPF Tracker submissions (:mod:`~hierplan_opt.io.tracker`).
+
+    Every location must be on the map; other mistakes (blocked cells, jumps,
+    conflicts) are left to :func:`hierplan_opt.validate`.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> from hierplan_opt.core.graph import Graph
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> f = os.path.join(tempfile.mkdtemp(), "paths.txt")
+    >>> _ = open(f, "w").write("Agent 0: (0,0)->(0,1)->(0,2)->\\n")
+    >>> read_plan(f, inst)
+    (Plan(paths=((0, 1, 2),)), {})
+    """
+    from hierplan_opt.io import eecbs, lacam, tracker
+
     text = read_text(path)
-    data = _fast_parse(text, str(path))
+    name = str(path)
+    fmt = plan_format(text)
+    if fmt == "eecbs":
+        return eecbs.parse(text, name, instance), {}
+    if fmt == "lacam":
+        return lacam.parse(text, name, instance)
+    if fmt == "tracker":
+        return tracker.parse(text, name, instance)
+    data = _fast_parse(text, name)
     if data is None:
         data = read_yaml(path, text)
     try:
-        return _plan_from_data(data, path, instance)
+        return _plan_from_data(data, path, instance), _statistics(data)
     except InputError:
         if isinstance(data, LDict):
             raise
         # parsed without line numbers (JSON): parse again with them for the message
-        return _plan_from_data(read_yaml(path, text), path, instance)
+        data = read_yaml(path, text)
+        return _plan_from_data(data, path, instance), _statistics(data)
+
+
+def _statistics(data: Any) -> dict[str, Any]:
+    stats = data.get("statistics") if isinstance(data, dict) else None
+    return dict(stats) if isinstance(stats, dict) else {}
 
 
 def _plan_from_data(data: Any, path: str | Path, instance: Instance) -> Plan:
@@ -311,11 +374,20 @@ def plan_document(instance: Instance, result_or_plan: Result | Plan) -> dict[str
     return {"statistics": stats, "schedule": schedule}
 
 
-def save_plan(path: str | Path, instance: Instance, result_or_plan: Result | Plan) -> None:
+def save_plan(
+    path: str | Path,
+    instance: Instance,
+    result_or_plan: Result | Plan,
+    format: str | None = None,
+) -> None:
     """Write a plan (or a solver result's plan with its statistics) to ``path``.
 
-    YAML in the libMultiRobotPlanning output layout; JSON with the same structure when
-    ``path`` ends in ``.json``.
+    ``format`` is one of :data:`PLAN_FORMATS`; by default YAML in the
+    libMultiRobotPlanning output layout, or JSON with the same structure when
+    ``path`` ends in ``.json``. ``"eecbs"`` writes an EECBS / CBSH2-RTC path file,
+    ``"lacam"`` a LaCAM result file and ``"tracker"`` a MAPF Tracker submission (CSV,
+    or JSON/YAML by extension; the lower bound of a sum-of-costs result becomes
+    ``lower_cost``). The file is written atomically.
 
     Example
     -------
@@ -333,10 +405,35 @@ def save_plan(path: str | Path, instance: Instance, result_or_plan: Result | Pla
         - {x: 0, y: 0, t: 0}
         - {x: 1, y: 0, t: 1}
     """
-    doc = plan_document(instance, result_or_plan)
+    from hierplan_opt.io import eecbs, lacam, tracker
+
     p = Path(path)
-    text = json.dumps(doc, indent=1) + "\n" if p.suffix.lower() == ".json" else plan_yaml(doc)
-    write_text(p, text)
+    fmt = format or ("json" if p.suffix.lower() == ".json" else "yaml")
+    if fmt not in PLAN_FORMATS:
+        raise InputError(f"unknown plan format {format!r} (use {', '.join(PLAN_FORMATS)})")
+    if fmt in ("yaml", "json"):
+        doc = plan_document(instance, result_or_plan)
+        text = json.dumps(doc, indent=1) + "\n" if fmt == "json" else plan_yaml(doc)
+        write_text(p, text)
+        return
+    result = result_or_plan if isinstance(result_or_plan, Result) else None
+    plan = result_or_plan.plan if isinstance(result_or_plan, Result) else result_or_plan
+    if plan is None:
+        raise InputError(f"the result has no plan to write (status {result_or_plan.status})")
+    if fmt == "eecbs":
+        eecbs.save(p, instance, plan)
+    elif fmt == "lacam":
+        stats: dict[str, Any] = {}
+        if result is not None:
+            stats["comp_time"] = round(float(result.runtime) * 1000)
+            if result.lower_bound is not None:
+                stats[f"{result.objective}_lb"] = _plain(result.lower_bound)
+        lacam.save(p, instance, plan, stats=stats)
+    else:
+        lower = None
+        if result is not None and result.objective == "soc" and result.lower_bound is not None:
+            lower = int(math.ceil(float(result.lower_bound) - 1e-9))
+        tracker.save(p, tracker.submission(instance, plan, lower_cost=lower))
 
 
 def plan_yaml(doc: dict[str, Any]) -> str:
@@ -403,4 +500,12 @@ def _plain(v: Any, depth: int = 0) -> Any:
     return _SKIP
 
 
-__all__ = ["load_plan", "plan_document", "plan_yaml", "save_plan"]
+__all__ = [
+    "PLAN_FORMATS",
+    "load_plan",
+    "plan_document",
+    "plan_format",
+    "plan_yaml",
+    "read_plan",
+    "save_plan",
+]

@@ -23,7 +23,7 @@ import numpy as np
 
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, DRIVES, Agent, Instance, Kinematics, Team
-from hierplan_opt.io._common import Unique, check_grid, loc_text, location, wrap
+from hierplan_opt.io._common import Unique, check_grid, loc_text, loc_yaml, location, wrap
 from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
 from hierplan_opt.io.movingai import blocked_cells, load_map
@@ -505,10 +505,10 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
             out.append(f"  {yaml_scalar(tname)}: {{{', '.join(parts)}}}")
 
     def robot(a: Agent, with_goal: bool) -> str:
-        parts = [f"name: {yaml_scalar(a.name)}", f"start: {_loc(g, a.start)}"]
+        parts = [f"name: {yaml_scalar(a.name)}", f"start: {loc_yaml(g, a.start)}"]
         if with_goal:
             assert a.goal is not None
-            parts.append(f"goal: {_loc(g, a.goal)}")
+            parts.append(f"goal: {loc_yaml(g, a.goal)}")
         if a.kinematics != DEFAULT_KINEMATICS:
             parts.append(f"type: {yaml_scalar(type_names[a.kinematics])}")
         return "{" + ", ".join(parts) + "}"
@@ -519,7 +519,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
             out.append(f"  - name: {yaml_scalar(team.name)}")
             out.append("    agents:")
             out += [f"      - {robot(instance.agents[i], False)}" for i in team.agents]
-            out.append(f"    targets: [{', '.join(_loc(g, t) for t in team.targets)}]")
+            out.append(f"    targets: [{', '.join(loc_yaml(g, t) for t in team.targets)}]")
     else:
         out.append("agents:")
         out += [f"  - {robot(a, True)}" for a in instance.agents]
@@ -527,14 +527,10 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
         hw = sorted(instance.highways)
         if hw:
             out.append("highways:")
-            out += [f"  - [{_loc(g, u)}, {_loc(g, v)}]" for u, v in hw]
+            out += [f"  - [{loc_yaml(g, u)}, {loc_yaml(g, v)}]" for u, v in hw]
         else:
             out.append("highways: []")
     return "\n".join(out) + "\n"
-
-
-def _loc(g: Graph, v: int) -> str:
-    return g.label(v, quote=yaml_scalar)
 
 
 def _type_names(instance: Instance) -> dict[Kinematics, str]:

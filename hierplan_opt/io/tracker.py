@@ -1,0 +1,479 @@
+"""MAPF Tracker submissions (ShortestPathLab, tracker.pathfinding.ai).
+
+A submission names the benchmark instance and gives one move string per agent::
+
+    map_name,scen_type,type_id,agents,lower_cost,solution_cost,solution_plan
+    random-32-32-20,random,1,2,9,9,"3r2d
+    d2lw2u"
+
+``map_name`` is the map's file stem, ``scen_type`` and ``type_id`` come from the
+scenario's name ``<map>-<even|random>-<id>.scen``, ``agents`` is K (the first K agents
+of the scenario). The moves are ``u`` (y - 1, up on the drawn map), ``d`` (y + 1),
+``l`` (x - 1), ``r`` (x + 1) and ``w`` (wait), one per timestep from the agent's start,
+with run-length encoding (``3r`` = ``rrr``; single moves have no count). Paths end
+when the agent arrives, so the string lengths add up to the sum of costs
+(``solution_cost``); ``lower_cost`` is a proven lower bound on it, or empty.
+
+The tracker takes CSV (a header row, one submission per row), JSON (an object or a
+list) and YAML (a mapping, a list or several documents); ``solution_plan`` may be a
+newline-separated string or a list of strings. With ``flip_up_down: true`` the
+meaning of ``u`` and ``d`` is swapped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import json
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.io._common import grid_2d
+from hierplan_opt.io._yaml import Ctx
+
+FIELDS = (
+    "map_name",
+    "scen_type",
+    "type_id",
+    "agents",
+    "lower_cost",
+    "solution_cost",
+    "solution_plan",
+)
+#: (dx, dy) of each move letter (y grows downwards, as in MovingAI maps).
+MOVES = {"u": (0, -1), "d": (0, 1), "l": (-1, 0), "r": (1, 0), "w": (0, 0)}
+_LETTER = {v: k for k, v in MOVES.items()}
+_RUN = re.compile(r"(\d*)([udlrw])")
+_SCEN = re.compile(r"^(?P<map>.+)-(?P<type>even|random)-(?P<id>\d+)$")
+
+
+@dataclass(frozen=True)
+class Submission:
+    """One MAPF Tracker submission (see the module text for the fields)."""
+
+    map_name: str
+    scen_type: str
+    type_id: int
+    agents: int
+    solution_plan: tuple[str, ...]
+    lower_cost: int | None = None
+    solution_cost: int | None = None
+
+    def row(self) -> dict[str, Any]:
+        """The fields as plain data (``solution_plan`` newline-separated)."""
+        return {
+            "map_name": self.map_name,
+            "scen_type": self.scen_type,
+            "type_id": self.type_id,
+            "agents": self.agents,
+            "lower_cost": self.lower_cost,
+            "solution_cost": self.solution_cost,
+            "solution_plan": "\n".join(self.solution_plan),
+        }
+
+
+# ---------------------------------------------------------------------- moves
+def encode_moves(moves: str) -> str:
+    """Run-length encode a move string (runs of one stay single letters).
+
+    Example
+    -------
+    >>> encode_moves("rrrddwl")
+    '3r2dwl'
+    """
+    return "".join(
+        (f"{len(m.group(0))}{m.group(1)}" if len(m.group(0)) > 1 else m.group(1))
+        for m in re.finditer(r"([udlrw])\1*", moves)
+    )
+
+
+def decode_moves(text: str, budget: int | None = None) -> str:
+    """Expand a run-length encoded move string; refuses anything but counts and letters.
+
+    ``budget`` bounds the expanded length (default: ``limits().max_plan_steps``), so a
+    run like ``999999999999w`` is refused instead of filling the memory.
+
+    Example
+    -------
+    >>> decode_moves("3r2dwl")
+    'rrrddwl'
+    """
+    from hierplan_opt.io.files import limits
+
+    cap = limits().max_plan_steps if budget is None else budget
+    text = text.strip()
+    out: list[str] = []
+    pos = total = 0
+    while pos < len(text):
+        m = _RUN.match(text, pos)
+        if m is None:
+            raise InputError(
+                f"bad move {text[pos : pos + 10]!r} at character {pos} "
+                "(expected an optional count and one of u d l r w)"
+            )
+        n = int(m.group(1)) if m.group(1) else 1
+        if m.group(1) and n < 1:
+            raise InputError(f"a run count must be at least 1, got {m.group(0)!r}")
+        total += n
+        if total > cap:
+            raise InputError(f"the moves expand to more than {cap} steps (the plan-step limit)")
+        out.append(m.group(2) * n)
+        pos = m.end()
+    return "".join(out)
+
+
+def path_moves(graph: Graph, path: tuple[int, ...]) -> str:
+    """The move letters of a path on a 2D grid (trailing waits dropped).
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 2)
+    >>> path_moves(g, (0, 1, 4, 4, 3, 3))
+    'rdwl'
+    """
+    from hierplan_opt.core.plan import path_cost
+
+    out = []
+    for a, b in zip(path[: path_cost(path) + 1], path[1 : path_cost(path) + 1], strict=False):
+        (ax, ay), (bx, by) = graph.location(a), graph.location(b)  # type: ignore[misc]
+        letter = _LETTER.get((bx - ax, by - ay))
+        if letter is None:
+            raise InputError(
+                f"the path jumps from {[ax, ay]} to {[bx, by]}; the tracker has no such move"
+            )
+        out.append(letter)
+    return "".join(out)
+
+
+# ---------------------------------------------------------------------- writing
+def scenario_name(scen: str | Path) -> tuple[str, str, int]:
+    """``(map_name, scen_type, type_id)`` from a benchmark scenario's file name.
+
+    Example
+    -------
+    >>> scenario_name("instances/movingai/random-32-32-20-random-1.scen")
+    ('random-32-32-20', 'random', 1)
+    """
+    stem = Path(str(scen)).name
+    stem = stem[:-5] if stem.lower().endswith(".scen") else stem
+    m = _SCEN.match(stem)
+    if m is None:
+        raise InputError(
+            f"cannot tell the tracker's scenario type and id from {Path(str(scen)).name!r} "
+            "(benchmark scenarios are named <map>-even-<id>.scen or <map>-random-<id>.scen)"
+        )
+    return m.group("map"), m.group("type"), int(m.group("id"))
+
+
+def submission(
+    instance: Instance,
+    plan: Plan,
+    *,
+    lower_cost: int | None = None,
+    map_name: str | None = None,
+    scen_type: str | None = None,
+    type_id: int | None = None,
+) -> Submission:
+    """The tracker submission of ``plan`` for a MovingAI ``instance``.
+
+    The map name, scenario type and id come from the files the instance was read
+    from (``instance.meta["scen"]``) unless given.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 1)
+    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> s = submission(inst, Plan.from_paths([[0, 1, 2]]), lower_cost=2,
+    ...                map_name="line", scen_type="even", type_id=1)
+    >>> s.solution_plan, s.solution_cost
+    (('2r',), 2)
+    """
+    graph = grid_2d(instance, "a MAPF Tracker submission")
+    if instance.is_tapf:
+        raise InputError("the MAPF Tracker takes MAPF plans only (this instance has teams)")
+    if plan.num_agents != instance.num_agents:
+        raise InputError(f"the plan has {plan.num_agents} paths for {instance.num_agents} agents")
+    if map_name is None or scen_type is None or type_id is None:
+        scen = instance.meta.get("scen")
+        if scen is None:
+            raise InputError(
+                "the tracker needs the benchmark's map name, scenario type and id: read the "
+                "instance from its .map and .scen files, or give them"
+            )
+        m, t, i = scenario_name(str(scen))
+        map_name = map_name if map_name is not None else m
+        scen_type = scen_type if scen_type is not None else t
+        type_id = type_id if type_id is not None else i
+    moves = tuple(encode_moves(path_moves(graph, p)) for p in plan.paths)
+    return Submission(
+        map_name,
+        scen_type,
+        int(type_id),
+        instance.num_agents,
+        moves,
+        None if lower_cost is None else int(lower_cost),
+        plan.sum_of_costs,
+    )
+
+
+def dumps(sub: Submission, fmt: str = "csv") -> str:
+    """The submission as ``"csv"`` (header + one row), ``"json"`` or ``"yaml"`` text.
+
+    Example
+    -------
+    >>> s = Submission("empty-8-8", "even", 1, 2, ("5r2d", "w3u"), None, 11)
+    >>> print(dumps(s), end="")
+    map_name,scen_type,type_id,agents,lower_cost,solution_cost,solution_plan
+    empty-8-8,even,1,2,,11,"5r2d
+    w3u"
+    """
+    row = sub.row()
+    if fmt == "csv":
+        buf = io.StringIO()
+        w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
+        w.writeheader()
+        w.writerow({k: "" if v is None else v for k, v in row.items()})
+        return buf.getvalue()
+    if fmt == "json":
+        return json.dumps(row, indent=1) + "\n"
+    if fmt in ("yaml", "yml"):
+        import yaml
+
+        row["solution_plan"] = list(sub.solution_plan)
+        return yaml.safe_dump(row, sort_keys=False, width=10**9)
+    raise InputError(f"unknown tracker file format {fmt!r} (use csv, json or yaml)")
+
+
+def save(path: str | Path, sub: Submission) -> None:
+    """Write ``sub`` atomically; the extension picks JSON, YAML or (otherwise) CSV.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> f = os.path.join(tempfile.mkdtemp(), "sub.json")
+    >>> save(f, Submission("m", "even", 1, 1, ("r",), 1, 1))
+    >>> json.load(open(f))["solution_plan"]
+    'r'
+    """
+    from hierplan_opt.io.files import write_text
+
+    write_text(path, dumps(sub, _fmt(Path(path))))
+
+
+def _fmt(p: Path) -> str:
+    return {".json": "json", ".yaml": "yaml", ".yml": "yaml"}.get(p.suffix.lower(), "csv")
+
+
+# ---------------------------------------------------------------------- reading
+def looks_like(text: str) -> bool:
+    """Whether ``text`` looks like a tracker submission (it has ``solution_plan``).
+
+    Example
+    -------
+    >>> looks_like("map_name,agents,solution_plan\\n"), looks_like("schedule:\\n")
+    (True, False)
+    """
+    return "solution_plan" in text[:4096]
+
+
+def parse(text: str, name: str, instance: Instance) -> tuple[Plan, dict[str, Any]]:
+    """The plan of the submission for ``instance`` in a tracker file, and its fields.
+
+    A file with several submissions (a tracker download lists every agent count of a
+    scenario) gives the one with ``agents`` equal to the instance's agent count and,
+    when the instance was read from a MovingAI map, that map's name.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 1)
+    >>> inst = Instance.mapf(g, [(0, 0)], [(2, 0)])
+    >>> text = "map_name,scen_type,type_id,agents,solution_plan\\nm,even,1,1,2r\\n"
+    >>> parse(text, "s.csv", inst)[0].paths
+    ((0, 1, 2),)
+    """
+    ctx = Ctx(name)
+    graph = grid_2d(instance, "a MAPF Tracker submission")
+    rows = list(_rows(text, name))
+    if not rows:
+        raise ctx.error("no submission in the file")
+    k = instance.num_agents
+    want_map = instance.meta.get("map")
+    want = Path(str(want_map)).stem.lower() if want_map else None
+    found = []
+    for line, row in rows:
+        if "solution_plan" not in row:
+            raise ctx.error("a submission without 'solution_plan'", line)
+        agents = _int(ctx, row.get("agents"), "agents", line)
+        if agents != k:
+            continue
+        if want is not None and str(row.get("map_name", want)).strip().lower() != want:
+            continue
+        found.append((line, row))
+    if not found:
+        counts = sorted({str(r.get("agents")) for _, r in rows})
+        where = f" on map {want!r}" if want else ""
+        raise ctx.error(
+            f"no submission for {k} agents{where} (the file has agents: {', '.join(counts)})"
+        )
+    line, row = found[0]
+    flip = _bool(ctx, row.get("flip_up_down", False), "flip_up_down", line)
+    plans = row["solution_plan"]
+    strings = plans if isinstance(plans, list) else str(plans).replace("\r\n", "\n").split("\n")
+    strings = [str(s) for s in strings]
+    if len(strings) > k and all(not s.strip() for s in strings[k:]):
+        strings = strings[:k]
+    if len(strings) != k:
+        raise ctx.error(f"solution_plan has {len(strings)} move strings for {k} agents", line)
+    from hierplan_opt.io.files import limits
+
+    budget = limits().max_plan_steps
+    paths = []
+    for i, s in enumerate(strings):
+        try:
+            moves = decode_moves(s, budget)
+        except InputError as exc:
+            raise ctx.error(f"agent {i}: {exc}", line) from None
+        budget -= len(moves)
+        paths.append(_walk(ctx, graph, instance.agents[i].start, moves, i, flip, line))
+    stats = {
+        key: row.get(key)
+        for key in ("map_name", "scen_type", "type_id", "lower_cost", "solution_cost")
+        if row.get(key) not in (None, "")
+    }
+    return Plan(tuple(paths)), stats
+
+
+def _walk(
+    ctx: Ctx, graph: Graph, start: int, moves: str, agent: int, flip: bool, line: int | None
+) -> tuple[int, ...]:
+    assert graph.shape is not None
+    width, height = graph.shape
+    x, y = graph.location(start)  # type: ignore[misc]
+    path = [start]
+    for t, c in enumerate(moves, start=1):
+        dx, dy = MOVES[c]
+        x, y = x + dx, y - dy if flip else y + dy
+        if not (0 <= x < width and 0 <= y < height):
+            raise ctx.error(
+                f"agent {agent} leaves the {width}x{height} map at t={t} (at [{x}, {y}])", line
+            )
+        path.append(x + width * y)
+    return tuple(path)
+
+
+def _rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
+    stripped = text.lstrip()
+    if stripped.startswith(("{", "[")):
+        yield from _json_rows(text, name)
+        return
+    first = stripped.split("\n", 1)[0]
+    if "," in first and ":" not in first:
+        yield from _csv_rows(text, name)
+        return
+    yield from _yaml_rows(text, name)
+
+
+def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
+    from hierplan_opt.io._yaml import _check_depth
+
+    _check_depth(text, name)
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{name}:{exc.lineno}: JSON syntax error: {exc.msg}") from None
+    except RecursionError:
+        raise InputError(f"{name}: JSON nesting is too deep") from None
+    for d in data if isinstance(data, list) else [data]:
+        if not isinstance(d, dict):
+            raise InputError(f"{name}: a submission must be an object, got {type(d).__name__}")
+        yield None, d
+
+
+def _yaml_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
+    from hierplan_opt.io._yaml import read_yaml
+
+    ctx = Ctx(name)
+    docs = [d for d in re.split(r"(?m)^---[ \t]*$", text)]
+    offset = 0
+    for doc in docs:
+        if doc.strip():
+            data = read_yaml(name, "\n" * offset + doc)
+            for d in data if isinstance(data, list) else [data]:
+                line = getattr(d, "line", None) or None
+                if not isinstance(d, dict):
+                    raise ctx.error("a submission must be a mapping", line)
+                yield line, d
+        offset += doc.count("\n") + 1
+
+
+@contextlib.contextmanager
+def _csv_field_limit(n: int) -> Iterator[None]:
+    old = csv.field_size_limit()
+    csv.field_size_limit(max(old, n))
+    try:
+        yield
+    finally:
+        csv.field_size_limit(old)
+
+
+def _csv_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
+    from hierplan_opt.io.files import limits
+
+    with _csv_field_limit(limits().max_bytes):
+        reader = csv.DictReader(io.StringIO(text, newline=""))
+        fields = [f.strip() for f in reader.fieldnames or []]
+        if "solution_plan" not in fields:
+            raise InputError(f"{name}:1: the CSV header has no solution_plan column")
+        reader.fieldnames = fields
+        try:
+            rows = [(reader.line_num, dict(r)) for r in reader]
+        except csv.Error as exc:
+            raise InputError(f"{name}:{reader.line_num}: CSV error: {exc}") from None
+    for line, row in rows:
+        if None in row:
+            raise InputError(f"{name}:{line}: the row has more fields than the header")
+        yield line, row
+
+
+def _int(ctx: Ctx, value: Any, what: str, line: int | None) -> int:
+    if isinstance(value, bool):
+        raise ctx.error(f"{what} must be an integer, got {value!r}", line)
+    try:
+        return int(str(value).strip())
+    except ValueError:
+        raise ctx.error(f"{what} must be an integer, got {str(value)[:20]!r}", line) from None
+
+
+def _bool(ctx: Ctx, value: Any, what: str, line: int | None) -> bool:
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("", "0", "false"):
+        return False
+    if text in ("1", "true"):
+        return True
+    raise ctx.error(f"{what} must be TRUE or FALSE, got {str(value)[:20]!r}", line)
+
+
+__all__ = [
+    "FIELDS",
+    "MOVES",
+    "Submission",
+    "decode_moves",
+    "dumps",
+    "encode_moves",
+    "looks_like",
+    "parse",
+    "path_moves",
+    "save",
+    "scenario_name",
+    "submission",
+]
