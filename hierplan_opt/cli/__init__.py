@@ -4,8 +4,9 @@ Each subcommand lives in its own module of this package with ``HELP``,
 ``add_arguments(parser)`` and ``run(args) -> int``; :data:`COMMANDS` lists them in the
 order ``--help`` shows. Heavy imports happen inside ``run``.
 
-Exit codes: 0 success, 1 plan invalid, 2 bad input or usage, 3 proven infeasible,
-4 limit reached without a plan.
+Exit codes: 0 success, 1 plan invalid, 2 bad input or usage (also an output that
+cannot be written), 3 proven infeasible, 4 limit reached without a plan; 70 only for an
+internal bug.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from hierplan_opt.cli.common import BAD_INPUT, INTERNAL, one_line_errors
+from hierplan_opt import __version__
+from hierplan_opt.cli.common import BAD_INPUT, INTERNAL, apply_limits, one_line_errors
 from hierplan_opt.core.errors import HierplanError
 
 COMMANDS = (
@@ -26,6 +28,7 @@ COMMANDS = (
     "verify",
     "post",
     "refine",
+    "convert",
     "simulate",
     "run",
     "bench",
@@ -45,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
     parser.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     parser.add_argument("--debug", action="store_true", help="show tracebacks of internal errors")
+    parser.add_argument("--version", action="version", version=f"hierplan {__version__}")
     one_line_errors(parser, "hierplan")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
@@ -64,13 +68,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
     try:
+        apply_limits(args)
         return int(args._run(args))
     except HierplanError as exc:
         print(f"hierplan {args.command}: error: {exc}", file=sys.stderr)
         return BAD_INPUT
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        where = f": {exc.filename}" if exc.filename else ""
-        print(f"hierplan {args.command}: error: {exc.strerror}{where}", file=sys.stderr)
+    except OSError as exc:
+        # a file the command reads or writes (every reader and writer of the package
+        # turns these into one-line errors already; this catches the rest)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"hierplan {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return BAD_INPUT
     except KeyboardInterrupt:
         print(f"hierplan {args.command}: interrupted", file=sys.stderr)

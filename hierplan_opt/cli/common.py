@@ -1,13 +1,24 @@
-"""Pieces shared by the subcommands: exit codes and instance arguments."""
+"""Pieces shared by the subcommands: exit codes, instance arguments, output checks.
+
+Every command that writes files checks all its outputs before any work with
+:func:`check_outputs` (missing folder, parent that is a file, a device such as
+``/dev/full``, an unsupported extension, an empty name, two options naming one file)
+and writes them with the atomic writers of :mod:`hierplan_opt.io.files`.
+"""
 
 from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Iterable
+from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance
+
+#: Extensions of plan files in the libMultiRobotPlanning layout.
+PLAN_SUFFIXES = (".yaml", ".yml", ".json")
 
 OK = 0
 PLAN_INVALID = 1
@@ -32,13 +43,77 @@ def add_instance_arguments(p: argparse.ArgumentParser) -> None:
         type=positive_int,
         help="use the first K agents of the scenario (default: all)",
     )
+    p.add_argument(
+        "--ignore-scen-map",
+        action="store_true",
+        help="accept a scenario whose map field names another map file",
+    )
+    add_limit_arguments(p)
+
+
+def add_limit_arguments(p: argparse.ArgumentParser) -> None:
+    """``--max-input-mb`` and ``--max-grid-cells``: limits of :mod:`hierplan_opt.io.files`."""
+    g = p.add_argument_group("input limits")
+    g.add_argument(
+        "--max-input-mb",
+        metavar="MB",
+        type=positive_float,
+        help="largest input file read, in MiB (default 64, or HIERPLAN_MAX_INPUT_MB)",
+    )
+    g.add_argument(
+        "--max-grid-cells",
+        metavar="N",
+        type=positive_int,
+        help="largest grid, in cells (default 16777216, or HIERPLAN_MAX_GRID_CELLS)",
+    )
+
+
+def apply_limits(args: argparse.Namespace) -> None:
+    """Put the ``--max-*`` options of :func:`add_limit_arguments` in force."""
+    from dataclasses import replace
+
+    from hierplan_opt.io.files import MB, limits, set_limits
+
+    mb = getattr(args, "max_input_mb", None)
+    cells = getattr(args, "max_grid_cells", None)
+    if mb is None and cells is None:
+        return
+    new = limits()
+    if mb is not None:
+        new = replace(new, max_bytes=max(1, int(mb * MB)))
+    if cells is not None:
+        new = replace(new, max_cells=cells)
+    set_limits(new)
 
 
 def load_instance_from_args(args: argparse.Namespace) -> Instance:
     """Read the instance named by :func:`add_instance_arguments`."""
     from hierplan_opt.io import load_instance
 
-    return load_instance(args.instance, scen=args.scen, agents=args.agents)
+    return load_instance(
+        args.instance,
+        scen=args.scen,
+        agents=args.agents,
+        check_scen_map=not getattr(args, "ignore_scen_map", False),
+    )
+
+
+def check_outputs(*outputs: tuple[str, str | Path | None, Iterable[str] | None]) -> None:
+    """Check every output of a command before any work: ``(option, path, suffixes)``.
+
+    ``path`` None means the option was not given; ``suffixes`` None allows any
+    extension. Raises :class:`~hierplan_opt.core.errors.OutputError` (exit code 2).
+
+    Example
+    -------
+    >>> check_outputs(("--out", "", None))
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OutputError: --out: the file name is empty
+    """
+    from hierplan_opt.io.files import check_outputs as _check
+
+    _check(outputs)
 
 
 def positive_int(text: str) -> int:

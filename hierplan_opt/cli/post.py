@@ -77,12 +77,19 @@ def _clearance(schedule) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt.cli.common import load_instance_from_args
+    from hierplan_opt.cli.common import check_outputs, load_instance_from_args
     from hierplan_opt.core.errors import InputError
     from hierplan_opt.io import load_plan
     from hierplan_opt.schedule import postprocess, replay, to_dot, write_schedule
+    from hierplan_opt.schedule.output import FORMATS
     from hierplan_opt.schedule.replay import check_bounds
+    from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
 
+    check_outputs(
+        ("--out", args.out, FORMATS),
+        ("--dot", args.dot, (".dot", ".gv")),
+        ("--gantt", args.gantt, FIGURE_SUFFIXES),
+    )
     instance = load_instance_from_args(args)
     plan = load_plan(args.plan, instance)
     method = args.method or ("graph" if args.objective == "makespan" else "lp")

@@ -12,7 +12,9 @@ from hierplan_opt.cli.common import (
     INTERNAL,
     LIMIT,
     OK,
+    PLAN_SUFFIXES,
     add_instance_arguments,
+    check_outputs,
     load_instance_from_args,
     positive_float,
 )
@@ -146,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
     from hierplan_opt.core.result import Status
     from hierplan_opt.io import save_plan
 
+    check_outputs(("--out", args.out, PLAN_SUFFIXES))
     texts = parse_pairs(args.set)
     options = registry.get(args.solver).load().options.parse(texts, args.solver)
     if args.w is not None:

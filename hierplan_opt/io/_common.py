@@ -95,6 +95,13 @@ def grid_2d(instance: Instance, what: str) -> Graph:
     return g
 
 
+def grid_xy(graph: Graph, v: int) -> tuple[int, int]:
+    """Column and row ``(x, y)`` of vertex ``v`` of a 2D grid."""
+    assert graph.shape is not None
+    y, x = divmod(int(v), graph.shape[0])
+    return x, y
+
+
 def grid_cell(ctx: Ctx, graph: Graph, x: int, y: int, what: str, line: int | None) -> int:
     """The vertex id of cell ``(x, y)`` of a 2D grid, refusing cells outside the map.
 

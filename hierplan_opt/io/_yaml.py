@@ -136,7 +136,7 @@ def read_yaml(path: str | Path, text: str | None = None) -> Any:
         error = _yaml_error(name, exc)
     if name.lower().endswith(".json"):
         # JSON that YAML 1.1 does not read (tabs, ...): plain data, without line numbers
-        _check_depth(text, name)
+        check_nesting(text, name)
         try:
             return json.loads(text)
         except json.JSONDecodeError as exc:
@@ -148,7 +148,7 @@ def read_yaml(path: str | Path, text: str | None = None) -> Any:
 
 def _load(text: str, name: str) -> Any:
     """Compose, check nesting and aliases, then construct (one document)."""
-    _check_depth(text, name)
+    check_nesting(text, name)
     loader = _Loader(text)
     try:
         node = loader.get_single_node()
@@ -165,8 +165,8 @@ _OPEN[[ord("["), ord("{")]] = 1
 _OPEN[[ord("]"), ord("}")]] = -1
 
 
-def _check_depth(text: str, name: str) -> None:
-    """Refuse nesting deeper than the limit before the (recursive, C) composer sees it.
+def check_nesting(text: str, name: str) -> None:
+    """Refuse YAML/JSON nesting deeper than the limit before a recursive parser sees it.
 
     A cheap upper bound comes first: bracket depth plus, per line, indentation and
     compact ``- `` / ``? `` markers. Only when it exceeds the limit are the parser's
@@ -194,7 +194,13 @@ def _check_depth(text: str, name: str) -> None:
             elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
     except yaml.YAMLError:
-        return  # the loader reports the syntax error with its line
+        # not YAML (JSON with tabs, or a syntax error the loader will report): the
+        # bracket depth is all a JSON parser can recurse on
+        if flow > cap:
+            raise InputError(
+                f"{name}: nesting is deeper than {cap} levels; an instance or plan file "
+                "never needs that"
+            ) from None
 
 
 def _block_bound(text: str) -> int:

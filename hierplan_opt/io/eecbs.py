@@ -18,7 +18,7 @@ from pathlib import Path
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.io._common import grid_2d, grid_cell
+from hierplan_opt.io._common import grid_2d, grid_cell, grid_xy
 from hierplan_opt.io._yaml import Ctx
 
 _AGENT = re.compile(r"\s*Agent\s+(\d+)\s*:(.*)$")
@@ -112,7 +112,7 @@ def dumps(instance: Instance, plan: Plan) -> str:
     for i, path in enumerate(plan.trimmed().paths):
         cells = []
         for v in path:
-            x, y = graph.location(v)  # type: ignore[misc]
+            x, y = grid_xy(graph, v)
             cells.append(f"({y},{x})->")
         out.append(f"Agent {i}: " + "".join(cells))
     return "\n".join(out) + "\n"

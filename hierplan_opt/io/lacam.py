@@ -30,7 +30,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.io._common import grid_2d, grid_cell
+from hierplan_opt.io._common import grid_2d, grid_cell, grid_xy
 from hierplan_opt.io._yaml import Ctx
 
 _KEY = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)=(.*)$")
@@ -182,7 +182,7 @@ def dumps(
         map_file = Path(str(instance.meta.get("map", f"{instance.name}.map"))).name
 
     def cell(v: int) -> str:
-        x, y = graph.location(v)  # type: ignore[misc]
+        x, y = grid_xy(graph, v)
         return f"({x},{y}),"
 
     head = {

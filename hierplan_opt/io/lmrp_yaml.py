@@ -35,6 +35,7 @@ agents sharing them, are refused. An agent with a plain ``goal`` next to agents 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -387,3 +388,77 @@ def looks_like(data: Any) -> bool:
     if not isinstance(data, dict) or "agents" not in data:
         return False
     return "map" in data or "roadmap" in data
+
+
+# ---------------------------------------------------------------- schedules
+def schedule_document(schedule: Any) -> dict[str, Any]:
+    """A MAPF-POST schedule in the layout libMultiRobotPlanning's ``visualize.py`` animates.
+
+    ``schedule`` is a :class:`~hierplan_opt.schedule.Schedule` (anything with
+    ``to_dict()``) or the plain data of a schedule file
+    (:func:`~hierplan_opt.schedule.read_schedule`). Every way-point becomes
+    ``{x, y, [z,] t}`` with ``t`` its arrival time in seconds; the visualiser moves a
+    robot in a straight line between consecutive way-points, as the schedule means.
+
+    Example
+    -------
+    >>> doc = {"statistics": {"makespan": 2.5},
+    ...        "schedule": {"a": [{"x": 0, "y": 0, "theta": 0.0, "arrival": 0.0},
+    ...                           {"x": 1, "y": 0, "theta": 0.0, "arrival": 2.5}]}}
+    >>> schedule_document(doc)["schedule"]["a"][1]
+    {'x': 1, 'y': 0, 't': 2.5}
+    """
+    data = schedule.to_dict() if hasattr(schedule, "to_dict") else schedule
+    if not isinstance(data, dict) or not isinstance(data.get("schedule"), dict):
+        raise InputError("not a schedule: expected {statistics: ..., schedule: {agent: [...]}}")
+    out: dict[str, list[dict[str, Any]]] = {}
+    for name, points in data["schedule"].items():
+        if not isinstance(points, list):
+            raise InputError(f"schedule of {name!r} must be a list of way-points")
+        rows = []
+        for k, p in enumerate(points):
+            if not isinstance(p, dict) or "arrival" not in p or "x" not in p or "y" not in p:
+                raise InputError(f"way-point {k} of {name!r} needs x, y and arrival")
+            row = {a: p[a] for a in ("x", "y", "z") if a in p}
+            row["t"] = p["arrival"]
+            rows.append(row)
+        out[str(name)] = rows
+    stats = data.get("statistics") or {}
+    return {"statistics": dict(stats), "schedule": out}
+
+
+def save_schedule(path: str | Path, schedule: Any) -> None:
+    """Write :func:`schedule_document` of ``schedule`` as YAML (atomically).
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> f = os.path.join(tempfile.mkdtemp(), "anim.yaml")
+    >>> save_schedule(f, {"schedule": {"a": [{"x": 0, "y": 0, "arrival": 0.0}]}})
+    >>> print(open(f).read(), end="")
+    statistics: {}
+    schedule:
+      a:
+      - {x: 0, y: 0, t: 0.0}
+    """
+    import yaml
+
+    doc = schedule_document(schedule)
+    lines = [yaml.safe_dump({"statistics": doc["statistics"]}, sort_keys=False).rstrip()]
+    lines.append("schedule:")
+    for name, rows in doc["schedule"].items():
+        lines.append(f"  {yaml_scalar(name)}:")
+        for r in rows:
+            lines.append("  - {" + ", ".join(f"{k}: {_number(v)}" for k, v in r.items()) + "}")
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def _number(v: Any) -> str:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise InputError(f"a way-point coordinate or time must be a number, got {v!r}")
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    f = float(v)
+    if not math.isfinite(f):
+        raise InputError(f"a way-point coordinate or time is not finite: {f!r}")
+    return repr(f)

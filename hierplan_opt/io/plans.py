@@ -79,7 +79,9 @@ def load_plan(path: str | Path, instance: Instance) -> Plan:
     return read_plan(path, instance)[0]
 
 
-def read_plan(path: str | Path, instance: Instance) -> tuple[Plan, dict[str, Any]]:
+def read_plan(
+    path: str | Path, instance: Instance, text: str | None = None
+) -> tuple[Plan, dict[str, Any]]:
     """A plan file's plan and statistics; the format is recognised by the content.
 
     - the libMultiRobotPlanning layout (YAML or JSON, as :func:`save_plan` writes):
@@ -91,7 +93,8 @@ def read_plan(path: str | Path, instance: Instance) -> tuple[Plan, dict[str, Any
     - MAPF Tracker submissions (:mod:`~hierplan_opt.io.tracker`).
 
     Every location must be on the map; other mistakes (blocked cells, jumps,
-    conflicts) are left to :func:`hierplan_opt.validate`.
+    conflicts) are left to :func:`hierplan_opt.validate`. ``text`` is the file's
+    content when the caller has read it already.
 
     Example
     -------
@@ -105,7 +108,8 @@ def read_plan(path: str | Path, instance: Instance) -> tuple[Plan, dict[str, Any
     """
     from hierplan_opt.io import eecbs, lacam, tracker
 
-    text = read_text(path)
+    if text is None:
+        text = read_text(path)
     name = str(path)
     fmt = plan_format(text)
     if fmt == "eecbs":
@@ -416,10 +420,13 @@ def save_plan(
         text = json.dumps(doc, indent=1) + "\n" if fmt == "json" else plan_yaml(doc)
         write_text(p, text)
         return
-    result = result_or_plan if isinstance(result_or_plan, Result) else None
-    plan = result_or_plan.plan if isinstance(result_or_plan, Result) else result_or_plan
-    if plan is None:
-        raise InputError(f"the result has no plan to write (status {result_or_plan.status})")
+    if isinstance(result_or_plan, Result):
+        result: Result | None = result_or_plan
+        plan = result_or_plan.plan
+        if plan is None:
+            raise InputError(f"the result has no plan to write (status {result_or_plan.status})")
+    else:
+        result, plan = None, result_or_plan
     if fmt == "eecbs":
         eecbs.save(p, instance, plan)
     elif fmt == "lacam":

@@ -36,7 +36,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.io._common import grid_2d
+from hierplan_opt.io._common import grid_2d, grid_xy
 from hierplan_opt.io._yaml import Ctx
 
 FIELDS = (
@@ -143,7 +143,7 @@ def path_moves(graph: Graph, path: tuple[int, ...]) -> str:
 
     out = []
     for a, b in zip(path[: path_cost(path) + 1], path[1 : path_cost(path) + 1], strict=False):
-        (ax, ay), (bx, by) = graph.location(a), graph.location(b)  # type: ignore[misc]
+        (ax, ay), (bx, by) = grid_xy(graph, a), grid_xy(graph, b)
         letter = _LETTER.get((bx - ax, by - ay))
         if letter is None:
             raise InputError(
@@ -240,7 +240,7 @@ def dumps(sub: Submission, fmt: str = "csv") -> str:
         buf = io.StringIO()
         w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
         w.writeheader()
-        w.writerow({k: "" if v is None else v for k, v in row.items()})
+        w.writerow({k: "" if row[k] is None else row[k] for k in FIELDS})
         return buf.getvalue()
     if fmt == "json":
         return json.dumps(row, indent=1) + "\n"
@@ -356,7 +356,7 @@ def _walk(
 ) -> tuple[int, ...]:
     assert graph.shape is not None
     width, height = graph.shape
-    x, y = graph.location(start)  # type: ignore[misc]
+    x, y = grid_xy(graph, start)
     path = [start]
     for t, c in enumerate(moves, start=1):
         dx, dy = MOVES[c]
@@ -382,9 +382,9 @@ def _rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
 
 
 def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-    from hierplan_opt.io._yaml import _check_depth
+    from hierplan_opt.io._yaml import check_nesting
 
-    _check_depth(text, name)
+    check_nesting(text, name)
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:

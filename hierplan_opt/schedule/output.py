@@ -384,10 +384,14 @@ def read_schedule(path: str | Path) -> dict[str, Any]:
     CSV rows come back with the same keys as YAML (``x, y, [z,] theta, arrival``) plus
     ``earliest, latest, slack, kind``.
     """
+    from hierplan_opt.io._yaml import check_nesting, read_yaml
+    from hierplan_opt.io.files import read_text
+
     path = Path(path)
-    text = path.read_text()
+    text = read_text(path)  # regular files within the size limit only
     ext = path.suffix.lower()
     if ext == ".json":
+        check_nesting(text, str(path))
         data = json.loads(text)
     elif ext == ".csv":
         stats: dict[str, Any] = {}
@@ -408,9 +412,7 @@ def read_schedule(path: str | Path) -> dict[str, Any]:
             sched.setdefault(name, []).append(rec)
         data = {"statistics": stats, "schedule": sched}
     else:
-        import yaml
-
-        data = yaml.safe_load(text)
+        data = read_yaml(path, text)  # nesting and alias limits
     if not isinstance(data, dict) or "schedule" not in data:
         raise InputError(f"{path}: not a schedule file (no 'schedule' key)")
     return data

@@ -3,21 +3,50 @@
 Each robot is one row. For every vertex way-point a bar spans its arrival window
 ``[earliest, latest]`` (its slack, latest against the makespan); a tick marks the
 scheduled arrival. Markers are drawn as thin ticks, and the critical path is red.
+
+Nothing here selects a matplotlib backend or changes pyplot's state.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from hierplan_opt.schedule.output import Schedule
 
+#: File types :func:`plot_gantt` can save (matplotlib's own writers, no LaTeX needed).
+FIGURE_SUFFIXES = (
+    ".png",
+    ".pdf",
+    ".svg",
+    ".svgz",
+    ".jpg",
+    ".jpeg",
+    ".eps",
+    ".ps",
+    ".tif",
+    ".tiff",
+    ".webp",
+)
 
-def plot_gantt(schedule: Schedule, path: str | Path | None = None, *, max_agents: int = 60):
-    """Draw the Gantt chart; save it to ``path`` (PNG by extension) when given.
 
-    Returns the matplotlib ``Figure``. Only the first ``max_agents`` robots are shown.
+def plot_gantt(
+    schedule: Schedule,
+    path: str | Path | None = None,
+    *,
+    ax: Any = None,
+    max_agents: int = 60,
+):
+    """Draw the Gantt chart of ``schedule``; return the matplotlib ``Figure``.
+
+    Like other matplotlib-based libraries it never selects a backend or changes
+    matplotlib's global state: with ``ax`` it draws into that Axes; with ``path`` only
+    (a file to save, type by extension, see :data:`FIGURE_SUFFIXES`) it builds a
+    stand-alone ``Figure`` that pyplot does not track, saves it atomically and returns
+    it; with neither it makes a new pyplot figure, which Jupyter shows. Only the first
+    ``max_agents`` robots are drawn.
 
     Example
     -------
@@ -33,14 +62,33 @@ def plot_gantt(schedule: Schedule, path: str | Path | None = None, *, max_agents
     ...     os.path.getsize(os.path.join(d, "g.png")) > 0
     True
     """
-    import matplotlib
+    from hierplan_opt.io.files import atomic_path, check_output
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    if path is not None:
+        check_output(path, what="Gantt chart", suffixes=FIGURE_SUFFIXES)
     K = min(schedule.num_agents, max_agents)
+    size = (10.0, 1.0 + 0.35 * K)
+    if ax is not None:
+        fig = ax.figure
+    elif path is not None:
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=size)
+        ax = fig.subplots()
+    else:
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=size)
+    _draw(schedule, ax, K)
+    fig.tight_layout()
+    if path is not None:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=100)
+    return fig
+
+
+def _draw(schedule: Schedule, ax: Any, K: int) -> None:
     crit = set(schedule.critical_path)
-    fig, ax = plt.subplots(figsize=(10, 1.0 + 0.35 * K))
     for j in range(K):
         wp = schedule.waypoints[j]
         y = K - 1 - j
@@ -67,8 +115,3 @@ def plot_gantt(schedule: Schedule, path: str | Path | None = None, *, max_agents
         f"{schedule.objective} schedule ({schedule.method}): makespan "
         f"{schedule.makespan:.3g} s; bars = arrival windows (slack), red = critical path"
     )
-    fig.tight_layout()
-    if path is not None:
-        fig.savefig(str(path), dpi=100)
-        plt.close(fig)
-    return fig

@@ -338,8 +338,6 @@ def plot_instance(
 
     Example
     -------
-    >>> import matplotlib
-    >>> matplotlib.use("Agg")
     >>> import matplotlib.pyplot as plt
     >>> from hierplan_opt.core.graph import Graph
     >>> inst = Instance.mapf(Graph.grid(4, 3, obstacles=[(1, 1)]), [(0, 0)], [(3, 2)])
@@ -436,8 +434,7 @@ def plot_plan(
 
     Example
     -------
-    >>> import matplotlib, os, tempfile
-    >>> matplotlib.use("Agg")
+    >>> import os, tempfile
     >>> import matplotlib.pyplot as plt
     >>> import hierplan_opt as hp
     >>> g = hp.Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
@@ -581,8 +578,6 @@ def plot_layers(
 
     Example
     -------
-    >>> import matplotlib
-    >>> matplotlib.use("Agg")
     >>> import matplotlib.pyplot as plt
     >>> from hierplan_opt.core.graph import Graph
     >>> inst = Instance.mapf(Graph.grid(3, 3, 2), [(0, 0, 0)], [(2, 2, 1)])
@@ -702,8 +697,6 @@ def plot_runtime_table(
 
     Example
     -------
-    >>> import matplotlib
-    >>> matplotlib.use("Agg")
     >>> import matplotlib.pyplot as plt
     >>> rows = [{"solver": s, "agents": k, "runtime": t * k, "status": "OPTIMAL"}
     ...         for s, t in (("cbs", 0.01), ("mip", 1.0)) for k in (2, 4, 8)]
