@@ -67,6 +67,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
+    from hierplan_opt.io.files import limits, set_limits
+
+    try:
+        before = limits()  # HIERPLAN_MAX_* from the environment
+    except HierplanError as exc:
+        print(f"hierplan {args.command}: error: {exc}", file=sys.stderr)
+        return BAD_INPUT
     try:
         apply_limits(args)
         return int(args._run(args))
@@ -91,3 +98,5 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return INTERNAL
+    finally:
+        set_limits(before)

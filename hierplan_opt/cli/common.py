@@ -28,11 +28,16 @@ LIMIT = 4
 INTERNAL = 70  # EX_SOFTWARE: a bug in hierplan, never a user error
 
 
-def add_instance_arguments(p: argparse.ArgumentParser) -> None:
-    """``INSTANCE [--scen FILE --agents K]``: a YAML instance, or a .map with a .scen."""
+def add_instance_arguments(p: argparse.ArgumentParser, *, optional: bool = False) -> None:
+    """``INSTANCE [--scen FILE --agents K]``: a YAML instance, or a .map with a .scen.
+
+    Also ``--ignore-scen-map`` and the input limits. ``optional`` makes INSTANCE
+    optional (``hierplan info --solvers``).
+    """
     p.add_argument(
         "instance",
         metavar="INSTANCE",
+        nargs="?" if optional else None,
         help="instance file: a YAML instance (own or libMultiRobotPlanning format) or a "
         "MovingAI .map (then --scen is required)",
     )

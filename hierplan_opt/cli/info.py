@@ -4,24 +4,14 @@ from __future__ import annotations
 
 import argparse
 
-from hierplan_opt.cli.common import OK, positive_int
+from hierplan_opt.cli.common import OK, add_instance_arguments
 from hierplan_opt.core.errors import InputError
 
 HELP = "describe an instance (size, agents, lower bounds, quick infeasibility) or the solvers"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    # Like common.add_instance_arguments, but INSTANCE is optional with --solvers.
-    p.add_argument(
-        "instance",
-        metavar="INSTANCE",
-        nargs="?",
-        help="instance file: a YAML instance or a MovingAI .map (then --scen is required)",
-    )
-    p.add_argument("--scen", metavar="FILE", help="MovingAI .scen file for a .map instance")
-    p.add_argument(
-        "--agents", metavar="K", type=positive_int, help="use the first K agents (default: all)"
-    )
+    add_instance_arguments(p, optional=True)  # INSTANCE is optional with --solvers
     p.add_argument(
         "--solvers",
         action="store_true",
