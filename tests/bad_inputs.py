@@ -154,7 +154,8 @@ INSTANCE: dict[str, Writer] = {
         "graph: {dimensions: [1000000, 1000000]}\nagents: [{start: [0, 0], goal: [1, 0]}]\n"
     ),
     "dims-3d-huge": _text(
-        "graph: {dimensions: [100000, 100000, 100000]}\nagents: [{start: [0, 0, 0], goal: [1, 0, 0]}]\n"
+        "graph: {dimensions: [100000, 100000, 100000]}\n"
+        "agents: [{start: [0, 0, 0], goal: [1, 0, 0]}]\n"
     ),
     "dims-float-inf": _text(
         "graph: {dimensions: [.inf, 1]}\nagents: [{start: [0, 0], goal: [0, 0]}]\n"
@@ -169,7 +170,8 @@ INSTANCE: dict[str, Writer] = {
     "name-alias-bomb-lmrp": _name_bomb_lmrp,
     "start-outside": _text("map: {dimensions: [3, 1]}\nagents: [{start: [7, 0], goal: [1, 0]}]\n"),
     "start-huge": _text(
-        "map: {dimensions: [3, 1]}\nagents: [{start: [100000000000000000000000, 0], goal: [1, 0]}]\n"
+        "map: {dimensions: [3, 1]}\n"
+        "agents: [{start: [100000000000000000000000, 0], goal: [1, 0]}]\n"
     ),
     "start-on-obstacle": _text(
         "map: {dimensions: [3, 1], obstacles: [[0, 0]]}\nagents: [{start: [0, 0], goal: [1, 0]}]\n"
@@ -191,7 +193,8 @@ INSTANCE: dict[str, Writer] = {
         "agents: [{name: a, start: A, goal: B}]\n"
     ),
     "roadmap-unknown-vertex": _text(
-        "roadmap: {vertices: {A: [0, 0]}, edges: [[A, Z]]}\nagents: [{name: a, start: A, goal: A}]\n"
+        "roadmap: {vertices: {A: [0, 0]}, edges: [[A, Z]]}\n"
+        "agents: [{name: a, start: A, goal: A}]\n"
     ),
     "roadmap-nan": _text(
         "graph: {type: roadmap, vertices: {A: [.nan, 0], B: [1, 0]}, edges: [[A, B]]}\n"
@@ -203,7 +206,8 @@ INSTANCE: dict[str, Writer] = {
         "  - {name: b, start: [1, 0], potentialGoals: [[3, 0]]}\n"
     ),
     "teams-count-mismatch": _text(
-        "graph: {dimensions: [4, 1]}\nteams: [{agents: [{start: [0, 0]}], targets: [[2, 0], [3, 0]]}]\n"
+        "graph: {dimensions: [4, 1]}\n"
+        "teams: [{agents: [{start: [0, 0]}], targets: [[2, 0], [3, 0]]}]\n"
     ),
     "format-tag": _text(
         "format: hierplan/9\ngraph: {dimensions: [3, 1]}\nagents: [{start: [0, 0], goal: [1, 0]}]\n"
