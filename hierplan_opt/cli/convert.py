@@ -74,11 +74,15 @@ def _target(args: argparse.Namespace, kind: str) -> str:
         to = guess.get(ext)
         if to is None:
             raise InputError(
-                f"--out {args.out}: give --to ({', '.join(allowed[kind])}) for a {kind}"
+                f"--out {args.out}: give --to ({', '.join(allowed[kind])}) for {_a(kind)}"
             )
     if to not in allowed[kind]:
-        raise InputError(f"--to {to} does not apply to a {kind} (use {', '.join(allowed[kind])})")
+        raise InputError(f"--to {to} does not apply to {_a(kind)} (use {', '.join(allowed[kind])})")
     return to
+
+
+def _a(kind: str) -> str:
+    return f"an {kind}" if kind[0] in "aeiou" else f"a {kind}"
 
 
 def run(args: argparse.Namespace) -> int:
