@@ -16,7 +16,12 @@ HELP = "check a plan file against an instance (prints 'valid' with costs, or the
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
-    p.add_argument("plan", metavar="PLAN", help="plan file (libMultiRobotPlanning layout)")
+    p.add_argument(
+        "plan",
+        metavar="PLAN",
+        help="plan file: libMultiRobotPlanning layout (YAML/JSON), EECBS / CBSH2-RTC paths, "
+        "LaCAM result or MAPF Tracker submission",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
