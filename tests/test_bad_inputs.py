@@ -96,31 +96,28 @@ def test_bad_input_in_process(
     check(case, code, out, err, watch, tmp_path)
 
 
-def _run(argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = {**os.environ, "PYTHONFAULTHANDLER": "1"}
-    return subprocess.run(
+def run_process(case: Case, d: Path) -> None:
+    """Run ``case`` as its own ``hierplan`` process and check it (never a signal)."""
+    argv, watch = build(case, d)
+    proc = subprocess.run(
         [sys.executable, "-m", "hierplan_opt", *argv],
         capture_output=True,
         text=True,
         timeout=TIMEOUT,
-        cwd=cwd,
-        env=env,
+        cwd=d,
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"},
         check=False,
     )
+    assert proc.returncode >= 0, f"{case.id}: killed by signal {-proc.returncode}"
+    check(case, proc.returncode, proc.stdout, proc.stderr, watch, d)
 
 
 @pytest.mark.parametrize("case", _params(SUBPROCESS, fast=True))
 def test_bad_input_subprocess(case: Case, tmp_path: Path) -> None:
-    argv, watch = build(case, tmp_path)
-    proc = _run(argv, tmp_path)
-    assert proc.returncode >= 0, f"{case.id}: killed by signal {-proc.returncode}"
-    check(case, proc.returncode, proc.stdout, proc.stderr, watch, tmp_path)
+    run_process(case, tmp_path)
 
 
 @pytest.mark.parametrize("case", _params(IN_PROCESS, fast=False))
 def test_bad_input_whole_process(case: Case, tmp_path: Path) -> None:
     """The in-process cases again, each as its own ``hierplan`` process."""
-    argv, watch = build(case, tmp_path)
-    proc = _run(argv, tmp_path)
-    assert proc.returncode >= 0, f"{case.id}: killed by signal {-proc.returncode}"
-    check(case, proc.returncode, proc.stdout, proc.stderr, watch, tmp_path)
+    run_process(case, tmp_path)

@@ -337,13 +337,7 @@ def plan_document(instance: Instance, result_or_plan: Result | Plan) -> dict[str
     >>> plan_document(inst, Plan.from_paths([[0, 1]]))["schedule"]["agent0"][1]
     {'x': 1, 'y': 0, 't': 1}
     """
-    if isinstance(result_or_plan, Result):
-        result: Result | None = result_or_plan
-        plan = result_or_plan.plan
-        if plan is None:
-            raise InputError(f"the result has no plan to write (status {result_or_plan.status})")
-    else:
-        result, plan = None, result_or_plan
+    result, plan = _result_and_plan(result_or_plan)
     if plan.num_agents != instance.num_agents:
         raise InputError(f"the plan has {plan.num_agents} paths for {instance.num_agents} agents")
     stats: dict[str, Any] = {"soc": plan.sum_of_costs, "makespan": plan.makespan}
@@ -376,6 +370,15 @@ def plan_document(instance: Instance, result_or_plan: Result | Plan) -> dict[str
                 entries.append(e)
         schedule[a.name] = entries
     return {"statistics": stats, "schedule": schedule}
+
+
+def _result_and_plan(result_or_plan: Result | Plan) -> tuple[Result | None, Plan]:
+    """``(result, plan)`` of a solver result, or ``(None, plan)``; a result needs a plan."""
+    if isinstance(result_or_plan, Result):
+        if result_or_plan.plan is None:
+            raise InputError(f"the result has no plan to write (status {result_or_plan.status})")
+        return result_or_plan, result_or_plan.plan
+    return None, result_or_plan
 
 
 def save_plan(
@@ -420,13 +423,7 @@ def save_plan(
         text = json.dumps(doc, indent=1) + "\n" if fmt == "json" else plan_yaml(doc)
         write_text(p, text)
         return
-    if isinstance(result_or_plan, Result):
-        result: Result | None = result_or_plan
-        plan = result_or_plan.plan
-        if plan is None:
-            raise InputError(f"the result has no plan to write (status {result_or_plan.status})")
-    else:
-        result, plan = None, result_or_plan
+    result, plan = _result_and_plan(result_or_plan)
     if fmt == "eecbs":
         eecbs.save(p, instance, plan)
     elif fmt == "lacam":
