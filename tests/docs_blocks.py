@@ -10,14 +10,18 @@ From ``README.md``, ``docs/*.md``, ``formulations/*.md``, ``instances/README.md`
 - untagged or ```` ```console ```` blocks whose lines start with ``$ ``: the command and
   the output it must print (``..`` matches anything);
 - ```` ```yaml ```` blocks that are instances (a top-level ``graph:``, or ``map:`` /
-  ``roadmap:`` with ``agents:``): loaded with ``load_instance``.
+  ``roadmap:`` with ``agents:``): loaded with ``load_instance``; a YAML block whose
+  first line is a comment naming a file (``# cmp.yaml -- ...``) is written to that file,
+  for the commands after it, as a reader would.
 
-Blocks that mention placeholders (``INSTANCE``, ``[--scen FILE ...]``) are usage
-synopses, not commands; other untagged blocks are pictures, tables or output.
+Commands that mention placeholders (``INSTANCE``, ``NAME.py``, ``[--scen FILE ...]``)
+are usage synopses, not commands; other untagged blocks are pictures, tables or output.
 
 Markers, an HTML comment on the line before the fence:
 
 - ``<!-- docs-test: slow (why) -->``: the block runs only under ``pytest -m slow``;
+- ``<!-- docs-test: manual (why) -->``: the block cannot run unattended (it starts a
+  server, opens an editor); it is listed, with its reason, but not run;
 - the README's ``<!-- setup:install -->`` and ``<!-- setup:test -->`` blocks are what
   ``.ci/run`` runs on a fresh machine; here the install block runs without creating the
   virtual environment (``.venv`` is this interpreter's), and the test block, the test
@@ -41,7 +45,8 @@ SOURCES = (
 )
 
 _FENCE = re.compile(r"^```([A-Za-z0-9_-]*)\s*$")
-_MARK = re.compile(r"<!--\s*docs-test:\s*(\w+)\b[^>]*-->")
+_MARK = re.compile(r"<!--\s*docs-test:\s*(\w+)\b\s*([^>]*?)\s*-->")
+_FILE = re.compile(r"^#\s*([\w.-]+\.ya?ml)\b")
 _SETUP = re.compile(r"<!--\s*setup:(\w+)\s*-->")
 _COMMAND = re.compile(r"^(hierplan|python3?|\.venv/bin/\S+|[A-Z_]+=\S+ hierplan)\b")
 _PLACEHOLDER = re.compile(r"\b[A-Z][A-Z_]{2,}\b(?!=)|\[--|\.\.\.")
@@ -53,19 +58,20 @@ class Block:
 
     file: str  # relative to the repository
     line: int  # of the command or the fence
-    kind: str  # python, shell, console, instance, setup
+    kind: str  # python, shell, console, instance, file, setup, manual
     text: str  # the code, one command, or the instance YAML
     expected: tuple[str, ...] = ()  # console blocks: the output lines
     slow: bool = False
     setup: str = ""  # the README set-up block's name
+    note: str = ""  # a file block's file name, a manual block's reason
 
     @property
     def id(self) -> str:
         return f"{self.file}:{self.line}"
 
 
-def _fences(text: str) -> list[tuple[int, str, list[str], str]]:
-    """``(line, language, lines, marker)`` of every fenced block."""
+def _fences(text: str) -> list[tuple[int, str, list[str], str, str]]:
+    """``(line, language, lines, marker, reason)`` of every fenced block."""
     out = []
     lines = text.splitlines()
     i = 0
@@ -79,12 +85,12 @@ def _fences(text: str) -> list[tuple[int, str, list[str], str]]:
         while j < len(lines) and not lines[j].startswith("```"):
             j += 1
         before = " ".join(lines[max(0, i - 2) : i])
-        marker = ""
+        marker = reason = ""
         if (mm := _MARK.search(before)) is not None:
-            marker = mm.group(1)
+            marker, reason = mm.group(1), mm.group(2).strip("() ")
         if (sm := _SETUP.search(lines[i - 1] if i else "")) is not None:
             marker = "setup:" + sm.group(1)
-        out.append((start, lang, lines[i + 1 : j], marker))
+        out.append((start, lang, lines[i + 1 : j], marker, reason))
         i = j + 1
     return out
 
@@ -114,8 +120,13 @@ def blocks() -> list[Block]:
     files = sorted({p for pattern in SOURCES for p in ROOT.glob(pattern)})
     for path in files:
         rel = str(path.relative_to(ROOT))
-        for start, lang, lines, marker in _fences(path.read_text(encoding="utf-8")):
+        for start, lang, lines, marker, reason in _fences(path.read_text(encoding="utf-8")):
             slow = marker == "slow"
+            if marker == "manual":
+                out.append(Block(rel, start, "manual", "\n".join(lines), note=reason))
+                continue
+            if marker and marker != "slow" and not marker.startswith("setup:"):
+                raise AssertionError(f"{rel}:{start}: unknown docs-test marker {marker!r}")
             if marker.startswith("setup:"):
                 cmds = _commands(lines, start)
                 out += [Block(rel, n, "setup", c, setup=marker.split(":", 1)[1]) for n, c in cmds]
@@ -124,7 +135,9 @@ def blocks() -> list[Block]:
                 out.append(Block(rel, start, "python", "\n".join(lines), slow=slow))
             elif lang == "yaml":
                 body = "\n".join(lines)
-                if re.search(r"(?m)^graph:", body) or (
+                if lines and (fm := _FILE.match(lines[0])) is not None:
+                    out.append(Block(rel, start, "file", body, slow=slow, note=fm.group(1)))
+                elif re.search(r"(?m)^graph:", body) or (
                     re.search(r"(?m)^(map|roadmap):", body) and re.search(r"(?m)^agents:", body)
                 ):
                     out.append(Block(rel, start, "instance", body, slow=slow))
@@ -132,16 +145,14 @@ def blocks() -> list[Block]:
                 out += _console(rel, start, lines, slow)
             elif lang in ("bash", "sh", ""):
                 cmds = _commands(lines, start)
-                if not cmds or any(_PLACEHOLDER.search(c) for _, c in cmds):
-                    if lang:
-                        raise AssertionError(
-                            f"{rel}:{start}: a {lang} block with placeholders; "
-                            "untag it if it is a synopsis"
-                        )
-                    continue
-                if lang == "" and not all(_COMMAND.match(c) for _, c in cmds):
-                    continue  # a picture, a table, output
-                out += [Block(rel, n, "shell", c, slow=slow) for n, c in cmds]
+                if lang == "" and (
+                    not cmds
+                    or any(_PLACEHOLDER.search(c) for _, c in cmds)
+                    or not all(_COMMAND.match(c) for _, c in cmds)
+                ):
+                    continue  # a synopsis, a picture, a table, output
+                runnable = [(n, c) for n, c in cmds if not _PLACEHOLDER.search(c)]
+                out += [Block(rel, n, "shell", c, slow=slow) for n, c in runnable]
     return out
 
 
@@ -162,4 +173,4 @@ def _console(rel: str, start: int, lines: list[str], slow: bool) -> list[Block]:
 
 if __name__ == "__main__":  # pragma: no cover
     for b in blocks():
-        print(b.id, b.kind, "slow" if b.slow else "", b.text.splitlines()[0][:70])
+        print(b.id, b.kind, "slow" if b.slow else "", (b.text.splitlines() or [""])[0][:70])

@@ -74,6 +74,8 @@ def _params() -> list[object]:
     for b in BLOCKS:
         if b.kind == "setup" and b.setup == "test":
             continue  # the test suite itself: .ci/run runs it (test_setup_blocks)
+        if b.kind == "manual":
+            continue  # listed by test_manual_blocks
         marks = [pytest.mark.slow] if b.slow else []
         if b.id in KNOWN_BROKEN:
             marks.append(pytest.mark.xfail(reason=KNOWN_BROKEN[b.id], strict=True))
@@ -90,6 +92,13 @@ def test_setup_blocks() -> None:
     assert "block install" in ci and "block test" in ci
 
 
+def test_manual_blocks() -> None:
+    """Blocks that cannot run unattended say why, and stay few."""
+    manual = [b for b in BLOCKS if b.kind == "manual"]
+    assert all(b.note for b in manual), [b.id for b in manual if not b.note]
+    assert len(manual) <= 3, [b.id for b in manual]
+
+
 def test_blocks_found() -> None:
     kinds = {b.kind for b in BLOCKS}
     assert {"python", "shell", "console", "instance", "setup"} <= kinds
@@ -102,6 +111,9 @@ def test_blocks_found() -> None:
 def test_doc_block(block: Block, tmp_path_factory: pytest.TempPathFactory) -> None:
     d = folder(block, tmp_path_factory)
     where = f"{block.id} ({block.kind})"
+    if block.kind == "file":
+        (d / block.note).write_text(block.text)
+        return
     if block.kind == "instance":
         f = d / f"block_{block.line}.yaml"
         f.write_text(block.text)
