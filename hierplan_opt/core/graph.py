@@ -209,9 +209,15 @@ class Graph:
                     raise InputError(f"roadmap edge {[u, v]} has bad length {length!r}")
                 length = float(length)
             else:
-                length = float(np.linalg.norm(coords[a] - coords[b]))
+                # math.dist scales like hypot: no overflow (nor numpy warning) on 1e308
+                length = math.dist(coords[a].tolist(), coords[b].tolist())
                 if length <= 0:
                     raise InputError(f"roadmap edge {[u, v]} joins two vertices at one position")
+                if not math.isfinite(length):
+                    raise InputError(
+                        f"roadmap edge {[u, v]} is longer than the largest float; "
+                        "scale the coordinates down"
+                    )
             pairs = [(a, b)] if directed else [(a, b), (b, a)]
             for p, q in pairs:
                 if (p, q) in seen:

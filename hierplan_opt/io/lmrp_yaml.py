@@ -351,7 +351,7 @@ def _roadmap_lines(g: Graph) -> list[str]:
     for u, v in g.edges():
         if not g.directed and u > v:
             continue
-        euclid = float(np.linalg.norm(g.coords[u] - g.coords[v]))
+        euclid = math.dist(g.coords[u].tolist(), g.coords[v].tolist())
         if abs(g.edge_length(u, v) - euclid) > 1e-12 * max(1.0, euclid):
             raise InputError(
                 f"edge [{g.names[u]}, {g.names[v]}] has a length other than the distance of "

@@ -481,7 +481,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
                 continue
             length = g.edge_length(u, v)
             a, b = yaml_scalar(g.names[u]), yaml_scalar(g.names[v])
-            euclid = float(np.linalg.norm(g.coords[u] - g.coords[v]))
+            euclid = math.dist(g.coords[u].tolist(), g.coords[v].tolist())
             if abs(length - euclid) > 1e-12 * max(1.0, euclid):
                 edges.append(f"    - [{a}, {b}, {_num(length)}]")
             else:
