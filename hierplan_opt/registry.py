@@ -166,11 +166,13 @@ class SolverInfo:
         when the solver cannot take ``instance`` or optimise ``objective``."""
         problem = "tapf" if instance.is_tapf else "mapf"
         if problem not in self.problems:
-            hint = ""
             if problem == "tapf":
                 hint = "; for teams use 'cbm'" + (
                     ", or 'flow' for one team" if len(instance.teams) == 1 else ""
                 )
+            else:
+                fits = [n for n, i in sorted(_REGISTRY.items()) if "mapf" in i.problems]
+                hint = f"; for MAPF use {' or '.join(map(repr, fits))}"
             raise OptionError(
                 f"solver {self.name!r} does not solve {problem.upper()} instances "
                 f"(it solves: {', '.join(sorted(p.upper() for p in self.problems))}){hint}"
