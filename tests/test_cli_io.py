@@ -132,3 +132,54 @@ def test_convert_instance_formats(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert code == 2 and "give --to (hierplan, lmrp, movingai) for an instance" in err
     code, _, err = run(capsys, "convert", CORRIDOR, "--to", "eecbs", "--out", str(tmp_path / "x"))
     assert code == 2 and "--to eecbs does not apply to an instance" in err
+
+
+@pytest.mark.parametrize("area", sorted(AREAS))
+def test_bench_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str], area: str) -> None:
+    import argparse
+
+    before = argparse.ArgumentParser.error
+    code, out, err = run(capsys, "bench", area, "--bogus")
+    assert code == 2 and out == ""
+    assert err.strip() == (
+        f"hierplan bench {area}: error: unrecognized arguments: --bogus "
+        f"(see 'hierplan bench {area} --help')"
+    )
+    assert argparse.ArgumentParser.error is before  # argparse is left as it was
+
+
+def test_wrong_solver_for_teams_names_the_ones_that_fit(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    code, _, err = run(capsys, "solve", str(DATA / "tapf_lmrp.yaml"), "--solver", "cbs")
+    assert code == 2 and "does not solve TAPF instances" in err and "use 'cbm'" in err
+
+
+def test_roadmap_too_long_for_floats_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    f = tmp_path / "far.yaml"
+    f.write_text(
+        "graph:\n  type: roadmap\n"
+        "  vertices: {A: [0.0, 0.0], B: [1.0e+308, 0.0], C: [-1.0e+308, 0.0]}\n"
+        "  edges: [[A, B], [A, C], [B, C]]\n"
+        "agents:\n  - {start: B, goal: C}\n"
+    )
+    code, _, err = run(capsys, "info", str(f))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "edge ['B', 'C'] is longer than the largest float" in err
+    f.write_text(f.read_text().replace(", [B, C]", ""))  # 1e308 each: representable
+    code, out, err = run(capsys, "info", str(f))
+    assert code == 0 and err == "" and "3 vertices, 2 edges" in out
+
+
+@pytest.mark.parametrize("area", sorted(AREAS))
+def test_every_bench_area_has_the_readme_quick_preset(
+    capsys: pytest.CaptureFixture[str], area: str
+) -> None:
+    """The README's synopsis ``hierplan bench AREA [--quick]`` holds for every area."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    synopsis = re.search(r"hierplan bench +(\S+) \[--quick\]", readme)
+    assert synopsis and set(synopsis.group(1).split("|")) == set(AREAS)
+    code, out, _ = run(capsys, "bench", area, "--help")
+    assert code == 0 and re.search(r"--quick\s+\S", out), out

@@ -29,10 +29,7 @@ SLOW_TIMEOUT = 1800
 
 #: Blocks known to fail, with the reason and who fixes them. Strict: once a block
 #: passes, its entry must go (the test then fails as XPASS).
-KNOWN_BROKEN: dict[str, str] = {
-    "docs/post.md:15": "loads 'warehouse.yaml', which does not exist (docs/post.md is "
-    "being rewritten with the MAPF-POST rework)",
-}
+KNOWN_BROKEN: dict[str, str] = {}
 
 _folders: dict[str, Path] = {}
 
