@@ -444,13 +444,23 @@ def save_schedule(path: str | Path, schedule: Any) -> None:
     import yaml
 
     doc = schedule_document(schedule)
-    lines = [yaml.safe_dump({"statistics": doc["statistics"]}, sort_keys=False).rstrip()]
+    stats = {"statistics": _plain(doc["statistics"])}
+    lines = [yaml.safe_dump(stats, sort_keys=False).rstrip()]
     lines.append("schedule:")
     for name, rows in doc["schedule"].items():
         lines.append(f"  {yaml_scalar(name)}:")
         for r in rows:
             lines.append("  - {" + ", ".join(f"{k}: {_number(v)}" for k, v in r.items()) + "}")
     write_text(path, "\n".join(lines) + "\n")
+
+
+def _plain(v: Any) -> Any:
+    """``v`` with the reader's line-tracking dicts and lists made plain (for safe_dump)."""
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    return v
 
 
 def _number(v: Any) -> str:
