@@ -39,7 +39,7 @@ from hierplan_opt.io.files import (
         (lambda p: p.write_bytes(b"\xff\xfe"), "not a text file \\(UTF-8 decoding failed"),
     ],
 )
-def test_read_text_refuses_what_is_not_a_text_file(tmp_path: Path, make, match: str) -> None:  # noqa: ANN001
+def test_read_text_refuses_what_is_not_a_text_file(tmp_path: Path, make, match: str) -> None:
     p = tmp_path / "x.yaml"
     make(p)
     with pytest.raises(InputError, match=match):
@@ -161,7 +161,7 @@ def test_atomic_write_keeps_the_old_file_on_failure(tmp_path: Path) -> None:
 def test_write_to_a_full_disk_is_one_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import errno
 
-    def full(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+    def full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(os, "fsync", full)

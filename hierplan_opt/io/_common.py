@@ -13,20 +13,6 @@ from hierplan_opt.io._yaml import Ctx
 T = TypeVar("T")
 
 
-def loc_text(graph: Graph, v: int) -> str:
-    """A vertex as the files write it: ``[x, y]`` or ``'name'``."""
-    loc = graph.location(v)
-    return repr(loc) if isinstance(loc, str) else str(list(loc))
-
-
-def loc_yaml(graph: Graph, v: int) -> str:
-    """A vertex as YAML that reads back as the same location: ``[x, y]`` or a name."""
-    from hierplan_opt.io._yaml import yaml_scalar
-
-    loc = graph.location(v)
-    return yaml_scalar(loc) if isinstance(loc, str) else str(list(loc))
-
-
 def location(
     ctx: Ctx,
     graph: Graph,
@@ -74,7 +60,7 @@ class Unique:
     def add(self, v: int, who: str, line: int | None) -> None:
         if v in self.seen:
             raise self.ctx.error(
-                f"{who} has the same {self.kind} {loc_text(self.graph, v)} as {self.seen[v]}",
+                f"{who} has the same {self.kind} {self.graph.label(v)} as {self.seen[v]}",
                 line,
             )
         self.seen[v] = who

@@ -36,6 +36,7 @@ agents sharing them, are refused. An agent with a plain ``goal`` next to agents 
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -44,7 +45,7 @@ import numpy as np
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, Agent, Instance, Team
-from hierplan_opt.io._common import Unique, check_grid, loc_text, loc_yaml, location, wrap
+from hierplan_opt.io._common import Unique, check_grid, location, wrap
 from hierplan_opt.io._yaml import Ctx, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
 
@@ -129,7 +130,7 @@ def from_data(data: Any, path: str | Path) -> Instance:
                 v = location(ctx, graph, loc, f"agent {name!r} potential goal", ctx.line_of(pg, j))
                 if v in targets:
                     raise ctx.error(
-                        f"potentialGoals of agent {name!r} lists {loc_text(graph, v)} twice",
+                        f"potentialGoals of agent {name!r} lists {graph.label(v)} twice",
                         ctx.line_of(pg, j),
                     )
                 targets.append(v)
@@ -246,7 +247,7 @@ def _tapf(
             if other is not None and other != key:
                 first = rows[groups[other][0]][0]
                 raise ctx.error(
-                    f"agent {name!r} shares the goal {loc_text(graph, t)} with agent {first!r} "
+                    f"agent {name!r} shares the goal {graph.label(t)} with agent {first!r} "
                     "but their goal sets differ; this toolkit's teams need equal or "
                     "disjoint goal sets",
                     line,
@@ -305,17 +306,18 @@ def dumps(instance: Instance) -> str:
         raise InputError(
             "the libMultiRobotPlanning format has no robot kinematics; use the hierplan format"
         )
+    loc = partial(g.label, quote=yaml_scalar)  # reads back as the same location
     lines = _roadmap_lines(g) if g.kind == "roadmap" else _map_lines(g)
     lines.append("agents:")
     for a in instance.agents:
         lines.append(f"  - name: {yaml_scalar(a.name)}")
-        lines.append(f"    start: {loc_yaml(g, a.start)}")
+        lines.append(f"    start: {loc(a.start)}")
         if a.team is None:
             assert a.goal is not None
-            lines.append(f"    goal: {loc_yaml(g, a.goal)}")
+            lines.append(f"    goal: {loc(a.goal)}")
         else:
             targets = instance.teams[a.team].targets
-            lines.append(f"    potentialGoals: [{', '.join(loc_yaml(g, t) for t in targets)}]")
+            lines.append(f"    potentialGoals: [{', '.join(loc(t) for t in targets)}]")
     return "\n".join(lines) + "\n"
 
 
@@ -330,7 +332,7 @@ def _map_lines(g: Graph) -> list[str]:
     blocked = [v for v in range(g.n) if not g.passable[v]]
     if blocked:
         lines.append("  obstacles:")
-        lines += [f"    - {loc_text(g, v)}" for v in blocked]
+        lines += [f"    - {g.label(v)}" for v in blocked]
     else:
         lines.append("  obstacles: []")
     return lines

@@ -16,6 +16,7 @@ Unknown keys anywhere are refused; every error names ``file:line:``.
 from __future__ import annotations
 
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ import numpy as np
 
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, DRIVES, Agent, Instance, Kinematics, Team
-from hierplan_opt.io._common import Unique, check_grid, loc_text, loc_yaml, location, wrap
+from hierplan_opt.io._common import Unique, check_grid, location, wrap
 from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
 from hierplan_opt.io.movingai import blocked_cells, load_map
@@ -381,7 +382,7 @@ def _teams(
             v = location(ctx, graph, loc, f"target of team {tname!r}", kline)
             if v in targets_seen:
                 raise ctx.error(
-                    f"target {loc_text(graph, v)} of team {tname!r} is also a target of "
+                    f"target {graph.label(v)} of team {tname!r} is also a target of "
                     f"team {targets_seen[v]!r}",
                     kline,
                 )
@@ -406,7 +407,7 @@ def _highways(ctx: Ctx, graph: Graph, value: Any, line: int | None) -> frozenset
         v = location(ctx, graph, h[1], "highway end", hline)
         if not graph.has_edge(u, v):
             raise ctx.error(
-                f"highway {loc_text(graph, u)} -> {loc_text(graph, v)} is not an edge of the graph",
+                f"highway {graph.label(u)} -> {graph.label(v)} is not an edge of the graph",
                 hline,
             )
         out.add((u, v))
@@ -463,7 +464,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
         else:
             out.append(f"  dimensions: [{', '.join(map(str, g.shape))}]")
             if blocked:
-                out.append(f"  obstacles: [{', '.join(loc_text(g, v) for v in blocked)}]")
+                out.append(f"  obstacles: [{', '.join(g.label(v) for v in blocked)}]")
         if g.cell_size != 1.0:
             out.append(f"  cell_size: {_num(g.cell_size)}")
     else:
@@ -492,6 +493,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
         else:
             out.append("  edges: []")
 
+    loc = partial(g.label, quote=yaml_scalar)  # reads back as the same location
     type_names = _type_names(instance)
     if type_names:
         out.append("robot_types:")
@@ -505,10 +507,10 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
             out.append(f"  {yaml_scalar(tname)}: {{{', '.join(parts)}}}")
 
     def robot(a: Agent, with_goal: bool) -> str:
-        parts = [f"name: {yaml_scalar(a.name)}", f"start: {loc_yaml(g, a.start)}"]
+        parts = [f"name: {yaml_scalar(a.name)}", f"start: {loc(a.start)}"]
         if with_goal:
             assert a.goal is not None
-            parts.append(f"goal: {loc_yaml(g, a.goal)}")
+            parts.append(f"goal: {loc(a.goal)}")
         if a.kinematics != DEFAULT_KINEMATICS:
             parts.append(f"type: {yaml_scalar(type_names[a.kinematics])}")
         return "{" + ", ".join(parts) + "}"
@@ -519,7 +521,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
             out.append(f"  - name: {yaml_scalar(team.name)}")
             out.append("    agents:")
             out += [f"      - {robot(instance.agents[i], False)}" for i in team.agents]
-            out.append(f"    targets: [{', '.join(loc_yaml(g, t) for t in team.targets)}]")
+            out.append(f"    targets: [{', '.join(loc(t) for t in team.targets)}]")
     else:
         out.append("agents:")
         out += [f"  - {robot(a, True)}" for a in instance.agents]
@@ -527,7 +529,7 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
         hw = sorted(instance.highways)
         if hw:
             out.append("highways:")
-            out += [f"  - [{loc_yaml(g, u)}, {loc_yaml(g, v)}]" for u, v in hw]
+            out += [f"  - [{loc(u)}, {loc(v)}]" for u, v in hw]
         else:
             out.append("highways: []")
     return "\n".join(out) + "\n"
