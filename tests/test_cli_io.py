@@ -142,7 +142,7 @@ def test_bench_usage_errors_are_one_line(capsys: pytest.CaptureFixture[str], are
     code, out, err = run(capsys, "bench", area, "--bogus")
     assert code == 2 and out == ""
     assert err.strip() == (
-        f"hierplan bench {area}: error: unrecognized arguments: --bogus "
+        "hierplan bench: error: unrecognized arguments: --bogus "
         f"(see 'hierplan bench {area} --help')"
     )
     assert argparse.ArgumentParser.error is before  # argparse is left as it was

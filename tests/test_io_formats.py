@@ -358,7 +358,7 @@ def test_cli_validate_post_and_convert_other_formats(
     assert main(["validate", *args, str(sub)]) == 0
     js = tmp_path / "p.json"
     assert main(["convert", *args, "--plan", str(sub), "--out", str(js)]) == 0
-    assert json.loads(js.read_text())["statistics"]["cost"] == plan.sum_of_costs
+    assert json.loads(js.read_text())["statistics"]["soc"] == plan.sum_of_costs
     capsys.readouterr()
 
 

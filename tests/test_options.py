@@ -15,6 +15,7 @@ from io_helpers import DATA
 
 import hierplan_opt as hp
 from hierplan_opt import registry
+from hierplan_opt.bench import AREAS
 from hierplan_opt.cli import main
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.options import Option, parse_bool
@@ -223,7 +224,7 @@ def test_gap_is_relative_to_the_cost() -> None:
 
 
 # ---------------------------------------------------------------- benchmarks
-@pytest.mark.parametrize("area", ["cbs", "ecbs", "teams", "formulations", "post", "lacam"])
+@pytest.mark.parametrize("area", sorted(AREAS))
 def test_bench_flags_are_uniform(area: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit):
         main(["bench", area, "--help"])

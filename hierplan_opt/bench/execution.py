@@ -20,13 +20,13 @@ Figures are medians over ``--repeats``; plans are made once per robot count.
 
 from __future__ import annotations
 
-import argparse
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
 
+from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 
 
@@ -53,7 +53,9 @@ def _delay_point(schedule) -> tuple[int, float]:
     return v, float(schedule.slack[v]) + 5.0
 
 
-def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> dict:
+def resolve_row(
+    instance: Instance, plan, schedule, w: float, repeats: int, time_limit: float = 120.0
+) -> dict:
     """Times of the incremental re-solve, a full pass and a MAPF re-plan (seconds)."""
     import hierplan_opt as hp
     from hierplan_opt.execution.simulate import rebound
@@ -91,7 +93,7 @@ def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> d
         "replan",
     )
     t0 = time.perf_counter()
-    res = hp.solve(inst2, "ecbs", w=w, time_limit=120)
+    res = hp.solve(inst2, "ecbs", w=w, time_limit=time_limit)
     t_replan = time.perf_counter() - t0
     return {
         "resolve": t_inc,
@@ -106,15 +108,23 @@ def resolve_row(instance: Instance, plan, schedule, w: float, repeats: int) -> d
 
 
 def main(argv: list[str] | None = None) -> int:
+    from hierplan_opt.bench import BenchParser, time_limit
     from hierplan_opt.bench.post import DEFAULT_MAP, DEFAULT_SCEN, make_plan
     from hierplan_opt.execution import RandomDelays
     from hierplan_opt.execution.montecarlo import monte_carlo
-    from hierplan_opt.experiments.data import instances_dir
+    from hierplan_opt.experiments.data import instances_dir, movingai_files
     from hierplan_opt.io import load_instance
     from hierplan_opt.io.movingai import load_map, load_scen
     from hierplan_opt.schedule import postprocess
 
-    ap = argparse.ArgumentParser(prog="hierplan bench execution", description=__doc__)
+    ap = BenchParser(
+        "execution",
+        (__doc__ or "").split("\n\n")[0],
+        instance="a bundled MovingAI scenario of tables 1 and 2 "
+        "(default warehouse-10-20-10-2-1-even-1)",
+        quick="small sizes (a smoke test)",
+        time_limit="seconds per plan and re-plan (default 120)",
+    )
     ap.add_argument("--agents", default="100,200,300", help="robot counts of table 1")
     ap.add_argument("--mc-agents", default="50,300", help="robot counts of table 2")
     ap.add_argument("--runs", type=int, default=40, help="Monte Carlo runs per row")
@@ -123,8 +133,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--w", type=float, default=1.5, help="ECBS suboptimality bound")
     ap.add_argument("--rates", default="0.05,0.1,0.2", help="delay probabilities of table 3")
     ap.add_argument("--layer-runs", type=int, default=50)
-    ap.add_argument("--quick", action="store_true", help="small sizes (a smoke test)")
     args = ap.parse_args(argv)
+    limit = time_limit(args.time_limit, False, full=120.0)
     if args.quick:
         args.agents, args.mc_agents, args.runs, args.repeats = "20,40", "20", 6, 2
         args.layer_runs, args.workers = 6, 1
@@ -132,25 +142,34 @@ def main(argv: list[str] | None = None) -> int:
     def shipped(name: str) -> Path:
         return Path(name) if Path(name).exists() else instances_dir() / name.split("/", 1)[-1]
 
-    graph = load_map(str(shipped(DEFAULT_MAP)))
-    scen = str(shipped(DEFAULT_SCEN))
+    map_path, scen_path = shipped(DEFAULT_MAP), shipped(DEFAULT_SCEN)
+    if args.instance:
+        if len(args.instance) != 1:
+            ap.error("--instance takes one scenario")
+        map_path, scen_path = movingai_files(args.instance[0].removesuffix(".scen"))
+    graph = load_map(str(map_path))
+    scen = str(scen_path)
     cache: dict[int, tuple] = {}
 
     def setup(k: int) -> tuple:
         if k not in cache:
             inst = load_scen(scen, graph, agents=k)
-            plan, planner = make_plan(inst, w=args.w)
+            plan, planner = make_plan(inst, w=args.w, time_limit=limit)
             cache[k] = (inst, plan, postprocess(inst, plan, check_plan=False), planner)
         return cache[k]
 
-    _say(f"1. STN re-solve after one delay ({Path(DEFAULT_MAP).name}, medians of {args.repeats})")
+    _say(f"1. STN re-solve after one delay ({map_path.name}, medians of {args.repeats})")
     _say(
         f"{'K':>4} {'planner':>10} {'nodes':>7} {'pushed':>7} {'resolve ms':>10} "
         f"{'full ms':>8} {'replan s':>9} {'speed-up':>9}"
     )
     for k in [int(x) for x in args.agents.split(",") if x]:
-        inst, plan, s, planner = setup(k)
-        r = resolve_row(inst, plan, s, args.w, args.repeats)
+        try:
+            inst, plan, s, planner = setup(k)
+        except InputError as exc:  # more robots than the scenario has
+            _say(f"{k:>4} skipped: {exc}")
+            continue
+        r = resolve_row(inst, plan, s, args.w, args.repeats, limit)
         _say(
             f"{k:>4} {planner:>10} {r['nodes']:>7} {r['pushed']:>7} {r['resolve'] * 1e3:>10.2f} "
             f"{r['full'] * 1e3:>8.2f} {r['replan']:>9.3f} {r['replan'] / r['resolve']:>8.0f}x"
@@ -160,14 +179,18 @@ def main(argv: list[str] | None = None) -> int:
     _say(f"{'K':>4} {'workers':>7} {'runs/s':>8} {'collisions':>10}")
     delays = [RandomDelays(0.05, "exponential", 2.0)]
     for k in [int(x) for x in args.mc_agents.split(",") if x]:
-        inst, plan, s, _ = setup(k)
+        try:
+            inst, plan, s, _ = setup(k)
+        except InputError as exc:  # more robots than the scenario has
+            _say(f"{k:>4} skipped: {exc}")
+            continue
         for w in sorted({1, args.workers}):
             mc = monte_carlo(inst, s, delays, runs=args.runs, workers=w, progress=False)
             _say(f"{k:>4} {w:>7} {mc.runs_per_second:>8.2f} {mc.collisions:>10}")
     wh = load_instance(shipped("instances/paper/warehouse-part1.yaml"))
     import hierplan_opt as hp
 
-    plan = hp.solve(wh, "cbm", time_limit=60).plan
+    plan = hp.solve(wh, "cbm", time_limit=60.0 if args.time_limit is None else limit).plan
     assert plan is not None
     plain = postprocess(wh, plan, check_plan=False)
     # Delivery windows: every robot due 10 % after its planned arrival.
