@@ -183,3 +183,27 @@ def test_every_bench_area_has_the_readme_quick_preset(
     assert synopsis and set(synopsis.group(1).split("|")) == set(AREAS)
     code, out, _ = run(capsys, "bench", area, "--help")
     assert code == 0 and re.search(r"--quick\s+\S", out), out
+
+
+@pytest.mark.parametrize("command", ["simulate", "run"])
+@pytest.mark.parametrize(
+    ("option", "name", "message"),
+    [
+        ("--out", "missing/r.yaml", "does not exist"),
+        ("--plot", "d.xyz", "unsupported extension '.xyz'"),
+        ("--animate", "a.png", "unsupported extension '.png'"),
+    ],
+)
+def test_execution_outputs_checked_before_work(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    command: str,
+    option: str,
+    name: str,
+    message: str,
+) -> None:
+    args = [command, CORRIDOR] + ([str(tmp_path / "no-plan.yaml")] if command == "simulate" else [])
+    outs = {"--out": str(tmp_path / "r.yaml"), option: str(tmp_path / name)}
+    code, out, err = run(capsys, *args, *[x for kv in outs.items() for x in kv])
+    assert code == 2 and out == "" and message in err  # before the plan is read or made
+    assert len(err.strip().splitlines()) == 1 and os.listdir(tmp_path) == []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hierplan_opt.cli.common import INFEASIBLE, LIMIT, add_instance_arguments, positive_float
-from hierplan_opt.cli.simulate import add_execution_arguments, execute
+from hierplan_opt.cli.simulate import add_execution_arguments, check_execution_outputs, execute
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
 
@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from hierplan_opt.cli.common import load_instance_from_args
     from hierplan_opt.schedule import postprocess
 
+    check_execution_outputs(args)
     instance = load_instance_from_args(args)
     res = hp.solve(instance, args.solver, time_limit=args.time_limit, objective=args.objective)
     if res.plan is None:

@@ -134,9 +134,22 @@ def execute(args: argparse.Namespace, instance: Any, schedule: Any, title: str) 
     return OK if st["collisions"] == 0 and st["distance_kept"] else PLAN_INVALID
 
 
+def check_execution_outputs(args: argparse.Namespace) -> None:
+    """Every output of ``simulate`` / ``run`` checked before any work (one line, exit 2)."""
+    from hierplan_opt.cli.common import check_outputs
+    from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
+
+    check_outputs(
+        ("--out", args.out, (".yaml", ".yml")),
+        ("--plot", args.plot, FIGURE_SUFFIXES),
+        ("--animate", args.animate, (".gif", ".mp4")),
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from hierplan_opt.cli.common import load_instance_from_args
 
+    check_execution_outputs(args)
     instance = load_instance_from_args(args)
     schedule, kind = load_plan_or_schedule(args, instance)
     return execute(args, instance, schedule, f"{args.plan} ({kind}), {instance.num_agents} robots")

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -64,20 +62,9 @@ def write_report(path: str | Path, data: dict[str, Any]) -> Path:
     """Write YAML atomically (a temporary file renamed): never a half-written file."""
     import yaml
 
-    path = Path(path)
-    text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
-    fd, tmp = tempfile.mkstemp(dir=path.parent if str(path.parent) else ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    from hierplan_opt.io.files import write_text
+
+    return write_text(path, yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
 
 
 def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any]) -> Plan:

@@ -17,6 +17,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.io.files import atomic_path
 
 if TYPE_CHECKING:
     from hierplan_opt.execution.simulate import Execution
@@ -100,7 +101,8 @@ def plot_distance(ex: Execution, instance: Instance, path: str | Path | None = N
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=110)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110)
     return fig
 
 
@@ -129,7 +131,8 @@ def plot_layers(runs: Sequence[tuple[str, dict[str, int]]], path: str | Path | N
     ax.legend(fontsize=8, loc="upper right")
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=110)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=110)
     return fig
 
 
@@ -219,7 +222,8 @@ def animate(
         if ctx is not None:
             ctx.__exit__(None, None, None)
     if images:
-        images[0].save(
-            path, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0
-        )
+        with atomic_path(path) as tmp:
+            images[0].save(
+                tmp, save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0
+            )
     return path
