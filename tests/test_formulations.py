@@ -177,17 +177,42 @@ def test_proven_infeasible(form):
 
 @pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
 @pytest.mark.parametrize("objective", ["soc", "makespan"])
-def test_corridor_swap_is_not_reported_infeasible(form, objective):
-    # Two robots swap places on a full one-way ring: no plan at any horizon; on directed
-    # roadmaps nothing proves that (the undirected corridor swap is now proven by
-    # core/pebble_motion.py), so the search stops at max_horizon.
+def test_one_way_ring_swap_is_proven_infeasible_by_the_horizon_bound(form, objective):
+    # Two robots swap places on a full one-way ring: no plan at any horizon. On directed
+    # roadmaps quick_infeasibility does not see it; the horizon bound does: 3 robots on 3
+    # vertices have 6 configurations, so a solvable instance has a plan of makespan <= 5,
+    # and the network at that bound has none.
+    from hierplan_opt.core.feasibility import makespan_upper_bound, quick_infeasibility
+
     ring = [("A", "B"), ("B", "C"), ("C", "A")]
     g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (0, 1)}, ring, directed=True)
     inst = hp.Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"])
-    res = form.solve(inst, objective=objective, max_horizon=7)
-    assert res.status == hp.Status.TIME_LIMIT and res.plan is None
-    assert res.stats["stopped_by"] == "max_horizon"
-    assert res.lower_bound >= (8 if objective == "soc" else 4)
+    assert quick_infeasibility(inst) is None and makespan_upper_bound(inst) == 5
+    res = form.solve(inst, objective=objective, time_limit=60)
+    assert res.status == hp.Status.INFEASIBLE and res.plan is None
+    assert "no plan has makespan <= 5" in res.stats["reason"]
+    tried = [h for h, _ in res.stats["horizons"]]
+    assert max(tried) == (7 if objective == "soc" else 5)  # soc: slack 5 on min deadline 0
+    # a user cap below the bound still stops with TIME_LIMIT, not a proof
+    res = form.solve(inst, objective=objective, max_horizon=3)
+    assert res.status == hp.Status.TIME_LIMIT and res.stats["stopped_by"] == "max_horizon"
+    assert res.lower_bound >= (5 if objective == "soc" else 4)
+
+
+@pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+def test_solvable_directed_instance_within_the_bound(form, objective):
+    # One-way ring with a hole: the robots can rotate to their goals; optimum found and
+    # its makespan is within the bound.
+    from hierplan_opt.core.feasibility import makespan_upper_bound
+
+    ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
+    g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
+    inst = hp.Instance.mapf(g, ["A", "B"], ["C", "D"])
+    res = form.solve(inst, objective=objective, time_limit=60)
+    assert res.status == hp.Status.OPTIMAL and res.plan is not None
+    assert hp.validate(inst, res.plan) == [] and res.plan.makespan <= makespan_upper_bound(inst)
+    assert res.cost == (4 if objective == "soc" else 2)
 
 
 @pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])

@@ -18,7 +18,14 @@ import sys
 from collections.abc import Sequence
 
 from hierplan_opt import __version__
-from hierplan_opt.cli.common import BAD_INPUT, INTERNAL, apply_limits, one_line_errors
+from hierplan_opt.cli.common import (
+    BAD_INPUT,
+    INTERNAL,
+    LIMIT,
+    apply_limits,
+    memory_guard,
+    one_line_errors,
+)
 from hierplan_opt.core.errors import HierplanError
 
 COMMANDS = (
@@ -76,7 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return BAD_INPUT
     try:
         apply_limits(args)
-        return int(args._run(args))
+        with memory_guard(args):
+            return int(args._run(args))
     except HierplanError as exc:
         print(f"hierplan {args.command}: error: {exc}", file=sys.stderr)
         return BAD_INPUT
@@ -86,6 +94,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"hierplan {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return BAD_INPUT
+    except MemoryError:
+        print(
+            f"hierplan {args.command}: error: out of memory (over the memory budget; "
+            "certify fewer agents or raise --memory-limit)",
+            file=sys.stderr,
+        )
+        return LIMIT
     except KeyboardInterrupt:
         print(f"hierplan {args.command}: interrupted", file=sys.stderr)
         return 130

@@ -9,8 +9,9 @@ and writes them with the atomic writers of :mod:`hierplan_opt.io.files`.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -89,6 +90,80 @@ def apply_limits(args: argparse.Namespace) -> None:
     if cells is not None:
         new = replace(new, max_cells=cells)
     set_limits(new)
+
+
+def add_memory_argument(p: argparse.ArgumentParser) -> None:
+    """``--memory-limit GB``: the budget of :mod:`hierplan_opt.formulations.memory`."""
+    p.add_argument(
+        "--memory-limit",
+        metavar="GB",
+        type=positive_float,
+        help="memory budget in GB: a time-expanded model (cpsat, mip, verify) estimated "
+        "above it is not built, and the process may not grow by more than it (default: "
+        "half the RAM, at most 80%% of the free memory; or HIERPLAN_MEMORY_LIMIT_GB)",
+    )
+
+
+@contextlib.contextmanager
+def memory_guard(args: argparse.Namespace) -> Iterator[None]:
+    """Put ``--memory-limit`` in force while a command runs, then restore everything.
+
+    Two layers: the formulations refuse a model whose estimated size exceeds the budget
+    (one line, before building it), and the process's data limit (``RLIMIT_DATA``) is
+    set to its current size plus the budget plus :data:`DATA_HEADROOM`, so an estimate
+    that was too low ends in a ``MemoryError`` (one line, exit 4) instead of the
+    kernel's out-of-memory killer.
+    Commands without the option run unchanged.
+    """
+    if not hasattr(args, "memory_limit"):
+        yield
+        return
+    from hierplan_opt.formulations.memory import GB, memory_budget, memory_limit
+
+    budget = memory_budget() if args.memory_limit is None else int(args.memory_limit * GB)
+    with memory_limit(budget), _data_limit(budget):
+        yield
+
+
+#: Room beyond the model budget for everything else a command holds (instance, plan,
+#: distance tables, Python objects), so the model estimate speaks first.
+DATA_HEADROOM = 512 << 20
+
+
+@contextlib.contextmanager
+def _data_limit(budget: int) -> Iterator[None]:
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not on POSIX: the estimate alone guards
+        yield
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
+    want = _vm_data() + budget + DATA_HEADROOM
+    if hard != resource.RLIM_INFINITY:
+        want = min(want, hard)
+    if soft != resource.RLIM_INFINITY:
+        want = min(want, soft)
+    try:
+        resource.setrlimit(resource.RLIMIT_DATA, (want, hard))
+    except (ValueError, OSError):  # pragma: no cover - the estimate alone guards
+        yield
+        return
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
+
+
+def _vm_data() -> int:
+    """Bytes of this process's data segment (what RLIMIT_DATA limits)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmData:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
 
 
 def load_instance_from_args(args: argparse.Namespace) -> Instance:

@@ -14,6 +14,7 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_SUFFIXES,
     add_instance_arguments,
+    add_memory_argument,
     check_outputs,
     load_instance_from_args,
     positive_float,
@@ -26,6 +27,7 @@ HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning lay
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
+    add_memory_argument(p)
     chosen = ["cbs"]  # the solver whose options --help lists
 
     class SolverName(argparse.Action):
@@ -181,6 +183,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"hierplan solve: infeasible: {reason}", file=sys.stderr)
         return INFEASIBLE
     if result.status is Status.TIME_LIMIT:
+        if result.stats.get("stopped_by") == "memory_limit":
+            print(f"hierplan solve: {result.stats.get('reason', 'memory limit')}", file=sys.stderr)
         return LIMIT
     print(f"hierplan solve: solver returned {result.status} without a plan", file=sys.stderr)
     return INTERNAL

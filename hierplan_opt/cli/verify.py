@@ -9,6 +9,7 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_INVALID,
     add_instance_arguments,
+    add_memory_argument,
     load_instance_from_args,
     positive_float,
 )
@@ -27,6 +28,7 @@ HELP = "certify that a plan is optimal with an exact formulation (CP-SAT or MIP)
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
+    add_memory_argument(p)
     p.add_argument("plan", metavar="PLAN", help="plan file (as written by `hierplan solve`)")
     p.add_argument(
         "--objective",
@@ -47,7 +49,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.epilog = (
         "exit codes: 0 proven optimal, 1 plan invalid or not optimal, "
-        "2 bad input, 4 time limit reached before a proof"
+        "2 bad input, 4 time or memory limit reached before a proof"
     )
 
 

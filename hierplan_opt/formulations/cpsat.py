@@ -38,6 +38,7 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import validate
 from hierplan_opt.formulations.horizon import Outcome, solve_with
+from hierplan_opt.formulations.memory import memory_budget
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 from hierplan_opt.registry import solver
 
@@ -200,6 +201,9 @@ class CpSatBackend:
         # does (112 s vs 20-25 s without it), overrunning the time limit (formulations/
         # cpsat.md).
         p.cp_model_probing_level = 0
+        # CP-SAT's own memory guard (it stops the search when the process passes it):
+        # the budget that the model estimate was checked against (formulations/memory.py)
+        p.max_memory_in_mb = max(64, memory_budget() >> 20)
         if objective != "soc":
             p.cp_model_presolve = False
         if time_limit is not None:
@@ -257,7 +261,8 @@ def solve(
     solver (e.g. ``"ecbs"``) whose plan seeds the sum-of-costs search: its cost gives the
     slack of the first network and its arcs the solution hint (ignored if that solver is
     not available or fails). ``max_horizon`` caps the horizon search; reaching it returns
-    TIME_LIMIT, never INFEASIBLE (see ``formulations/cpsat.md``).
+    TIME_LIMIT. INFEASIBLE comes from the quick checks or the horizon bound
+    ``makespan_upper_bound`` (see ``formulations/mip.md``).
 
     Example
     -------

@@ -18,10 +18,16 @@ networks to solve and turns the outcomes into one :class:`~hierplan_opt.core.res
   solve at ``Δ = C - LB`` is optimal by the same argument. A known plan of cost ``U``
   (``upper_bound_plan``) starts the search at ``Δ = U - LB``.
 
-A time-expanded model cannot prove that a MAPF instance has no plan at any horizon: the
-result is INFEASIBLE only when the front door's cheap checks prove it
-(:func:`hierplan_opt.registry.run`); otherwise the search stops at ``max_horizon`` with
-TIME_LIMIT and ``stats["stopped_by"] == "max_horizon"``.
+INFEASIBLE comes from the front door's checks (:func:`hierplan_opt.registry.run`; exact
+on undirected graphs) or from the horizon bound ``B =`` :func:`makespan_upper_bound`:
+every solvable instance has a plan of makespan at most ``B``, so a network that holds
+every plan of makespan ``<= B`` (the makespan search at horizon ``B``; for the sum of
+costs, deadlines that all reach ``B``) and has no flow proves that no plan exists.
+Otherwise the search stops at ``max_horizon`` (default :func:`default_max_horizon`) with
+TIME_LIMIT and ``stats["stopped_by"] == "max_horizon"``, or before a model whose
+estimated size exceeds the memory budget (:mod:`hierplan_opt.formulations.memory`; it
+is never built) with ``stats["stopped_by"] == "memory_limit"`` and the one-line reason
+in ``stats["reason"]``.
 
 Backends report one :class:`Outcome` per network in the project's one status vocabulary
 (:class:`~hierplan_opt.core.result.Status`), each mapping its native codes by a table.
@@ -37,10 +43,12 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from hierplan_opt.core.feasibility import makespan_upper_bound
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.formulations.memory import ModelTooLarge, check_model
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork, commodity_min_deadline
 
 log = logging.getLogger(__name__)
@@ -106,6 +114,13 @@ class _BackendError(Exception):
     pass
 
 
+class _Stopped(Exception):
+    """Ends the search with ``result`` (a model over the memory budget)."""
+
+    def __init__(self, result: Result) -> None:
+        self.result = result
+
+
 def solve_with(
     backend: Backend,
     instance: Instance,
@@ -121,6 +136,8 @@ def solve_with(
         return _search(backend, instance, **kwargs)
     except _BackendError as exc:
         return Result(Status.ERROR, None, stats={"error": str(exc)})
+    except _Stopped as stop:
+        return stop.result
 
 
 def _search(
@@ -136,6 +153,7 @@ def _search(
 ) -> Result:
     deadline = Deadline(time_limit)
     cap = default_max_horizon(instance) if max_horizon is None else max_horizon
+    bound = makespan_upper_bound(instance)  # every solvable instance has a plan within it
     stats: dict = {"solves": 0, "build_time": 0.0, "solve_time": 0.0, "horizons": []}
 
     def run(net: TimeExpandedNetwork, hint: Plan | None) -> Outcome:
@@ -158,7 +176,12 @@ def _search(
             raise _BackendError(out.stats.get("error", "solver error"))
         return out
 
-    def make(horizon: int, **kwargs) -> TimeExpandedNetwork:
+    def make(horizon: int, proven: float, **kwargs) -> TimeExpandedNetwork:
+        try:
+            check_model(instance, horizon, backend.name, **kwargs)
+        except ModelTooLarge as exc:
+            stats["reason"] = str(exc)
+            raise _Stopped(limit(proven, "memory_limit")) from None
         t0 = time.perf_counter()
         net = build(instance, horizon, **kwargs)
         stats["build_time"] += time.perf_counter() - t0
@@ -168,9 +191,18 @@ def _search(
         stats["stopped_by"] = why
         return Result(Status.TIME_LIMIT, None, lower_bound=lower_bound, stats=stats)
 
+    def no_plan() -> Result:
+        stats["reason"] = (
+            f"no plan has makespan <= {bound}, the bound every solvable instance of this "
+            "size meets (makespan_upper_bound)"
+        )
+        return Result(Status.INFEASIBLE, None, stats=stats)
+
     if objective == "makespan":
         horizon = instance.makespan_lower_bound()
         while True:
+            if horizon > bound:
+                return no_plan()  # every horizon up to the bound was proven infeasible
             if horizon > cap:
                 return limit(horizon, "max_horizon")
             if deadline.expired():
@@ -181,7 +213,7 @@ def _search(
             small = detours(instance, horizon)
             tries: list[dict] = [{"detours": small}] if min(small) < horizon else []
             for kwargs in [*tries, {}]:
-                net = make(horizon, **kwargs)
+                net = make(horizon, horizon, **kwargs)
                 out = Outcome(Status.INFEASIBLE) if net.infeasible else run(net, None)
                 if out.status is not Status.INFEASIBLE:
                     break
@@ -200,17 +232,24 @@ def _search(
     hint = upper_bound_plan
     delta = 0 if hint is None else max(0, hint.sum_of_costs - lb)
     proven = lb  # every plan costs at least this
+    # The network at slack bound - min(base) holds every plan of makespan <= bound; the
+    # search may go that far to prove infeasibility even past ``cap``.
+    reach = max(cap, bound - min(base) + max(base)) if bound <= cap else cap
     while True:
-        if max(base) + delta > cap:
+        if max(base) + delta > reach:
             return limit(proven, "max_horizon")
         if deadline.expired():
             return limit(proven, "time_limit")
-        net = make(max(base) + delta, deadlines=[b + delta for b in base])
+        net = make(max(base) + delta, proven, deadlines=[b + delta for b in base])
         out = Outcome(Status.INFEASIBLE) if net.infeasible else run(net, hint)
         stats["slack"] = delta
         if out.status is Status.INFEASIBLE:
+            if min(base) + delta >= bound:
+                return no_plan()
             proven = max(proven, lb + delta + 1)
             delta += 1 + delta // 4
+            if min(base) + delta > bound:
+                delta = max(bound - min(base), 0)  # land on the proof's network
             continue
         if out.values is None:
             if out.bound is not None:

@@ -264,8 +264,9 @@ def solve(
 
     ``lp_check`` solves each horizon's LP relaxation first and skips the horizon when it
     is infeasible. ``max_horizon`` caps the horizon search (default: makespan lower
-    bound + free vertices + agents); reaching it returns TIME_LIMIT, never INFEASIBLE
-    (see ``formulations/mip.md``).
+    bound + free vertices + agents); reaching it returns TIME_LIMIT. INFEASIBLE comes
+    from the quick checks or the horizon bound ``makespan_upper_bound`` (see
+    ``formulations/mip.md``).
 
     Example
     -------

@@ -9,6 +9,10 @@ then an exact time-expanded formulation (CP-SAT or MIP) decides the question:
 * sum of costs ``U``: the plan is optimal iff ``U`` equals the distance lower bound or
   the minimum over the network with slack ``U - LB`` (which contains the plan and every
   optimal plan) is ``U``.
+
+No model is built whose estimated size exceeds the memory budget
+(:mod:`hierplan_opt.formulations.memory`): the verdict is then "unknown" with the reason
+("the cpsat model at horizon 180 would need ~31 GB ...").
 """
 
 from __future__ import annotations
@@ -46,7 +50,8 @@ class VerifyResult:
     ``outcome`` is in the one status vocabulary: OPTIMAL (proven optimal), FEASIBLE
     (valid, but a cheaper plan exists; ``better_plan`` holds one, ``optimum`` the optimal
     cost when it was found), INFEASIBLE (the plan is invalid, see ``violations``) or
-    TIME_LIMIT (stopped by the time limit; ``lower_bound`` is the best proven bound).
+    TIME_LIMIT (stopped by the time limit, or a model would exceed the memory budget:
+    ``reason`` says so; ``lower_bound`` is the best proven bound).
     :attr:`status` says it in words: "optimal", "suboptimal", "invalid", "unknown".
     ``proof`` says what settled it ("lower bound", "pruning", "cpsat", "mip").
     """
@@ -62,6 +67,7 @@ class VerifyResult:
     proof: str = ""
     runtime: float = 0.0
     stats: dict = field(default_factory=dict)
+    reason: str = ""
 
     @property
     def status(self) -> str:
@@ -105,10 +111,10 @@ class VerifyResult:
                 f"gap {self.gap:.4f}, "
                 f"proven by {self.proof} in {self.runtime:.2f} s)"
             )
+        why = self.reason or f"time limit reached after {self.runtime:.2f} s"
         return (
             f"unknown: {obj} {self.cost}, proven lower bound {self.lower_bound} "
-            f"(excess at most {self.excess}, gap at most {self.gap:.4f}); "
-            f"time limit reached after {self.runtime:.2f} s"
+            f"(excess at most {self.excess}, gap at most {self.gap:.4f}); {why}"
         )
 
 
@@ -170,6 +176,7 @@ def verify(
         return done(Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=lb, proof="lower bound")
 
     from hierplan_opt.formulations.horizon import Outcome, detours, solve_with
+    from hierplan_opt.formulations.memory import ModelTooLarge, check_model
     from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 
     remaining = None if time_limit is None else deadline.remaining()
@@ -178,11 +185,17 @@ def verify(
         # full network can prove that none exists.
         small_detours = detours(instance, cost)
         out = Outcome(Status.INFEASIBLE)
-        if min(small_detours) < cost - 1:
-            small = TimeExpandedNetwork.build(instance, cost - 1, detours=small_detours)
-            if not small.infeasible:
-                out = backend(small, "makespan", remaining, None, seed)
-                net = small
+        try:
+            if min(small_detours) < cost - 1:
+                check_model(instance, cost - 1, method, detours=small_detours)
+                small = TimeExpandedNetwork.build(instance, cost - 1, detours=small_detours)
+                if not small.infeasible:
+                    out = backend(small, "makespan", remaining, None, seed)
+                    net = small
+            if out.status is Status.INFEASIBLE:
+                check_model(instance, cost - 1, method)
+        except ModelTooLarge as exc:
+            return done(Status.TIME_LIMIT, cost=cost, lower_bound=lb, proof=method, reason=str(exc))
         if out.status is Status.INFEASIBLE:
             net = TimeExpandedNetwork.build(instance, cost - 1)
             if net.infeasible:
@@ -257,7 +270,10 @@ def verify(
             proof=method,
             stats=stats,
         )
-    return done(Status.TIME_LIMIT, cost=cost, lower_bound=low, proof=method, stats=stats)
+    reason = str(stats.get("reason", "")) if stats.get("stopped_by") == "memory_limit" else ""
+    return done(
+        Status.TIME_LIMIT, cost=cost, lower_bound=low, proof=method, stats=stats, reason=reason
+    )
 
 
 def _solve_rest(

@@ -1,0 +1,162 @@
+"""Model-size estimates and the memory budget of the time-expanded formulations."""
+
+from __future__ import annotations
+
+import resource
+
+import pytest
+from canned import corridor_lmrp, movingai, tapf_paper_like
+
+import hierplan_opt as hp
+from hierplan_opt.cli import main
+from hierplan_opt.formulations import cpsat, mip
+from hierplan_opt.formulations import memory as mem
+from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork, commodity_min_deadline
+from hierplan_opt.formulations.verify import verify
+
+MAP = "instances/movingai/random-32-32-20.map"
+SCEN = "instances/movingai/random-32-32-20-random-1.scen"
+
+
+@pytest.mark.parametrize("slack", [0, 3, 12])
+def test_estimate_is_an_upper_bound_and_tight(slack: int) -> None:
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 12)()
+    base = commodity_min_deadline(inst)
+    for kwargs in (
+        {"deadlines": [b + slack for b in base]},
+        {},
+        {"detours": [b + 2 for b in base]},
+    ):
+        horizon = max(base) + slack
+        est = mem.estimate_network(inst, horizon, **kwargs)
+        net = TimeExpandedNetwork.build(inst, horizon, **kwargs)
+        # the estimate skips only the arcs that parked robots remove
+        assert net.num_arcs <= est.arcs <= 1.05 * net.num_arcs + 50, kwargs
+        nodes = len(net.conservation) + len(net.source_out) + len(net.sink_in)
+        assert len(net.conservation) <= est.nodes <= 1.05 * nodes + 50, kwargs
+
+
+def test_estimate_for_teams() -> None:
+    inst = tapf_paper_like()
+    for horizon in (4, 9):
+        est = mem.estimate_network(inst, horizon)
+        assert TimeExpandedNetwork.build(inst, horizon).num_arcs <= est.arcs
+
+
+@pytest.mark.parametrize("form", [cpsat, mip], ids=["cpsat", "mip"])
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+def test_search_stops_before_building_a_model_over_the_budget(
+    form, objective: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 5)()
+
+    def never(*args: object, **kwargs: object) -> TimeExpandedNetwork:
+        raise AssertionError("a model over the budget was built")
+
+    monkeypatch.setattr(TimeExpandedNetwork, "build", never)
+    with mem.memory_limit(100_000):  # 100 kB: no model of 5 agents fits
+        res = form.solve(inst, objective=objective, time_limit=30)
+    assert res.status == hp.Status.TIME_LIMIT and res.plan is None
+    assert res.stats["stopped_by"] == "memory_limit"
+    assert f"the {form.__name__.rsplit('.', 1)[-1]} model at horizon" in res.stats["reason"]
+    assert "over the memory budget of" in res.stats["reason"]
+    lb = inst.soc_lower_bound() if objective == "soc" else inst.makespan_lower_bound()
+    assert res.lower_bound is not None and res.lower_bound >= lb
+
+
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+def test_verify_refuses_with_the_size(objective: str) -> None:
+    inst = corridor_lmrp()
+    slow = hp.Plan.from_paths([[0, 0, 1, 2, 3, 4], [1, 2, 7, 7, 2, 3]])  # not optimal
+    with mem.memory_limit(1000):
+        r = verify(inst, slow, objective=objective)
+    assert r.status == "unknown" and not r.optimal
+    assert "would need ~" in r.reason and "over the memory budget of" in r.reason
+    line = r.message()
+    assert "\n" not in line and line.startswith("unknown: ") and r.reason in line
+    with mem.memory_limit(4 * mem.GB):  # within the budget the verdict is unchanged
+        assert verify(inst, slow, objective=objective).status == "suboptimal"
+
+
+def _verify_cli(capsys: pytest.CaptureFixture[str], tmp_path, *extra: str) -> tuple[int, str]:
+    from hierplan_opt.io import load_instance, save_plan
+
+    inst = load_instance(MAP, scen=SCEN, agents=3)
+    res = hp.solve(inst, "cbs", objective="soc")
+    assert res.plan is not None
+    p = res.plan.paths
+    plan = tmp_path / "slow.yaml"
+    save_plan(plan, inst, hp.Plan.from_paths([[p[0][0], *p[0]], *p[1:]]))  # one wait more
+    code = main(["-q", "verify", MAP, "--scen", SCEN, "--agents", "3", str(plan), *extra])
+    out = capsys.readouterr()
+    return code, out.out + out.err
+
+
+def test_cli_memory_limit_is_exit_4_with_one_line(tmp_path, capsys) -> None:
+    before = resource.getrlimit(resource.RLIMIT_DATA)
+    budget = mem.memory_budget()
+    code, out = _verify_cli(capsys, tmp_path, "--memory-limit", "0.000001")
+    assert code == 4, out
+    assert len(out.strip().splitlines()) == 1
+    assert "would need ~" in out and "over the memory budget of 1e-06 GB" in out
+    assert resource.getrlimit(resource.RLIMIT_DATA) == before  # restored
+    assert mem.memory_budget() == budget
+
+
+def test_cli_out_of_memory_is_exit_4(tmp_path, capsys, monkeypatch) -> None:
+    import hierplan_opt.cli.verify as cli_verify
+
+    def blow_up(args: object) -> int:
+        raise MemoryError
+
+    monkeypatch.setattr(cli_verify, "run", blow_up)
+    code, out = _verify_cli(capsys, tmp_path)
+    assert code == 4 and out.strip() == (
+        "hierplan verify: error: out of memory (over the memory budget; certify fewer "
+        "agents or raise --memory-limit)"
+    )
+
+
+def test_cli_data_limit_is_set_while_the_command_runs(tmp_path, capsys, monkeypatch) -> None:
+    import hierplan_opt.cli.verify as cli_verify
+
+    seen: list[int] = []
+
+    def look(args: object) -> int:
+        seen.append(resource.getrlimit(resource.RLIMIT_DATA)[0])
+        return 0
+
+    monkeypatch.setattr(cli_verify, "run", look)
+    assert _verify_cli(capsys, tmp_path, "--memory-limit", "3")[0] == 0
+    soft = resource.getrlimit(resource.RLIMIT_DATA)[0]
+    assert seen and seen[0] != resource.RLIM_INFINITY
+    assert 3 * mem.GB < seen[0] <= (soft if soft != resource.RLIM_INFINITY else 1 << 62)
+
+
+def test_budget_from_environment(monkeypatch, tmp_path, capsys) -> None:
+    monkeypatch.setattr(mem, "_budget", None)
+    monkeypatch.setenv("HIERPLAN_MEMORY_LIMIT_GB", "2.5")
+    assert mem.memory_budget() == int(2.5 * mem.GB)
+    monkeypatch.setattr(mem, "_budget", None)
+    monkeypatch.setenv("HIERPLAN_MEMORY_LIMIT_GB", "lots")
+    code, out = _verify_cli(capsys, tmp_path)
+    assert code == 2 and "HIERPLAN_MEMORY_LIMIT_GB must be a positive number of GB" in out
+    monkeypatch.setattr(mem, "_budget", None)
+
+
+def test_default_budget_is_a_fraction_of_the_machine() -> None:
+    info = mem._meminfo()
+    budget = mem.default_budget()
+    if "MemTotal" in info:
+        assert budget <= info["MemTotal"] // 2
+
+
+def test_cli_solve_memory_limit(tmp_path, capsys) -> None:
+    out = tmp_path / "p.yaml"
+    argv = ["solve", MAP, "--scen", SCEN, "--agents", "5", "--solver", "mip"]
+    code = main([*argv, "--memory-limit", "0.0001", "--out", str(out)])
+    std = capsys.readouterr()
+    assert code == 4 and not out.exists()
+    assert "stopped_by=memory_limit" in std.out
+    assert std.err.startswith("hierplan solve: the mip model at horizon ")
+    assert "over the memory budget of 0.0001 GB" in std.err
