@@ -36,6 +36,8 @@ import time
 from heapq import heappop, heappush
 from typing import Any
 
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
@@ -643,6 +645,7 @@ class _CBS:
     Option("symmetry", "bool", "target, corridor and rectangle reasoning"),
     Option("rectangle", "bool", "rectangle reasoning (4-connected 2D grids)"),
     Option("node_limit", "int", "stop after this many high-level expansions", low=1, optional=True),
+    *HIGHWAY_OPTIONS,
 )
 def solve(
     instance: Instance,
@@ -657,6 +660,9 @@ def solve(
     symmetry: bool = True,
     rectangle: bool = True,
     node_limit: int | None = None,
+    highways: str | None = None,
+    w_hwy: float = 2.0,
+    hwy_mode: str = "heuristic",
 ) -> Result:
     """Optimal MAPF by conflict-based search (sum of costs or makespan).
 
@@ -677,6 +683,9 @@ def solve(
         rectangle part (which also needs ``prioritize_conflicts``).
     node_limit
         Stop after this many high-level expansions (TIME_LIMIT with the lower bound).
+    highways, w_hwy, hwy_mode
+        CBS+HWY(w_hwy) instead (:mod:`hierplan_opt.search.highways`, sum of costs only):
+        prefer these directed edges, cost at most ``w_hwy`` times the optimum.
 
     Example
     -------
@@ -687,6 +696,15 @@ def solve(
     >>> r.status, r.cost
     (<Status.OPTIMAL: 'OPTIMAL'>, 8)
     """
+    if highways is not None:
+        if objective != "soc":
+            raise OptionError("cbs with highways optimises the sum of costs only (objective soc)")
+        from hierplan_opt.search.highways import solve_with_highways
+
+        return solve_with_highways(
+            "cbs", instance, time_limit=time_limit, highways=highways, w_hwy=w_hwy,
+            hwy_mode=hwy_mode, polish=False, bypass=bypass,
+        )  # fmt: skip
     deadline = Deadline(time_limit)
     g = instance.graph
     starts = instance.starts

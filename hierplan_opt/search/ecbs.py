@@ -37,6 +37,7 @@ import time
 from heapq import heappop, heappush
 from typing import Any
 
+from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
@@ -146,6 +147,7 @@ class _ECBS:
         self.dists = [g.dist_list(x) for x in self.goals]
         self.deadline = deadline
         self.w = w
+        self.w_high = w  # the high level's factor (w * w_hwy with highways)
         self.polish = polish
         self.bypass = bypass
         self.res = Reservations(g.n)
@@ -159,6 +161,7 @@ class _ECBS:
             "selected_focal": 0,
             "selected_open": 0,
             "selected_cleanup": 0,
+            "head_on_conflicts": 0,
             "w": w,
         }
         # open_lb: every open node by LB (EECBS's CLEANUP); pending: open nodes not yet
@@ -235,7 +238,7 @@ class _ECBS:
 
     def raise_bound(self, lbm: int) -> None:
         """Set the focal bound ``w * LB_min`` and move the nodes it admits into FOCAL."""
-        new_bound = self.w * lbm + _EPS
+        new_bound = self.w_high * lbm + _EPS
         if new_bound > self.bound:
             self.bound = new_bound
             pending = self.pending
@@ -264,6 +267,7 @@ class _ECBS:
         c = min(node.conflicts, key=lambda c: split_order(c, paths))
         t, kind, a, b, u, v = c
         if kind == EDGE:  # b moves v -> u while a moves u -> v, arriving at t
+            self.stats["head_on_conflicts"] += 1
             return [(b, (NEG_E, b, v, u, t)), (a, (NEG_E, a, u, v, t))]
         return [(b, (NEG_V, b, v, -1, t)), (a, (NEG_V, a, v, -1, t))]
 
@@ -294,7 +298,7 @@ class _ECBS:
         as in EECBS, the path is within ``w`` of the agent's bound *without* the new
         constraint, so ``cost_i <= w * lb_i`` keeps holding.
         """
-        w = self.w
+        w = self.w_high
         if not (
             self.bypass
             and len(child.conflicts) < len(node.conflicts)
@@ -358,7 +362,7 @@ class _ECBS:
             if child is None:
                 continue
             lb_now = min(lbm, node.lb)
-            if not child.conflicts and child.cost <= self.w * lb_now + _EPS:
+            if not child.conflicts and child.cost <= self.w_high * lb_now + _EPS:
                 return self.finish(child, lb_now)
             adopted = self.bypassed(node, child, a, lbm)
             if adopted is not None:
@@ -447,7 +451,7 @@ class _ECBS:
         return (
             self.lacam == "start"
             and self.inc_plan is not None
-            and self.inc_cost <= self.w * lbm + 1e-9
+            and self.inc_cost <= self.w_high * lbm + 1e-9
         )
 
     def from_lacam(self, lb: float) -> Result:
@@ -520,7 +524,7 @@ def run_search(
     return search.search()
 
 
-@solver("ecbs", W_OPTION, POLISH_OPTION, LACAM_OPTION)
+@solver("ecbs", W_OPTION, POLISH_OPTION, LACAM_OPTION, *HIGHWAY_OPTIONS)
 def solve(
     instance: Instance,
     *,
@@ -530,6 +534,9 @@ def solve(
     w: float = 1.2,
     polish: bool = True,
     lacam: str = "fallback",
+    highways: str | None = None,
+    w_hwy: float = 2.0,
+    hwy_mode: str = "heuristic",
 ) -> Result:
     """ECBS(w): a plan whose sum of costs is at most ``w`` times the optimum.
 
@@ -546,6 +553,9 @@ def solve(
         quarter of it) is returned when the search runs out of time; ``"start"``: also
         without a time limit, and the search stops as soon as its bound covers that
         plan; ``"off"``: no LaCAM.
+    highways, w_hwy, hwy_mode
+        ECBS(w)+HWY(w_hwy) (:mod:`hierplan_opt.search.highways`): prefer these directed
+        edges; the bound becomes ``w * w_hwy`` (LaCAM is not used then).
 
     Returns
     -------
@@ -565,6 +575,13 @@ def solve(
     (True, True)
     """
     del objective  # the sum of costs only; the seed is LaCAM's
+    if highways is not None:
+        from hierplan_opt.search.highways import solve_with_highways
+
+        return solve_with_highways(
+            "ecbs", instance, time_limit=time_limit, highways=highways, w_hwy=w_hwy,
+            hwy_mode=hwy_mode, w=w, polish=polish,
+        )  # fmt: skip
     return run_search(
         _ECBS, instance, time_limit, seed, w=w, polish=polish, bypass=False, lacam=lacam
     )

@@ -25,6 +25,7 @@ from __future__ import annotations
 from heapq import heappop, heappush
 from typing import Any
 
+from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result
@@ -99,6 +100,7 @@ class _EECBS(_ECBS):
     Option("bypass", "bool", "adopt a child's path when it lowers the conflicts in the bound"),
     POLISH_OPTION,
     LACAM_OPTION,
+    *HIGHWAY_OPTIONS,
 )
 def solve(
     instance: Instance,
@@ -110,6 +112,9 @@ def solve(
     bypass: bool = True,
     polish: bool = True,
     lacam: str = "fallback",
+    highways: str | None = None,
+    w_hwy: float = 2.0,
+    hwy_mode: str = "heuristic",
 ) -> Result:
     """EECBS(w): a plan whose sum of costs is at most ``w`` times the optimum.
 
@@ -127,6 +132,8 @@ def solve(
         LaCAM's plan as a fallback when the limit runs out (``"fallback"``, default),
         also as an early stop once the bound covers it (``"start"``), or ``"off"``;
         see :func:`hierplan_opt.search.ecbs.solve`.
+    highways, w_hwy, hwy_mode
+        EECBS(w)+HWY(w_hwy) (:mod:`hierplan_opt.search.highways`); bound ``w * w_hwy`` (no LaCAM).
 
     Example
     -------
@@ -137,6 +144,13 @@ def solve(
     True
     """
     del objective  # the sum of costs only; the seed is LaCAM's
+    if highways is not None:
+        from hierplan_opt.search.highways import solve_with_highways
+
+        return solve_with_highways(
+            "eecbs", instance, time_limit=time_limit, highways=highways, w_hwy=w_hwy,
+            hwy_mode=hwy_mode, w=w, polish=polish, bypass=bypass,
+        )  # fmt: skip
     return run_search(
         _EECBS, instance, time_limit, seed, w=w, polish=polish, bypass=bypass, lacam=lacam
     )

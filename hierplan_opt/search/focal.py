@@ -166,8 +166,13 @@ def focal_path(
                 if not focal:
                     break
             else:
-                while not live.get(fmin):
-                    fmin += 1
+                if not live.get(fmin):
+                    # The next live f. With an inconsistent heuristic (the highway one)
+                    # f can drop along a path, so every live state may lie below
+                    # f_min: keep f_min then, the largest seen (still <= w_hwy * C*).
+                    above = [f for f, k in live.items() if k and f > fmin]
+                    if above:
+                        fmin = min(above)
                 new_bound = int(w * fmin + 1e-9)
                 for f in range(bound + 1, new_bound + 1):
                     b = buckets.pop(f, None)

@@ -1,0 +1,432 @@
+"""Highways in CBS, ECBS and EECBS (Cohen, Uras and Koenig, SoCS 2015).
+
+A highway set ``H`` is a set of directed edges (:mod:`hierplan_opt.core.highways`).
+The *highway heuristic* ``h_hwy(v)`` is the cost of a cheapest path from ``v`` to the
+goal when an edge of ``H`` costs 1 and every other edge ``w_hwy`` (a backward Dijkstra
+from the goal, :class:`HighwayHeuristic`, cached per goal). With ``h`` the true
+distance, ``h <= h_hwy <= w_hwy * h``. Two ways to use it (option ``hwy_mode``):
+
+* ``"heuristic"`` (the paper's ECBS+HWY): the low-level focal search orders OPEN by
+  ``f = t + h_hwy(v)`` (true costs, one per step; the table is rounded down to integers,
+  which keeps ``h <= floor(h_hwy) <= w_hwy * h``). Along an optimal path ``pi*`` of cost
+  ``C*`` some state is always open with ``f <= t + w_hwy * (C* - t) <= w_hwy * C*``, so
+  ``f_min <= w_hwy * C*`` and the path returned costs at most ``w * f_min``;
+* ``"cost"`` (the overview's other variant): the edges themselves cost 1 on ``H`` and
+  ``w_hwy`` elsewhere (a wait costs 1) and the focal search minimises that inflated cost
+  with ``h_hwy`` as its exact, consistent heuristic (:func:`inflated_focal_path`). The
+  inflated cost of ``pi*`` is at most ``w_hwy * C*``, so again ``f_min <= w_hwy * C*``,
+  and a path's true cost is at most its inflated cost ``<= w * f_min``.
+
+Either way ``lb_i = max(dist(start), hold, ceil(f_min / w_hwy))`` is a lower bound on
+agent ``i``'s cost under its constraints and its path costs at most ``w * w_hwy *
+lb_i``. The high level is ECBS's (or EECBS's) with the factor ``W = w * w_hwy``:
+FOCAL = {N : cost(N) <= W * LB_min}, so the plan costs at most ``W`` times the optimum
+(ECBS(w)+HWY(w_hwy)). ``cbs`` with highways is CBS+HWY(w_hwy): one focal level
+(``w = 1``, ties by conflicts) and a best-first high level by cost (ties by
+conflicts); the node consistent with an optimal plan costs at most ``w_hwy * OPT``,
+so the plan returned does too. See ``docs/highways.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_right
+from collections.abc import Iterable, Sequence
+from heapq import heappop, heappush
+from typing import Any, cast
+
+import numpy as np
+
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.graph import UNREACHABLE, Graph
+from hierplan_opt.core.highways import (
+    GENERATORS,
+    Highways,
+    corridors,
+    crisscross,
+    highway_share,
+)
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.result import Result
+from hierplan_opt.core.timer import Deadline
+from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
+from hierplan_opt.search.ecbs import _ECBS, Path, _Node
+from hierplan_opt.search.eecbs import _EECBS
+from hierplan_opt.search.focal import SearchTimeout
+from hierplan_opt.search.reservations import Reservations
+
+
+def resolve(instance: Instance, spec: object, solver: str = "solver") -> Highways:
+    """The highway set named by the ``highways`` option.
+
+    ``"instance"`` is the instance's own set (:attr:`Instance.highways`, e.g. read from a
+    file), ``"crisscross"`` and ``"corridors"`` the generators of
+    :mod:`hierplan_opt.core.highways`, ``"learned"`` and ``"flow"`` those of
+    :mod:`hierplan_opt.formulations.highways`.
+
+    Example
+    -------
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> sorted(resolve(inst, "crisscross"))
+    [(0, 1), (1, 2)]
+    >>> resolve(inst, "instance", "ecbs")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OptionError: ecbs option highways='instance': the instance has no ...
+    """
+    if spec == "instance":
+        if instance.highways is None:
+            raise OptionError(f"{solver} option highways='instance': the instance has no highways")
+        return instance.highways
+    if spec == "crisscross":
+        return crisscross(instance.graph)
+    if spec == "corridors":
+        return corridors(instance.graph)
+    if spec in ("learned", "flow"):
+        from hierplan_opt.formulations import highways as learn
+
+        return learn.learned(instance) if spec == "learned" else learn.flow(instance)
+    raise OptionError(
+        f"{solver} option highways must be one of {', '.join(GENERATORS)}, got {spec!r}"
+    )
+
+
+class HighwayHeuristic:
+    """Backward-Dijkstra tables: cost 1 on highway edges, ``w_hwy`` on the others.
+
+    Tables are computed in batches (:meth:`precompute`) and cached per goal.
+
+    Example
+    -------
+    >>> g = Graph.grid(4, 1)
+    >>> hh = HighwayHeuristic(g, {(0, 1), (1, 2)}, 2.0)
+    >>> hh.exact(3).tolist(), hh.table(3)
+    ([4.0, 3.0, 2.0, 0.0], [4, 3, 2, 0])
+    """
+
+    def __init__(self, graph: Graph, highways: Iterable[tuple[int, int]], w_hwy: float) -> None:
+        import scipy.sparse as sp
+
+        self.graph = graph
+        self.w_hwy = float(w_hwy)
+        hw = set(highways)
+        n = graph.n
+        src = np.repeat(np.arange(n), np.diff(graph.indptr))
+        dst = graph.indices
+        weight = np.array(
+            [1.0 if (int(u), int(v)) in hw else self.w_hwy for u, v in zip(src, dst, strict=True)]
+        )
+        # Reversed graph: Dijkstra from the goal along reversed edges gives cost-to-go.
+        self._rev = sp.csr_matrix((weight, (dst, src)), shape=(n, n))
+        self._exact: dict[int, np.ndarray] = {}
+        self._tables: dict[int, list[int]] = {}
+
+    def precompute(self, goals: Iterable[int]) -> None:
+        """Compute the tables of every goal not cached yet (one C-level batch)."""
+        from scipy.sparse.csgraph import dijkstra
+
+        todo = [t for t in dict.fromkeys(goals) if t not in self._exact]
+        if not todo:
+            return
+        d = np.atleast_2d(dijkstra(self._rev, directed=True, indices=todo))
+        for t, row in zip(todo, d, strict=True):
+            row.setflags(write=False)
+            self._exact[t] = row
+            tab = np.floor(row + 1e-9)
+            tab[~np.isfinite(row)] = UNREACHABLE
+            self._tables[t] = [int(x) for x in tab]
+
+    def exact(self, goal: int) -> np.ndarray:
+        """``h_hwy`` to ``goal`` for every vertex (``inf`` where the goal is unreachable)."""
+        self.precompute([goal])
+        return self._exact[goal]
+
+    def table(self, goal: int) -> list[int]:
+        """``floor(h_hwy)`` to ``goal`` as a list of ints (the focal search's ``dist``)."""
+        self.precompute([goal])
+        return self._tables[goal]
+
+
+# ---------------------------------------------------------------- the edge-cost variant
+def inflated_focal_path(
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    h: np.ndarray,
+    highways: frozenset[tuple[int, int]],
+    w_hwy: float,
+    cons: AgentConstraints,
+    res: Reservations,
+    *,
+    w: float = 1.0,
+    deadline: Deadline | None = None,
+    stats: dict[str, Any] | None = None,
+) -> tuple[tuple[int, ...], float] | None:
+    """Focal search over inflated edge costs: ``(path, f_min)``, inflated cost <= ``w * f_min``.
+
+    A move along a highway edge costs 1, any other move ``w_hwy``, a wait 1; ``h`` is
+    :meth:`HighwayHeuristic.exact` (consistent for these costs). States are
+    ``(v, t)`` keyed ``t * N + v`` as in :func:`~hierplan_opt.search.focal.focal_path`,
+    each kept with its cheapest ``g`` (re-opened when a cheaper one appears); OPEN is
+    ordered by ``f = g + h``, FOCAL = {``f <= w * f_min``} by conflicts with ``res``,
+    then by ``f``. Vertex and edge constraints only.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 2)
+    >>> hw = frozenset({(3, 4), (4, 5), (0, 3)})
+    >>> hh = HighwayHeuristic(g, hw, 2.0)
+    >>> inflated_focal_path(g.adj, 0, 5, hh.exact(5), hw, 2.0, AgentConstraints(), Reservations(6))
+    ((0, 3, 4, 5), 3.0)
+    """
+    if cons.landmarks or cons.forbid_from or cons.max_finish != NO_BOUND:
+        raise ValueError("inflated_focal_path supports vertex and edge constraints only")
+    succ = successors(adj)
+    n = len(adj)
+    vcons, econs = cons.vertex, cons.edge
+    hold = cons.min_finish
+    max_t = cons.tmax + n + 1
+    goal_times = res.visits(goal)
+    vt, et, park_t = res.vt, res.et, res.park_t
+    inf = math.inf
+
+    g_of: dict[int, float] = {start: 0.0}
+    conf: dict[int, int] = {start: 0}
+    parent: dict[int, int] = {start: -1}
+    closed: set[int] = set()
+    open_f: list[tuple[float, int]] = [(float(h[start]), start)]
+    pending: list[tuple[float, int, int]] = [(float(h[start]), 0, start)]  # not yet in FOCAL
+    focal: list[tuple[int, float, int, int]] = []  # (conflicts, f, -t, key)
+    bound = -inf
+    expanded = 0
+
+    def f_of(key: int) -> float:
+        if key < 0:
+            return g_of[key]
+        return g_of[key] + float(h[key % n])
+
+    def push(key: int) -> None:
+        f = f_of(key)
+        heappush(open_f, (f, key))
+        if f <= bound:
+            t = (-key - 1) // n if key < 0 else key // n
+            heappush(focal, (conf[key], f, -t, key))
+        else:
+            heappush(pending, (f, conf[key], key))
+
+    def relax(key: int, g: float, c: int, par: int) -> None:
+        old = g_of.get(key)
+        if old is None or g < old - 1e-12 or (abs(g - old) <= 1e-12 and c < conf[key]):
+            g_of[key], conf[key], parent[key] = g, c, par
+            closed.discard(key)
+            push(key)
+
+    if start == goal and hold == 0:  # already there: park from time 0
+        relax(-(start + 1), 0.0, len(goal_times) - bisect_right(goal_times, 0), -1)
+    result: tuple[tuple[int, ...], float] | None = None
+    while True:
+        while open_f and (open_f[0][1] in closed or abs(open_f[0][0] - f_of(open_f[0][1])) > 1e-12):
+            heappop(open_f)
+        if not open_f:
+            break
+        fmin = open_f[0][0]
+        new_bound = w * fmin + 1e-9
+        if new_bound > bound:
+            bound = new_bound
+            while pending and pending[0][0] <= bound:
+                f, c, key = heappop(pending)
+                if key not in closed and c == conf[key] and abs(f - f_of(key)) <= 1e-12:
+                    t = (-key - 1) // n if key < 0 else key // n
+                    heappush(focal, (c, f, -t, key))
+        if not focal:  # pragma: no cover - the open f_min state is always admitted
+            break
+        c, f, _, key = heappop(focal)
+        if key in closed or c != conf[key] or abs(f - f_of(key)) > 1e-12:
+            continue
+        closed.add(key)
+        if key < 0:  # terminal: parked at the goal from here on
+            path = [goal]
+            k = parent[key]
+            while k >= 0:
+                path.append(k % n)
+                k = parent[k]
+            path.reverse()
+            result = tuple(path), fmin
+            break
+        expanded += 1
+        if deadline is not None and not expanded & 1023 and deadline.expired():
+            raise SearchTimeout
+        t, v = divmod(key, n)
+        nt = t + 1
+        if nt > max_t:
+            continue
+        base = nt * n
+        gv = g_of[key]
+        for u in succ[v]:
+            nk = base + u
+            if nk in vcons or (u != v and (base + v) * n + u in econs):
+                continue
+            nc = c + len(vt.get(nk, ()))
+            if nt > park_t[u]:
+                nc += 1
+            if u != v:
+                nc += len(et.get((base + u) * n + v, ()))
+            step = 1.0 if u == v or (v, u) in highways else w_hwy
+            ng = gv + step
+            if h[u] == inf:
+                continue
+            relax(nk, ng, nc, key)
+            if u == goal and nt >= hold:
+                tc = nc + len(goal_times) - bisect_right(goal_times, nt)
+                relax(-(nk + 1), ng, tc, key)
+    if stats is not None:
+        stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
+    return result
+
+
+# ---------------------------------------------------------------- the searches
+class _HighwayMixin:
+    """Highway low level and the factor ``W = w * w_hwy`` for an ECBS-family search.
+
+    Mixed in before :class:`~hierplan_opt.search.ecbs._ECBS` (or a subclass): replaces
+    the low level's distance tables by the highway heuristic (mode ``"heuristic"``) or
+    the low level itself (mode ``"cost"``), and turns its ``f_min`` into the agent's
+    lower bound (see the module docstring).
+    """
+
+    # attributes of _ECBS used here
+    instance: Instance
+    goals: list[int]
+    starts: list[int]
+    dists: list[list[int]]
+    adj: list[list[int]]
+    w: float
+    w_high: float
+    res: Reservations
+    deadline: Deadline
+    stats: dict[str, Any]
+
+    def use_highways(self, highways: Highways, w_hwy: float, mode: str) -> None:
+        self.highways = highways
+        self.w_hwy = w_hwy
+        self.mode = mode
+        self.hwy = HighwayHeuristic(self.instance.graph, highways, w_hwy)
+        self.hwy.precompute(self.goals)
+        self.true_dists = self.dists
+        if mode == "heuristic":
+            self.dists = [self.hwy.table(x) for x in self.goals]
+        self.w_high = self.w * w_hwy
+        self.stats.update(
+            bound=self.w_high, w_hwy=w_hwy, hwy_mode=mode, highway_edges=len(highways)
+        )
+
+    def plan(self, a: int, cons: AgentConstraints) -> tuple[Path, int] | None:
+        if self.mode == "heuristic":
+            out: tuple[Path, float] | None = super().plan(a, cons)  # type: ignore[misc]
+        else:
+            self.stats["low_level_calls"] += 1
+            out = inflated_focal_path(
+                self.adj,
+                self.starts[a],
+                self.goals[a],
+                self.hwy.exact(self.goals[a]),
+                self.highways,
+                self.w_hwy,
+                cons,
+                self.res,
+                w=self.w,
+                deadline=self.deadline,
+                stats=self.stats,
+            )
+        if out is None:
+            return None
+        path, fmin = out
+        lb = max(
+            self.true_dists[a][self.starts[a]],
+            cons.min_finish,
+            math.ceil(fmin / self.w_hwy - 1e-9),
+        )
+        return path, lb
+
+    def result(self, status: Any, plan: Any, cost: Any = None, lb: Any = None) -> Result:
+        if plan is not None:
+            self.stats["highway_share"] = highway_share(plan, self.highways)
+        return super().result(status, plan, cost, lb)  # type: ignore[misc]
+
+
+class _ECBSHwy(_HighwayMixin, _ECBS):
+    """ECBS(w)+HWY(w_hwy)."""
+
+    name = "ecbs"
+
+
+class _EECBSHwy(_HighwayMixin, _EECBS):
+    """EECBS(w)+HWY(w_hwy)."""
+
+    name = "eecbs"
+
+
+class _CBSHwy(_HighwayMixin, _ECBS):
+    """CBS+HWY(w_hwy): best-first by cost at the high level, ``w = 1`` at the low level."""
+
+    name = "cbs"
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.by_cost: list[tuple[int, int, int, _Node]] = []
+
+    def push(self, node: _Node) -> None:
+        heappush(self.open_lb, (node.lb, node.id, node))
+        heappush(self.by_cost, (node.cost, len(node.conflicts), node.id, node))
+
+    def raise_bound(self, lbm: int) -> None:
+        self.bound = self.w_high * lbm + 1e-9
+        while self.by_cost and self.by_cost[0][3].closed:
+            heappop(self.by_cost)
+
+    def select(self) -> _Node:
+        self.stats["selected_open"] += 1
+        return heappop(self.by_cost)[3]
+
+
+_CLASSES: dict[str, type[_ECBS]] = {"ecbs": _ECBSHwy, "eecbs": _EECBSHwy, "cbs": _CBSHwy}
+
+
+def solve_with_highways(
+    name: str,
+    instance: Instance,
+    *,
+    time_limit: float | None,
+    highways: str,
+    w_hwy: float,
+    hwy_mode: str,
+    w: float = 1.0,
+    polish: bool = True,
+    bypass: bool = False,
+) -> Result:
+    """Run solver ``name`` (``cbs``, ``ecbs`` or ``eecbs``) with highways (module doc).
+
+    Example
+    -------
+    >>> g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
+    >>> inst = Instance.mapf(g, [(0, 0), (4, 0)], [(4, 0), (0, 0)])
+    >>> r = solve_with_highways("ecbs", inst, time_limit=10, highways="crisscross",
+    ...                         w_hwy=2.0, hwy_mode="heuristic", w=1.2)
+    >>> r.stats["bound"], r.cost <= 2.4 * r.lower_bound
+    (2.4, True)
+    """
+    deadline = Deadline(time_limit)
+    hw = resolve(instance, highways, name)
+    search = _CLASSES[name](instance, deadline, w=w, polish=polish, bypass=bypass)
+    mixin = cast(_HighwayMixin, search)
+    mixin.use_highways(hw, w_hwy, hwy_mode)
+    search.stats["highway_time"] = deadline.elapsed()
+    return search.search()
+
+
+__all__ = [
+    "HighwayHeuristic",
+    "inflated_focal_path",
+    "resolve",
+    "solve_with_highways",
+]
