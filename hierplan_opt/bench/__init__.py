@@ -25,6 +25,7 @@ AREAS = {
     "execution": "execution: STN re-solve vs re-plan, Monte Carlo runs/s, layers per delay rate",
     "trajectory": "trajectory refinement (CasADi): formation and 200 robots, IPOPT vs fatrop",
     "lacam": "PIBT and LaCAM* on large fleets, side by side with lacam3 and the Python ports",
+    "highways": "ECBS/CBS with user, crisscross and learned highways (Kiva, corridor)",
 }
 
 

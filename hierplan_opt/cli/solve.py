@@ -55,6 +55,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--w", type=positive_float, metavar="W", help="suboptimality bound (option w)")
     p.add_argument(
+        "--highways",
+        metavar="FILE|NAME",
+        help="prefer directed edges: a highway file (.yaml, .map.highway grid, .hwy edge list) "
+        "or crisscross, corridors, learned, flow, instance (solvers cbs, ecbs, eecbs)",
+    )
+    p.add_argument(
+        "--w-hwy", type=positive_float, metavar="W", help="highway factor (option w_hwy, default 2)"
+    )
+    p.add_argument(
         "--time-limit",
         type=positive_float,
         default=DEFAULT_TIME_LIMIT,
@@ -144,6 +153,34 @@ def _fmt(x: Any) -> str:
     return str(x)
 
 
+def highway_options(args: argparse.Namespace, instance: Any, options: dict[str, Any]) -> Any:
+    """Put ``--highways``/``--w-hwy`` into ``options``; a highway file goes into the instance."""
+    from dataclasses import replace
+
+    from hierplan_opt import registry
+    from hierplan_opt.core.highways import GENERATORS
+
+    if args.highways is None:
+        if args.w_hwy is not None:
+            raise InputError("--w-hwy needs --highways")
+        return instance
+    if "highways" not in registry.get(args.solver).load().options.names():
+        raise InputError(f"solver {args.solver!r} does not take highways (use cbs, ecbs or eecbs)")
+    for key, flag in (("highways", "--highways"), ("w_hwy", "--w-hwy")):
+        if key in options and (key == "highways" or args.w_hwy is not None):
+            raise InputError(f"give {key} either with {flag} or with --set {key}=..., not both")
+    if args.w_hwy is not None:
+        options["w_hwy"] = args.w_hwy
+    if args.highways in GENERATORS:
+        options["highways"] = args.highways
+        return instance
+    from hierplan_opt.io.highways import load_highways
+
+    hw = load_highways(args.highways, instance.graph)
+    options["highways"] = "instance"
+    return replace(instance, highways=hw)
+
+
 def run(args: argparse.Namespace) -> int:
     import hierplan_opt
     from hierplan_opt import registry
@@ -158,6 +195,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("give w either with --w or with --set w=..., not both")
         options["w"] = args.w
     instance = load_instance_from_args(args)
+    instance = highway_options(args, instance, options)
     result = hierplan_opt.solve(
         instance,
         args.solver,

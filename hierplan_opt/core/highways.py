@@ -207,7 +207,7 @@ def corridors(graph: Graph, max_width: int = 2) -> Highways:
     """
     width, height = _need_grid(graph, "corridor highways")
     free = graph.passable.reshape(height, width)
-    out: set[tuple[int, int]] = set()
+    proposed: list[tuple[int, int]] = []
     for axis in (0, 1):  # 0: horizontal aisles (runs along y), 1: vertical aisles
         grid = free if axis == 0 else free.T
         lines, across = grid.shape  # lines: positions along the run axis
@@ -240,8 +240,11 @@ def corridors(graph: Graph, max_width: int = 2) -> Highways:
                     continue
                 a, b = (c, c1) if fwd == forward else (c1, c)
                 cells = [(a, r), (b, r)] if axis == 0 else [(r, a), (r, b)]
-                out.add((graph.vertex(cells[0]), graph.vertex(cells[1])))
-    return frozenset(out)
+                proposed.append((graph.vertex(cells[0]), graph.vertex(cells[1])))
+    # An edge between two aisles that disagree (e.g. where a width-1 aisle meets a
+    # width-2 one) gets no highway rather than both directions.
+    both = set(proposed)
+    return frozenset(e for e in both if (e[1], e[0]) not in both)
 
 
 def reversed_highways(highways: Iterable[tuple[int, int]]) -> Highways:

@@ -167,12 +167,11 @@ def focal_path(
                     break
             else:
                 if not live.get(fmin):
-                    # The next live f. With an inconsistent heuristic (the highway one)
-                    # f can drop along a path, so every live state may lie below
-                    # f_min: keep f_min then, the largest seen (still <= w_hwy * C*).
-                    above = [f for f, k in live.items() if k and f > fmin]
-                    if above:
-                        fmin = min(above)
+                    # f_min := max(f_min, smallest live f). With a consistent heuristic
+                    # that is the next live f; with the highway heuristic f can drop
+                    # along a path, and the largest true f_min seen is still a valid
+                    # input to the bound (each one is <= w_hwy * C*).
+                    fmin = max(fmin, min(f for f, k in live.items() if k))
                 new_bound = int(w * fmin + 1e-9)
                 for f in range(bound + 1, new_bound + 1):
                     b = buckets.pop(f, None)
