@@ -20,6 +20,7 @@ warehouse ... cbs+user ...
 
 from __future__ import annotations
 
+import logging
 import statistics
 from dataclasses import replace
 from pathlib import Path
@@ -158,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     for c in chosen:
         if c not in CONFIGS:
             raise InputError(f"unknown configuration {c!r} (use {', '.join(CONFIGS)})")
+    # the searches' progress lines would interleave with the table
+    logging.getLogger("hierplan_opt.search").setLevel(logging.WARNING)
     print(HEAD)
     print("-" * len(HEAD))
     for set_name in sets:

@@ -142,8 +142,8 @@ def learned(
     instance: Instance,
     *,
     beta: float = 1.0,
-    gamma: float = 0.5,
-    unit: float = 1.0,
+    gamma: float = 1.0,
+    unit: float | None = None,
     reach: int = 3,
 ) -> Highways:
     """Highway directions by MAP inference over edge directions (module docstring).
@@ -155,7 +155,9 @@ def learned(
     gamma
         Cost of two neighbouring parallel edges pointing the same way.
     unit
-        Cost per expected agent driving against an edge's direction.
+        Cost per expected agent driving against an edge's direction (default: one
+        over the mean traffic of the edges with traffic, so that the unary costs are
+        of order 1 like ``beta`` and ``gamma`` and the same weights suit any fleet).
     reach
         Parallel edges up to this many lines apart are neighbours when only blocked
         cells lie between them (lanes on both sides of a shelf row).
@@ -172,8 +174,13 @@ def learned(
     if not is_2d_grid(g):
         raise InputError("learned highways need a 2D grid map")
     assert g.shape is not None
-    width = g.shape[0]
+    width, height = g.shape
     t = traffic(instance)
+    if unit is None:
+        busy = {frozenset(e): 0.0 for e in t}
+        for (u, v), x in t.items():
+            busy[frozenset((u, v))] += x
+        unit = len(busy) / sum(busy.values()) if busy else 1.0
     # One variable per undirected edge (a, b), a < b: label 1 = a -> b (east / south).
     edges = sorted((u, v) for u, v in g.edges() if u < v)
     index = {e: i for i, e in enumerate(edges)}
@@ -196,15 +203,18 @@ def learned(
         nxt = (b, b + step)  # the next edge on the same line
         if nxt in index:
             pairs.append((i, index[nxt], beta))
-        # the next parallel edge across, skipping up to ``reach - 1`` blocked lines
-        # (the aisle on the other side of a shelf row)
-        for k in range(1, reach + 1):
+        # The nearest parallel edge across, skipping blocked lines (the aisle on the
+        # other side of a shelf row); coupled only an odd number of lines away, where
+        # the relabelling above makes the term submodular.
+        x, y = a % width, a // width
+        room = (height - 1 - y) if horizontal else (width - 1 - x)
+        for k in range(1, min(reach, room) + 1):
             par = (a + k * across, b + k * across)
             if par in index:
-                if gamma > 0:
+                if k % 2 == 1 and gamma > 0:
                     pairs.append((i, index[par], gamma))
                 break
-            if k * across + b >= g.n or g.passable[a + k * across] or g.passable[b + k * across]:
+            if g.passable[par[0]] or g.passable[par[1]]:
                 break  # a free cell in between: no lane on the other side of a shelf
     labels, _ = min_cut_labels(unary, pairs)
     labels = np.where(flip, 1 - labels, labels)
