@@ -24,6 +24,7 @@ import logging
 import statistics
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import hierplan_opt as hp
 from hierplan_opt.bench import BenchParser, time_limit
@@ -33,7 +34,7 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Result
 
 #: configuration -> (solver, options, published result on the same kind of instance)
-CONFIGS: dict[str, tuple[str, dict[str, object]]] = {
+CONFIGS: dict[str, tuple[str, dict[str, Any]]] = {
     "ecbs(1.5)": ("ecbs", {"w": 1.5}),
     "ecbs(2.0)": ("ecbs", {"w": 2.0}),
     "ecbs(1.2)+user": ("ecbs", {"w": 1.2, "highways": "instance", "w_hwy": 2.0}),
@@ -122,8 +123,8 @@ def row(set_name: str, config: str, results: list[tuple[Instance, Result]], limi
     ]
     heads = [r.stats.get("head_on_conflicts", 0) for _, r in results]
     solver, opts = CONFIGS[config]
-    w = float(opts.get("w", 1.0))  # type: ignore[arg-type]
-    bound = w * float(opts.get("w_hwy", 1.0)) if "highways" in opts else w  # type: ignore[arg-type]
+    w = float(opts.get("w", 1.0))
+    bound = w * float(opts.get("w_hwy", 1.0)) if "highways" in opts else w
     if solver == "cbs" and "highways" not in opts:
         bound = 1.0
 

@@ -175,14 +175,15 @@ def crisscross(graph: Graph) -> Highways:
     _need_grid(graph, "crisscross highways")
     out: set[tuple[int, int]] = set()
     for u, v in graph.edges():
-        (x0, y0), (x1, y1) = graph.location(u), graph.location(v)
+        x0, y0 = (int(c) for c in graph.coords[u][:2])
+        x1, y1 = (int(c) for c in graph.coords[v][:2])
         if y0 == y1:  # horizontal
             east = x1 > x0
-            if east == (int(y0) % 2 == 0):
+            if east == (y0 % 2 == 0):
                 out.add((u, v))
         else:
             south = y1 > y0
-            if south == (int(x0) % 2 == 0):
+            if south == (x0 % 2 == 0):
                 out.add((u, v))
     return frozenset(out)
 
@@ -226,7 +227,7 @@ def corridors(graph: Graph, max_width: int = 2) -> Highways:
                 run_top[s:r, c] = s
         aisle = grid & (run_len <= max_width)
         # Number the width-1 aisle lines in order, so neighbouring aisles alternate.
-        single = sorted({r for r, c in zip(*np.nonzero(aisle & (run_len == 1)), strict=True)})
+        single = sorted({int(r) for r in np.nonzero(aisle & (run_len == 1))[0]})
         index = {r: i for i, r in enumerate(single)}
         for r, c in zip(*np.nonzero(aisle), strict=True):
             r, c = int(r), int(c)
