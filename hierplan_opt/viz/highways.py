@@ -9,8 +9,6 @@ from collections.abc import Iterable
 from dataclasses import replace
 from typing import Any
 
-import numpy as np
-
 from hierplan_opt.core.highways import highway_share
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
@@ -23,9 +21,8 @@ def plot_highways(
     ax: Any = None,
     *,
     title: str | None = None,
-    color: str = "tab:red",
 ) -> Any:
-    """Draw the map, its highways as arrows (red, as in the paper's Fig. 2) and the paths.
+    """Draw the map, its highways as arrows (the paper's Fig. 2) and the planned paths.
 
     Parameters
     ----------
@@ -49,37 +46,23 @@ def plot_highways(
     >>> g = Graph.grid(5, 3, obstacles=[(1, 1), (2, 1), (3, 1)])
     >>> inst = Instance.mapf(g, [(0, 0)], [(4, 2)])
     >>> ax = plot_highways(inst, highways=corridors(g))
-    >>> len(ax.collections[-1].get_offsets())  # one arrow per highway edge
+    >>> sum(len(c.get_offsets()) for c in ax.collections if hasattr(c, "U"))  # arrows
     12
     >>> plt.close(ax.figure)
     """
     from hierplan_opt.viz.plots import plot_instance, plot_plan
 
     hw = frozenset(highways) if highways is not None else (instance.highways or frozenset())
-    base = replace(instance, highways=None)
+    shown = replace(instance, highways=hw)  # plots draws the instance's highways as arrows
     if plan is not None:
-        ax = plot_plan(base, plan, ax, legend=False, title="")
+        ax = plot_plan(shown, plan, ax, legend=False, title="")
     else:
-        ax = plot_instance(base, ax, legend=False, title="")
-    g = instance.graph
-    arcs = sorted(hw)
-    if arcs:
-        a = np.array([g.position(u)[:2] for u, _ in arcs])
-        b = np.array([g.position(v)[:2] for _, v in arcs])
-        d = b - a
-        ax.quiver(
-            a[:, 0] + 0.15 * d[:, 0],
-            a[:, 1] + 0.15 * d[:, 1],
-            0.7 * d[:, 0],
-            0.7 * d[:, 1],
-            angles="xy",
-            scale_units="xy",
-            scale=1.0,
-            color=color,
-            alpha=0.8,
-            width=0.004,
-            zorder=4,
-        )
+        ax = plot_instance(shown, ax, legend=False, title="")
+    for arrows in ax.collections:  # the highway arrows on top of the paths, in red
+        if hasattr(arrows, "U"):
+            arrows.set_zorder(4)
+            arrows.set_color("tab:red")
+            arrows.set_alpha(0.8)
     if title is None:
         title = instance.name
         if plan is not None:
