@@ -14,7 +14,7 @@ Example
 -------
 >>> main(["--instance", "warehouse", "--configs", "cbs+user"])  # doctest: +ELLIPSIS
 set ...
-warehouse ... cbs+user ...
+warehouse cbs+user ...
 0
 """
 
@@ -81,7 +81,7 @@ def instances(name: str, seeds: list[int]) -> list[tuple[str, Instance]]:
     Example
     -------
     >>> [(n, i.num_agents, len(i.highways)) for n, i in instances("corridor", [0])]
-    [('corridor-5x20', 20, 36)]
+    [('corridor-5x20', 20, 22)]
     """
     from hierplan_opt.io import load_instance
     from hierplan_opt.io.highways import load_highways

@@ -120,12 +120,12 @@ def min_cut_labels(
             raise InputError("pairwise costs must be >= 0 (submodular)")
         arc(i, j, c)
         arc(j, i, c)
-    cap = sp.csr_matrix(
+    cap = sp.csr_array(
         (np.array(caps, dtype=np.int32), (np.array(rows), np.array(cols))), shape=(m + 2, m + 2)
     )
     res = maximum_flow(cap, s, t)
     # Residual graph (flows are antisymmetric, so reverse arcs get the flow back).
-    residual = (cap - res.flow).tocsr()
+    residual = sp.csr_array(cap - res.flow)
     residual.data[residual.data < 0] = 0
     residual.eliminate_zeros()
     reach = breadth_first_order(residual, s, directed=True, return_predecessors=False)
