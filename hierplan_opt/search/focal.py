@@ -50,6 +50,23 @@ class SearchTimeout(Exception):
     """Raised by the low level when the deadline expires mid-search."""
 
 
+def unwind(parent: dict[int, int], key: int, goal: int, n: int) -> list[int]:
+    """The path to terminal ``key`` (parked at ``goal``) from the ``parent`` links.
+
+    Example
+    -------
+    >>> unwind({-9: 4, 4: 0, 0: -1}, -9, 2, 3)  # keys t * n + v; terminal -(key + 1)
+    [0, 1, 2]
+    """
+    path = [goal]
+    k = parent[key]
+    while k >= 0:
+        path.append(k % n)
+        k = parent[k]
+    path.reverse()
+    return path
+
+
 # See the note above astar.space_time_astar: one of the two hot inner loops, written out
 # in one body on purpose.
 def focal_path(
@@ -187,12 +204,7 @@ def focal_path(
             continue  # stale entry
         if key < 0:
             # Terminal node: the agent parks at its goal from time f on.
-            path = [goal]
-            k = parent[key]
-            while k >= 0:
-                path.append(k % n)
-                k = parent[k]
-            path.reverse()
+            path = unwind(parent, key, goal, n)
             while len(path) > 1 and path[-2] == goal:
                 path.pop()  # cannot happen (hold logic), kept for safety
             out = tuple(path), fmin

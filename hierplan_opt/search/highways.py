@@ -55,7 +55,7 @@ from hierplan_opt.core.timer import Deadline
 from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
 from hierplan_opt.search.ecbs import _ECBS, Path
 from hierplan_opt.search.eecbs import _EECBS
-from hierplan_opt.search.focal import SearchTimeout
+from hierplan_opt.search.focal import SearchTimeout, unwind
 from hierplan_opt.search.reservations import Reservations
 
 
@@ -248,13 +248,7 @@ def inflated_focal_path(
             continue
         closed.add(key)
         if key < 0:  # terminal: parked at the goal from here on
-            path = [goal]
-            k = parent[key]
-            while k >= 0:
-                path.append(k % n)
-                k = parent[k]
-            path.reverse()
-            result = tuple(path), fmin
+            result = tuple(unwind(parent, key, goal, n)), fmin
             break
         expanded += 1
         if deadline is not None and not expanded & 1023 and deadline.expired():
