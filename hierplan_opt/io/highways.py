@@ -40,7 +40,6 @@ from hierplan_opt.core.highways import (
     edge_from_cell,
     is_2d_grid,
 )
-from hierplan_opt.io._common import loc_text
 from hierplan_opt.io._yaml import Ctx, read_text, read_yaml
 
 FORMATS = ("hierplan", "grid", "edges")
@@ -292,7 +291,7 @@ def yaml_text(graph: Graph, highways: Highways, *, directions: bool = False) -> 
     else:
         hw = sorted(check_highways(graph, highways))
         out.append("highways:" if hw else "highways: []")
-        out += [f"  - [{loc_text(graph, u)}, {loc_text(graph, v)}]" for u, v in hw]
+        out += [f"  - [{graph.label(u)}, {graph.label(v)}]" for u, v in hw]
     return "\n".join(out) + "\n"
 
 
