@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Protocol
@@ -24,10 +25,12 @@ from typing import TYPE_CHECKING, Any, Protocol
 from hierplan_opt.core.errors import OptionError, UnknownSolverError
 from hierplan_opt.core.options import Option, Options
 from hierplan_opt.core.result import Result, Status
-from hierplan_opt.core.timer import check_time_limit
+from hierplan_opt.core.timer import Deadline, check_time_limit
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance
+
+log = logging.getLogger(__name__)
 
 #: Arguments every solver takes besides its own options.
 COMMON = ("instance", "time_limit", "seed", "objective")
@@ -211,15 +214,22 @@ class SolverInfo:
         return out
 
 
-def cheap_infeasibility(instance: Instance) -> str | None:
-    """A one-line reason why no plan exists, from the checks that take milliseconds."""
+def cheap_infeasibility(instance: Instance, deadline: Deadline | None = None) -> str | None:
+    """A one-line reason why no plan exists, from the checks that take milliseconds.
+
+    First the distance tables of every goal (batches the solvers reuse; about a second
+    for 2000 goals on 4096 cells), then the exact feasibility test. When ``deadline``
+    passes during the tables, the checks stop and the answer is None: the caller sees
+    ``deadline.expired()``.
+    """
     from hierplan_opt.core.feasibility import quick_infeasibility
 
     if instance.is_tapf:
         targets = {v for team in instance.teams for v in team.targets}
     else:
         targets = set(instance.goals)
-    instance.graph.precompute_distances(targets)  # one batch, which the solvers reuse
+    if not instance.graph.fill_distances(targets, deadline):
+        return None
     return quick_infeasibility(instance)
 
 
@@ -250,13 +260,31 @@ def run(
     objective = info.objective_for(instance, objective)
     check_time_limit(time_limit)
     values = info.check_options(options)
-    reason = cheap_infeasibility(instance)
+    deadline = Deadline(time_limit)
+    reason = cheap_infeasibility(instance, deadline)
     if reason is not None:
         return Result(
             Status.INFEASIBLE, None, solver=name, objective=objective, stats={"reason": reason}
         )
+    remaining = deadline.remaining()
+    if time_limit is not None and remaining <= 0:
+        log.info("%s: time limit %.3g s used up by the checks before the solver", name, time_limit)
+        return Result(
+            Status.TIME_LIMIT,
+            None,
+            solver=name,
+            objective=objective,
+            stats={
+                "reason": f"time limit ({time_limit:g} s) reached during the cheap checks "
+                "(distance tables, feasibility test), before the solver started"
+            },
+        )
     result = info.load().fn(
-        instance, time_limit=time_limit, seed=seed, objective=objective, **values
+        instance,
+        time_limit=None if time_limit is None else remaining,
+        seed=seed,
+        objective=objective,
+        **values,
     )
     return replace(result, solver=name, objective=objective)
 

@@ -107,16 +107,11 @@ def check(inst: Instance, res: hp.Result) -> None:
 
 def assert_quick_time_limit(solver: str) -> None:
     """0.1 s on 2000 agents: back within about the limit, without a plan, saying so."""
-    from hierplan_opt import registry
-
-    # The front door's cheap checks (one batch of distance tables for all goals) run
-    # before any solver and are not bounded by the limit: timed apart, on a twin.
-    t0 = time.perf_counter()
-    registry.cheap_infeasibility(large_empty(2000))
-    checks = time.perf_counter() - t0
     inst = large_empty(2000)
     t0 = time.perf_counter()
     res = hp.solve(inst, solver, time_limit=0.1)
     elapsed = time.perf_counter() - t0
     assert res.status == hp.Status.TIME_LIMIT and res.plan is None
-    assert elapsed < checks + 1.0  # + the limit, one distance batch or one PIBT step
+    # The front door's checks (distance tables for all goals, ~1 s) count against the
+    # limit; generous bound: the limit, one distance batch or one PIBT step, the load.
+    assert elapsed < 10 * 0.1 + 0.5

@@ -181,6 +181,42 @@ def test_every_solver_answers_infeasible_at_once(solver: str) -> None:
     assert time.perf_counter() - t0 < 5
 
 
+def test_cheap_checks_count_against_the_time_limit() -> None:
+    # 2000 goals on 64 x 64: the distance tables of the checks alone take about a second.
+    from lacam_cases import large_empty
+
+    limit = 0.02
+    for solver in ("lacam", "cbs"):
+        inst = large_empty(2000)
+        t0 = time.perf_counter()
+        r = hp.solve(inst, solver, time_limit=limit)
+        elapsed = time.perf_counter() - t0
+        assert r.status is hp.Status.TIME_LIMIT and r.plan is None
+        assert "during the cheap checks" in r.stats["reason"]
+        assert elapsed < 10 * limit + 0.5
+
+
+_SEEN: list[float | None] = []
+
+
+def _spy(instance: hp.Instance, *, time_limit: float | None = None, **_: object) -> hp.Result:
+    _SEEN.append(time_limit)
+    return hp.Result(hp.Status.TIME_LIMIT, None)
+
+
+def test_solver_gets_what_the_checks_leave() -> None:
+    registry.register("spy", f"{__name__}:_spy")
+    try:
+        inst = hp.Instance.mapf(hp.Graph.grid(3, 3), [(0, 0)], [(2, 2)])
+        registry.run("spy", inst, time_limit=5)
+        registry.run("spy", inst, time_limit=None)
+    finally:
+        registry._REGISTRY.pop("spy")  # pyright: ignore[reportPrivateUsage]
+    assert _SEEN[-1] is None
+    given = _SEEN[-2]
+    assert given is not None and 0 < given < 5
+
+
 def test_direct_solver_call_checks_like_the_front_door() -> None:
     inst = hp.Instance.mapf(hp.Graph.grid(3, 1), [(0, 0), (2, 0)], [(2, 0), (0, 0)])
     assert ecbs.solve(inst).status is hp.Status.INFEASIBLE  # no time limit, no endless loop

@@ -23,6 +23,8 @@ import numpy as np
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
+    from hierplan_opt.core.timer import Deadline
+
 from hierplan_opt.core.errors import InputError
 
 #: Timestep distance of a vertex that cannot reach the target. Large, so that any
@@ -30,6 +32,9 @@ from hierplan_opt.core.errors import InputError
 UNREACHABLE = 1 << 30
 #: Vertices times targets up to which a distance batch is a Python BFS (no scipy import).
 SMALL_BFS_WORK = 60_000
+#: Vertices times targets per scipy batch of :meth:`Graph.fill_distances`: a few
+#: hundredths of a second between deadline checks, and a bounded temporary matrix.
+DIST_BATCH_WORK = 1 << 19
 
 Location = tuple[int, ...] | str
 
@@ -449,7 +454,7 @@ class Graph:
         return int(self.dist_to(target)[source])
 
     def precompute_distances(self, targets: Iterable[int]) -> list[np.ndarray]:
-        """Fill the distance cache for many targets in one C-level BFS batch.
+        """Fill the distance cache for many targets in C-level BFS batches.
 
         A small batch on an undirected graph is a pure-Python BFS while scipy is not
         loaded yet (importing it costs more than the BFS; the distances are the same).
@@ -462,24 +467,49 @@ class Graph:
         (4, True)
         """
         targets = list(targets)
+        self.fill_distances(targets)
+        return [self._dist_cache[t] for t in targets]
+
+    def fill_distances(self, targets: Iterable[int], deadline: Deadline | None = None) -> bool:
+        """Fill the distance cache for ``targets``, checking ``deadline`` between batches.
+
+        Returns False when the deadline passed before every table was made (the ones
+        made stay cached); a batch takes a few hundredths of a second.
+
+        Example
+        -------
+        >>> from hierplan_opt.core.timer import Deadline
+        >>> g = Graph.grid(4, 4)
+        >>> g.fill_distances(range(16), Deadline(0)), g.fill_distances(range(16))
+        (False, True)
+        """
         todo = [t for t in dict.fromkeys(targets) if t not in self._dist_cache]
-        if todo and self._small_bfs(len(todo)):
+        if not todo:
+            return True
+        if deadline is not None and deadline.expired():
+            return False
+        if self._small_bfs(len(todo)):
             for t in todo:
                 arr = np.array(_bfs(self.adj, t), dtype=np.int64)
                 arr.setflags(write=False)
                 self._dist_cache[t] = arr
-        elif todo:
-            from scipy.sparse.csgraph import shortest_path
+            return True
+        from scipy.sparse.csgraph import shortest_path
 
-            # Distances *to* a target are distances *from* it on the reversed graph.
-            mat = self._csgraph.T if self.directed else self._csgraph
-            res = shortest_path(mat, directed=self.directed, unweighted=True, indices=todo)
+        # Distances *to* a target are distances *from* it on the reversed graph.
+        mat = self._csgraph.T if self.directed else self._csgraph
+        step = max(8, DIST_BATCH_WORK // max(1, self.n))
+        for k in range(0, len(todo), step):
+            if k and deadline is not None and deadline.expired():
+                return False
+            batch = todo[k : k + step]
+            res = shortest_path(mat, directed=self.directed, unweighted=True, indices=batch)
             res = np.atleast_2d(res)
-            for t, row in zip(todo, res, strict=True):
+            for t, row in zip(batch, res, strict=True):
                 arr = np.where(np.isfinite(row), row, UNREACHABLE).astype(np.int64)
                 arr.setflags(write=False)
                 self._dist_cache[t] = arr
-        return [self._dist_cache[t] for t in targets]
+        return True
 
     def _small_bfs(self, count: int) -> bool:
         """Whether ``count`` BFS runs in Python beat importing scipy (not yet loaded)."""

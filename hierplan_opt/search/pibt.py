@@ -31,8 +31,6 @@ from collections import Counter
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import shortest_path
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE
@@ -50,9 +48,6 @@ NIL = -1
 #: Random orderings of every vertex's candidate list; ties between candidates at equal
 #: distance are broken by picking one of them per decision (a power of two).
 TIE_PERMUTATIONS = 8
-#: Distance tables are computed in batches between deadline checks, each batch about
-#: this many vertex visits (a few hundredths of a second).
-DIST_BATCH_WORK = 1 << 19
 
 Config = Sequence[int]
 
@@ -89,9 +84,6 @@ class Space:
         src = cid[np.repeat(np.arange(g.n), counts)]
         dst = cid[g.indices]
         self.directed = bool(g.directed)
-        mat = sp.csr_matrix(
-            (np.ones(len(src), dtype=np.float64), (src, dst)), shape=(self.nv, self.nv)
-        )
         order = np.lexsort((dst, src))
         self.adj: list[list[int]] = [[] for _ in range(self.nv)]
         for a, b in zip(src[order].tolist(), dst[order].tolist(), strict=True):
@@ -116,27 +108,23 @@ class Space:
                     idx.append(p)
                 shapes[k] = idx
             self.perms.append([[base[j] for j in p] for p in idx])
-        self.dist = self._distances(mat, deadline)
+        self.dist = self._distances(instance, free, deadline)
 
-    def _distances(self, mat: sp.csr_matrix, deadline: Deadline | None) -> list[list[int]]:
-        # Distances *to* a goal are distances *from* it on the reversed graph (an
-        # undirected graph lists both arcs, so it is its own reverse).
-        rev = mat.T.tocsr() if self.directed else mat
-        unique = list(dict.fromkeys(self.goals))
+    def _distances(
+        self, instance: Instance, free: np.ndarray, deadline: Deadline | None
+    ) -> list[list[int]]:
+        # The graph's cached tables (the front door's checks made them), in compact ids;
+        # blocked cells have no edges, so the distances are those of the compact graph.
+        g = instance.graph
+        unique = list(dict.fromkeys(a.goal for a in instance.agents))
+        if not g.fill_distances(unique, deadline):  # type: ignore[arg-type]
+            raise Expired
+        every = self.nv == g.n  # no blocked cells: the graph's own lists, shared
         table: dict[int, list[int]] = {}
-        step = max(8, DIST_BATCH_WORK // max(1, self.nv))
-        for k in range(0, len(unique), step):
-            if deadline is not None and deadline.expired():
-                raise Expired
-            batch = unique[k : k + step]
-            res = np.atleast_2d(
-                shortest_path(rev, method="D", directed=True, unweighted=True, indices=batch)
-            )
-            res[~np.isfinite(res)] = UNREACHABLE
-            rows = res.astype(np.int64)
-            for gl, row in zip(batch, rows, strict=True):
-                table[gl] = row.tolist()
-        return [table[gl] for gl in self.goals]
+        for gl in unique:
+            assert gl is not None
+            table[gl] = g.dist_list(gl) if every else g.dist_to(gl)[free].tolist()
+        return [table[a.goal] for a in instance.agents]  # type: ignore[index]
 
     def lower_bound(self) -> int:
         """Sum over agents of the distance from start to goal."""
