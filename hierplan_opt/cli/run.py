@@ -32,6 +32,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="MAPF-POST objective (default makespan; safety/flowtime use the LP)",
     )
     p.add_argument("--margin", type=float, default=0.0, help="extra clearance in metres")
+    p.add_argument(
+        "--refine",
+        action="store_true",
+        help="refine the schedule into smooth trajectories (CasADi) and follow them",
+    )
     add_execution_arguments(p)
     p.add_argument("--out", metavar="REPORT", help="report YAML (statistics, events, schedule)")
 
@@ -65,4 +70,23 @@ def run(args: argparse.Namespace) -> int:
         f"MAPF-POST ({args.post_objective}): makespan {schedule.makespan:.4g} s, clearance "
         f"{clear or 'none'}, {schedule.stats['tpg_nodes']} TPG nodes"
     )
-    return execute(args, instance, schedule, title)
+    traj = None
+    if args.refine:
+        from hierplan_opt.core.errors import OptionError
+        from hierplan_opt.trajectory import InfeasibleWindowsError, refine
+
+        if args.mode != "agent":
+            raise OptionError("--refine follows trajectories in agent mode (not --mode robot)")
+        if args.runs:
+            raise OptionError("--runs (Monte Carlo) does not follow refined trajectories")
+        try:
+            traj = refine(instance, schedule, stretch="auto")
+        except InfeasibleWindowsError as exc:
+            print(f"refinement: infeasible: {exc}")
+            return INFEASIBLE
+        title += (
+            f"\nrefined ({traj.mode} mode): makespan {traj.makespan:.4g} s, stretch "
+            f"{traj.stretch:.4g}, guaranteed distance {traj.safety_distance:.3g} m, "
+            f"{traj.stats.get('total_time', 0.0):.2f} s"
+        )
+    return execute(args, instance, schedule, title, traj)

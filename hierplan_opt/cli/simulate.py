@@ -46,6 +46,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="a plan file (post-processed here) or a schedule file from 'hierplan post'",
     )
     p.add_argument("--margin", type=float, default=None, help="extra clearance (m) for a plan")
+    p.add_argument(
+        "--trajectories",
+        metavar="NPZ",
+        help="follow refined trajectories of this schedule (the .npz of 'hierplan refine')",
+    )
     add_execution_arguments(p)
     p.add_argument("--out", required=True, metavar="REPORT", help="report YAML")
 
@@ -78,10 +83,16 @@ def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any,
     return postprocess(instance, plan, margin=args.margin or 0.0), "plan"
 
 
-def execute(args: argparse.Namespace, instance: Any, schedule: Any, title: str) -> int:
+def execute(
+    args: argparse.Namespace, instance: Any, schedule: Any, title: str, trajectories: Any = None
+) -> int:
     """Simulate (or Monte Carlo), print the readable report, write REPORT and pictures."""
+    from hierplan_opt.core.errors import OptionError
     from hierplan_opt.execution import load_disturbances, simulate
     from hierplan_opt.execution.report import text_report, write_report
+
+    if trajectories is not None and args.runs:
+        raise OptionError("--runs (Monte Carlo) does not follow refined trajectories")
 
     dist = (
         load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
@@ -96,6 +107,7 @@ def execute(args: argparse.Namespace, instance: Any, schedule: Any, title: str) 
         mode=args.mode,
         seed=args.seed,
         solver=args.replan_solver,
+        trajectories=trajectories,
     )
     report: dict[str, Any] = ex.report()
     print(text_report(ex, title))
@@ -152,4 +164,18 @@ def run(args: argparse.Namespace) -> int:
     check_execution_outputs(args)
     instance = load_instance_from_args(args)
     schedule, kind = load_plan_or_schedule(args, instance)
-    return execute(args, instance, schedule, f"{args.plan} ({kind}), {instance.num_agents} robots")
+    traj = None
+    if args.trajectories:
+        from hierplan_opt.core.errors import InputError
+        from hierplan_opt.execution.follow import check_trajectories
+        from hierplan_opt.trajectory.result import read_trajectories
+
+        traj = read_trajectories(args.trajectories)
+        try:
+            check_trajectories(schedule, traj, args.mode)
+        except InputError as exc:
+            raise InputError(f"{args.trajectories}: {exc}") from None
+    title = f"{args.plan} ({kind}), {instance.num_agents} robots"
+    if traj is not None:
+        title += f", following refined trajectories {args.trajectories}"
+    return execute(args, instance, schedule, title, traj)

@@ -42,7 +42,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -60,6 +60,9 @@ from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.solve_graph import InconsistentSTNError, fix_and_propagate
 from hierplan_opt.schedule.stn import PIECE, STN
 from hierplan_opt.schedule.tpg import VERTEX, WAIT
+
+if TYPE_CHECKING:
+    from hierplan_opt.trajectory.result import Trajectories
 
 log = logging.getLogger(__name__)
 
@@ -289,8 +292,13 @@ class _Sim:
         seed: int,
         solver: str,
         replan_time_limit: float,
+        follow: Any = None,
     ) -> None:
         self.instance = instance
+        #: Refined trajectories followed in the first phase (None: constant velocity).
+        self.follow = follow
+        self.holds: list[list[tuple[float, float]]] = [[] for _ in range(len(schedule.agent_names))]
+        self.rate0: np.ndarray | None = None
         self.schedule0 = schedule
         self.policy = policy
         self.layers = LAYERS[policy]
@@ -343,6 +351,8 @@ class _Sim:
         assert sched.stn is not None
         gid = tuple(range(self.K))
         targets = np.array(sched.times, dtype=float)
+        if self.follow is not None:
+            targets = np.concatenate([r.event_times for r in self.follow.robots]).astype(float)
         if self.policy == "adg":
             targets = np.zeros_like(targets)
         stn = sched.stn
@@ -362,6 +372,15 @@ class _Sim:
                 continue
             sched, stn, gid, targets = out
             self.counts["replans"] += 1
+            if self.follow is not None and len(self.phases) == 1:
+                self._log(
+                    t_r,
+                    "*",
+                    "trajectories",
+                    "replan",
+                    0.0,
+                    "the re-planned schedule is followed at constant velocity, not refined",
+                )
             self._phase(sched, stn, gid, targets, t_r)
         self.runtime["simulation"] = time.perf_counter() - t0 - self.runtime["replan"]
 
@@ -385,6 +404,14 @@ class _Sim:
         self.phys = np.full(n, np.nan)
         self.seg_start = np.full(n, np.nan)  # when the robot set off towards the node
         self.piece_lb = np.zeros(n)
+        self.rate = np.ones(n)  # slow factor of each piece (trajectory following)
+        # Duration of each piece on the refined trajectory (first phase only).
+        self.piece_dur: np.ndarray | None = None
+        if self.follow is not None and not self.phases:
+            self.piece_dur = np.zeros(n)
+            ev = np.concatenate([r.event_times for r in self.follow.robots]).astype(float)
+            self.piece_dur[1:] = np.diff(ev)
+            self.rate0 = self.rate
         self.remaining = S.cross_count.copy()
         self.version = np.zeros(n, dtype=np.int64)
         self.in_heap = np.zeros(n, dtype=bool)
@@ -543,16 +570,23 @@ class _Sim:
             return
         arcs = S.in_arcs[S.in_ptr[n] : S.in_ptr[n + 1]]
         arcs = arcs[~S.cross[arcs]]
+        if self.piece_dur is not None:
+            # Following a refined trajectory: its own timing replaces the STN's bounds
+            # between a robot's events (it need not stop at every vertex).
+            arcs = arcs[S.is_piece[arcs] & (self.stn.arc_src[arcs] == n - 1)]
         base = -math.inf
         slow_hit = None
         for k in arcs.tolist():
             u = int(self.stn.arc_src[k])
             lb = float(self.stn.lb[k])
             if S.is_piece[k] and u == n - 1:
+                if self.piece_dur is not None:
+                    lb = float(self.piece_dur[n])  # the refined motion, not the STN bound
                 f, s = S.slow_factor(n, when + extra)
                 if s is not None:
                     slow_hit = s
                 lb /= f
+                self.rate[n] = f
                 self.piece_lb[n] = lb
             base = max(base, float(self.t[u]) + lb + extra)
         if not arcs.size:
@@ -563,6 +597,7 @@ class _Sim:
         if extra > 0:
             g = self.gid[self._agent_of(n)]
             self._record(g, when + extra, self._pos(n - 1))
+            self.holds[g].append((when, when + extra))
         if slow_hit is not None:
             g = self.gid[self._agent_of(n)]
             self._react(
@@ -746,6 +781,7 @@ class _Sim:
             frac = (arrive - now) / max(arrive - t_last, 1e-12)
             self._record(g, now, pos)
             self._record(g, now + d.duration, pos)
+            self.holds[g].append((now, now + d.duration))
             rest = frac * float(self.piece_lb[n] or 0.0)
             self.phys[n] = max(arrive, now + d.duration + rest)
         else:
@@ -809,6 +845,7 @@ def simulate(
     dt: float = 0.1,
     solver: str = "ecbs",
     replan_time_limit: float = 30.0,
+    trajectories: Trajectories | None = None,
 ) -> Execution:
     """Execute ``schedule`` under ``disturbances`` with an execution ``policy``.
 
@@ -832,6 +869,13 @@ def simulate(
         Sampling step of ``robot`` mode trajectories (seconds).
     solver : str
         Registered MAPF solver for re-plans (default ECBS).
+    trajectories : Trajectories, optional
+        Refined trajectories of this schedule (:func:`hierplan_opt.trajectory.refine`):
+        every robot follows its refined timing instead of constant velocity, holding
+        (an instantaneous stop, then the rest of its trajectory time-shifted) where a
+        disturbance halts it or a Type-2 predecessor is late; distances are checked
+        against ``trajectories.required(i, j)``. A re-planned schedule is followed at
+        constant velocity (see :mod:`.follow`). Agent mode only.
 
     Example
     -------
@@ -856,7 +900,13 @@ def simulate(
         raise InputError(
             f"the schedule has {schedule.num_agents} robots, the instance {instance.num_agents}"
         )
-    sim = _Sim(instance, schedule, disturbances, policy, seed, solver, replan_time_limit)
+    if trajectories is not None:
+        from hierplan_opt.execution.follow import check_trajectories
+
+        check_trajectories(schedule, trajectories, mode)
+    sim = _Sim(
+        instance, schedule, disturbances, policy, seed, solver, replan_time_limit, trajectories
+    )
     sim.run()
     from hierplan_opt.execution.statistics import finish
 

@@ -71,8 +71,13 @@ def executed_schedule(
     )
 
 
-def distances(schedule: Schedule, instance: Instance) -> tuple[float, int, bool, float]:
+def distances(
+    schedule: Schedule, instance: Instance, required: Any = None, slack: float = 0.0
+) -> tuple[float, int, bool, float]:
     """``(min distance, collisions, distance kept, worst gap)`` over every pair.
+
+    ``required(i, j)`` (default ``r_i + r_j + margin``) is the distance a pair must
+    keep; ``slack`` is subtracted from every measured distance (a sampling bound).
 
     Example
     -------
@@ -96,9 +101,11 @@ def distances(schedule: Schedule, instance: Instance) -> tuple[float, int, bool,
     best, worst, collisions = math.inf, math.inf, 0
     for a, b in pairs.tolist():
         d, _ = _pair_min(times[a], pos[a], times[b], pos[b])
+        d -= slack
         best = min(best, d)
         body = radius[a] + radius[b]
-        worst = min(worst, float(d - (body + m)))
+        need = body + m if required is None else float(required(a, b))
+        worst = min(worst, float(d - need))
         if d < body - TOL * max(1.0, body):
             collisions += 1
     kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
@@ -121,6 +128,12 @@ def finish(
         keep[:-1] = t[1:] > t[:-1] + 1e-12
         traj.append(np.column_stack([t[keep], xy[keep]]))
     arrival = sim.arrival.copy()
+    slack, required, guaranteed = 0.0, None, schedule.safety_distance
+    if sim.follow is not None:
+        from hierplan_opt.execution.follow import follow_run
+
+        traj, slack = follow_run(sim, dt)
+        required, guaranteed = sim.follow.required, sim.follow.safety_distance
     if mode == "robot":
         from hierplan_opt.execution.robot import robot_run
 
@@ -128,7 +141,7 @@ def finish(
     for tr in traj:
         tr.setflags(write=False)
     exe = executed_schedule(sim.names, traj, schedule, policy)
-    d_min, collisions, kept, worst = distances(exe, instance)
+    d_min, collisions, kept, worst = distances(exe, instance, required, slack)
     done = ~np.isnan(arrival)
     handled = Counter(e.layer for e in sim.log)
     stats: dict[str, Any] = {
@@ -136,7 +149,9 @@ def finish(
         "mode": mode,
         "collisions": collisions,
         "min_distance": d_min,
-        "guaranteed_distance": schedule.safety_distance,
+        "guaranteed_distance": guaranteed,
+        "trajectories": "refined" if sim.follow is not None else "constant velocity",
+        "distance_bound": slack,
         "distance_kept": bool(kept),
         "worst_gap": worst,
         "makespan": float(arrival[done].max()) if done.any() else math.nan,

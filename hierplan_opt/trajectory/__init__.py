@@ -10,7 +10,12 @@ from __future__ import annotations
 
 from hierplan_opt.trajectory.events import EventNetwork, from_file, from_schedule
 from hierplan_opt.trajectory.refine import InfeasibleWindowsError, refine
-from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories, write_trajectories
+from hierplan_opt.trajectory.result import (
+    RobotTrajectory,
+    Trajectories,
+    read_trajectories,
+    write_trajectories,
+)
 from hierplan_opt.trajectory.windows import Windows, decouple
 
 __all__ = [
@@ -22,6 +27,7 @@ __all__ = [
     "decouple",
     "from_file",
     "from_schedule",
+    "read_trajectories",
     "refine",
     "write_trajectories",
 ]

@@ -9,7 +9,9 @@ Files: CSV with the header ``agent,t,x,y,vx,vy`` (2D) or ``agent,t,x,y,z,vx,vy,v
 (3D), plus ``theta`` when any robot drives differentially, one row per agent and
 sample, preceded by ``# key: value`` comment lines; NPZ with arrays ``t (S,)``,
 ``pos (K, S, dim)``, ``vel``, ``acc``, ``theta (K, S)``, ``agents (K,)`` and the
-statistics as a JSON string ``meta``.
+statistics as a JSON string ``meta``; NPZ files also hold the exact motion (``exact``,
+a JSON string, and ``exact_*`` arrays), which :func:`read_trajectories` loads back
+(``hierplan simulate --trajectories``).
 """
 
 from __future__ import annotations
@@ -319,12 +321,110 @@ def write_trajectories(traj: Trajectories, path: str | Path, dt: float = DEFAULT
                 theta=s["theta"],
                 agents=np.array(traj.agent_names),
                 meta=np.array(json.dumps({k: _plain(v) for k, v in traj.statistics().items()})),
+                **_exact_arrays(traj),
             )
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+_EXACT = ("t", "p", "v", "a", "theta", "omega", "alpha", "event_times")
+
+
+def _exact_arrays(traj: Trajectories) -> dict[str, Any]:
+    """The robots' exact motion, concatenated (``exact_<field>``) with lengths in ``exact``."""
+    head = {
+        "mode": traj.mode,
+        "corridor": traj.corridor,
+        "safety_distance": traj.safety_distance,
+        "schedule_safety_distance": traj.schedule_safety_distance,
+        "stretch": traj.stretch,
+        "guarantee": traj.guarantee,
+        "radius": list(traj.radius),
+        "margin": traj.margin,
+        "enforced": traj.enforced,
+        "robots": [
+            {
+                "name": r.name,
+                "model": r.model,
+                "limits": {k: _plain(v) for k, v in r.limits.items()},
+                **{f: len(getattr(r, f)) for f in _EXACT},
+            }
+            for r in traj.robots
+        ],
+    }
+    out: dict[str, Any] = {"exact": np.array(json.dumps(head))}
+    for f in _EXACT:
+        parts = [np.asarray(getattr(r, f), dtype=float) for r in traj.robots]
+        out["exact_" + f] = np.concatenate(parts) if parts else np.zeros(0)
+    return out
+
+
+def read_trajectories(path: str | Path) -> Trajectories:
+    """Load the :class:`Trajectories` of an NPZ file written by :func:`write_trajectories`.
+
+    Raises :class:`InputError` (one line) for anything else.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".npz":
+        raise InputError(f"{path}: refined trajectories are read from the .npz of hierplan refine")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if "exact" not in z:
+                raise InputError(
+                    f"{path}: no exact motion in this file (write it with hierplan refine --out "
+                    "FILE.npz)"
+                )
+            head = json.loads(str(z["exact"]))
+            arrays = {f: np.asarray(z["exact_" + f], dtype=float) for f in _EXACT}
+    except InputError:
+        raise
+    except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a trajectories file ({exc})") from None
+    robots = []
+    at = dict.fromkeys(_EXACT, 0)
+    try:
+        for rob in head["robots"]:
+            parts: dict[str, np.ndarray] = {}
+            for f in _EXACT:
+                n = int(rob[f])
+                parts[f] = arrays[f][at[f] : at[f] + n]
+                at[f] += n
+                if len(parts[f]) != n:
+                    raise ValueError(f"{f} is short")
+            for v in parts.values():
+                v.setflags(write=False)
+            robots.append(
+                RobotTrajectory(
+                    name=str(rob["name"]),
+                    model=str(rob["model"]),
+                    t=parts["t"],
+                    p=parts["p"],
+                    v=parts["v"],
+                    a=parts["a"],
+                    theta=parts["theta"],
+                    omega=parts["omega"],
+                    alpha=parts["alpha"],
+                    event_times=parts["event_times"],
+                    limits={k: float(v) for k, v in rob["limits"].items()},
+                )
+            )
+        return Trajectories(
+            tuple(robots),
+            str(head["mode"]),
+            float(head["corridor"]),
+            float(head["safety_distance"]),
+            float(head["schedule_safety_distance"]),
+            float(head["stretch"]),
+            str(head["guarantee"]),
+            radius=tuple(float(r) for r in head["radius"]),
+            margin=float(head["margin"]),
+            enforced=bool(head["enforced"]),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise InputError(f"{path}: damaged trajectories file ({exc})") from None
 
 
 def _f(x: float) -> str:

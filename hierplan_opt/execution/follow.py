@@ -1,0 +1,148 @@
+"""Following refined trajectories (:func:`hierplan_opt.trajectory.refine`) in execution.
+
+With ``simulate(..., trajectories=T)`` each robot plays its refined motion
+``p_j(tau)`` on its own *trajectory clock* ``tau``: the event loop of
+:mod:`.simulate` runs unchanged, with the refined event times as targets and the
+refined duration of every piece (one way-point to the next) as its duration, so a
+robot passes its way-points exactly when its trajectory does unless it is held.
+Afterwards the executed motion is ``p_j(tau_j(t))`` with a piecewise-linear clock:
+
+* ``tau`` runs at rate 1 (at the slow factor ``f`` on a slowed piece: positions on the
+  refined path, velocity times ``f``, acceleration times ``f**2``);
+* it stops during a **hold**: a halt (stop disturbance, random delay) and the wait at a
+  way-point whose Type-2 predecessors have not happened (the TPG rule). A hold is an
+  instantaneous stop: the velocity jumps to zero and back, so the refined acceleration
+  limit does not hold across a hold; afterwards the robot continues its trajectory
+  *time-shifted* by the hold (it never speeds up to catch up).
+
+The robot always stays on its refined path and passes its way-points in the TPG
+order, so the pair distance ``Trajectories.required(i, j)`` of the refinement carries
+over. After a MAPF re-plan the new schedule is followed at constant velocity (it is
+not refined again; the log says so).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from hierplan_opt.core.errors import InputError, OptionError
+
+if TYPE_CHECKING:
+    from hierplan_opt.execution.simulate import _Sim
+    from hierplan_opt.trajectory.result import Trajectories
+
+#: Largest sampling step of the executed motion (seconds).
+MAX_STEP = 0.05
+
+
+def check_trajectories(schedule: Any, traj: Trajectories, mode: str) -> None:
+    """Refuse trajectories that were not refined from ``schedule`` (one line)."""
+    from hierplan_opt.trajectory.result import Trajectories
+
+    if not isinstance(traj, Trajectories):
+        raise OptionError(f"trajectories must be a Trajectories object, got {type(traj).__name__}")
+    if mode != "agent":
+        raise OptionError("refined trajectories are followed in agent mode, not robot mode")
+    names = tuple(schedule.agent_names)
+    if traj.agent_names != names:
+        extra = sorted(set(traj.agent_names) - set(names))
+        missing = sorted(set(names) - set(traj.agent_names))
+        why = (
+            f"robots {', '.join(extra[:3]) or '-'} not in the schedule, "
+            f"{', '.join(missing[:3]) or '-'} missing"
+            if extra or missing
+            else "robots in another order"
+        )
+        raise InputError(f"the trajectories do not match the schedule's robots ({why})")
+    tpg = schedule.stn.tpg
+    for j, r in enumerate(traj.robots):
+        m = int(tpg.agent_ptr[j + 1] - tpg.agent_ptr[j])
+        if len(r.event_times) != m:
+            raise InputError(
+                f"the trajectory of {r.name} has {len(r.event_times)} way-point events, the "
+                f"schedule {m}: refine this schedule (same objective and margin)"
+            )
+
+
+def _clock(
+    sim: _Sim, g: int, e: np.ndarray, times: np.ndarray, rate: np.ndarray, first: int, end: float
+) -> list[tuple[float, float]]:
+    """Breakpoints ``(t, tau)`` of robot ``g``'s trajectory clock until ``end``."""
+    holds = sorted(sim.holds[g])
+    pts: list[tuple[float, float]] = [(0.0, float(e[0]))]
+    m = len(e)
+    for k in range(1, m):
+        t_a = float(times[first + k - 1])
+        t_b = float(times[first + k]) if not np.isnan(times[first + k]) else end
+        if np.isnan(t_a) or t_b < t_a:
+            break
+        tau, goal, f = float(e[k - 1]), float(e[k]), max(float(rate[first + k]), 1e-9)
+        pts.append((t_a, tau))
+        cur = t_a
+        for hs, he in [*holds, (t_b, t_b)]:
+            if (he <= cur or hs >= t_b) and hs != t_b:
+                continue
+            hs, he = max(hs, cur), min(he, t_b)
+            if tau < goal:  # moves from cur to hs
+                reach = cur + (goal - tau) / f
+                if reach <= hs:
+                    pts.append((reach, goal))
+                    tau = goal
+                else:
+                    tau += f * (hs - cur)
+                    pts.append((hs, tau))
+            pts.append((he, tau))  # held until he
+            cur = he
+        if not np.isnan(times[first + k]):
+            pts.append((t_b, goal))  # at its way-point (snaps within tolerance)
+        else:
+            pts.append((t_b, tau))
+            break
+    return pts
+
+
+def follow_run(sim: _Sim, dt: float) -> tuple[list[np.ndarray], float]:
+    """Executed ``(time, coords...)`` per robot (instance coordinates) and the bound on
+    how much closer two robots may come between samples than the samples show."""
+    traj = sim.follow
+    assert traj is not None
+    phase = sim.phases[0]
+    tpg = phase.stn.tpg
+    times = phase.times
+    rate = sim.rate0 if sim.rate0 is not None else np.ones(len(times))
+    scale = float(sim.schedule0.scale)
+    h = min(float(dt), MAX_STEP)
+    out: list[np.ndarray] = []
+    acc = 0.0
+    for g, r in enumerate(traj.robots):
+        first = int(tpg.agent_ptr[g])
+        last_idx = int(tpg.agent_ptr[g + 1]) - 1
+        done = np.flatnonzero(~np.isnan(times[first : last_idx + 1]))
+        t_last = float(times[first + done[-1]]) if len(done) else 0.0
+        later = [(t, p) for t, p in sim.traj[g] if t > t_last + 1e-12]
+        # The robot leaves its trajectory at a breakdown (it stays there) or at a
+        # re-plan frontier (the new schedule's way-points follow).
+        end = t_last
+        if sim.broken[g] and len(done) and done[-1] != last_idx - first:
+            end = float(sim.traj[g][-1][0])
+            later = []
+        elif len(sim.phases) == 1:
+            later = []
+        pts = _clock(sim, g, r.event_times, times, rate, first, end)
+        ct = np.array([p[0] for p in pts])
+        ctau = np.array([p[1] for p in pts])
+        ct = np.maximum.accumulate(ct)
+        grid = np.arange(0.0, end + h, h)
+        ts = np.unique(np.concatenate([ct, grid[grid < end], [end]]))
+        tau = np.interp(ts, ct, ctau)
+        pos = r.state(tau)["p"] / scale
+        rows = [np.column_stack([ts, pos])]
+        if later:
+            rows.append(np.array([[t, *p] for t, p in later], dtype=float))
+        out.append(np.vstack(rows))
+        if len(r.a):
+            acc = max(acc, float(np.max(np.linalg.norm(r.a, axis=1))))
+    # Between samples a pair's relative position leaves the chord by <= A h^2 / 8.
+    return out, 2.0 * acc * h * h / 8.0
