@@ -38,8 +38,6 @@ def plot_highways(
 
     Example
     -------
-    >>> import matplotlib
-    >>> matplotlib.use("Agg")
     >>> import matplotlib.pyplot as plt
     >>> from hierplan_opt.core.graph import Graph
     >>> from hierplan_opt.core.highways import corridors
