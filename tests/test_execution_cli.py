@@ -84,3 +84,16 @@ def test_simulate_robot_mode(tmp_path: Path, capsys) -> None:
     argv = ["simulate", WAREHOUSE, str(plan), "--mode", "robot", "--disturbances", DISTURBANCES]
     code, _, err = run(capsys, *argv, "--out", str(tmp_path / "r2.yaml"))
     assert code == 2 and "robot mode follows one schedule" in err
+
+
+def test_simulate_a_roadmap_schedule(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Schedule files on roadmaps name vertices by their coordinates (figure 3)."""
+    inst = str(ROOT / "instances" / "paper" / "figure3.yaml")
+    plan, sched, report = (tmp_path / n for n in ("p.yaml", "s.yaml", "r.yaml"))
+    assert run(capsys, "solve", inst, "--solver", "cbm", "--out", str(plan))[0] == 0
+    code = run(capsys, "post", inst, str(plan), "--objective", "makespan", "--out", str(sched))[0]
+    assert code == 0
+    code, text, err = run(capsys, "simulate", inst, str(sched), "--out", str(report))
+    assert code == 0, err
+    st = yaml.safe_load(report.read_text())["statistics"]
+    assert st["collisions"] == 0 and st["finished"] == 3

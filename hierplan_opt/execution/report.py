@@ -89,6 +89,7 @@ def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any
     sched = data.get("schedule")
     if not isinstance(sched, dict):
         raise InputError(f"{path}: not a schedule file (no 'schedule' mapping)")
+    lookup = {tuple(round(float(x), 6) for x in c): v for v, c in enumerate(g.coords.tolist())}
     visits: list[list[tuple[float, int]]] = []
     for a in instance.agents:
         rows = sched.get(a.name)
@@ -103,14 +104,19 @@ def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any
                 raise InputError(
                     f"{path}: a way-point of {a.name!r} lacks x, y or arrival"
                 ) from None
-            if not all(float(c) == int(float(c)) for c in coords):
-                continue
-            try:
-                v = g.vertex(tuple(int(float(c)) for c in coords))
-            except InputError:
-                raise InputError(
-                    f"{path}: {a.name} passes {coords}, not a vertex of the map"
-                ) from None
+            if g.kind == "roadmap":  # vertices by their coordinates; other points are markers
+                v = lookup.get(tuple(round(float(c), 6) for c in coords))
+                if v is None:
+                    continue
+            else:  # grid cells have whole coordinates; markers lie between them
+                if not all(float(c) == int(float(c)) for c in coords):
+                    continue
+                try:
+                    v = g.vertex(tuple(int(float(c)) for c in coords))
+                except InputError:
+                    raise InputError(
+                        f"{path}: {a.name} passes {coords}, not a vertex of the map"
+                    ) from None
             if not seq or seq[-1][1] != v:
                 seq.append((t, v))
         visits.append(seq)
