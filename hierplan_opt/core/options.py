@@ -17,7 +17,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, cast
 
-from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.errors import InputError, OptionError
 
 #: Words read as booleans, wherever a boolean is given as text.
 TRUE_WORDS = ("true", "yes", "on")
@@ -42,6 +42,31 @@ def parse_bool(text: str) -> bool | None:
     if low in FALSE_WORDS:
         return False
     return None
+
+
+def positive_amount(text: str, what: str, scale: int = 1, unit: str = "") -> int:
+    """``text`` as a positive number times ``scale``, at least 1 (settings read from
+    the environment, such as memory and size limits).
+
+    Raises :class:`InputError` with one line naming ``what`` for anything else.
+
+    Example
+    -------
+    >>> positive_amount("1.5", "HIERPLAN_MAX_INPUT_MB", 1024)
+    1536
+    >>> positive_amount("-2", "LIMIT_GB", unit="GB")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: LIMIT_GB must be a positive number of GB, got '-2'
+    """
+    message = f"{what} must be a positive number{f' of {unit}' if unit else ''}, got {text!r}"
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(message) from None
+    if not math.isfinite(value) or value <= 0:
+        raise InputError(message)
+    return max(1, int(value * scale))
 
 
 @dataclass(frozen=True)

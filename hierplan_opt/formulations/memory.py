@@ -29,7 +29,6 @@ hierplan_opt.formulations.memory.ModelTooLarge: the cpsat model at horizon 50 wo
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -38,6 +37,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import HierplanError, InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.options import positive_amount
 
 GB = 1 << 30
 
@@ -196,18 +196,9 @@ def memory_budget() -> int:
     global _budget
     if _budget is None:
         text = os.environ.get("HIERPLAN_MEMORY_LIMIT_GB", "").strip()
-        _budget = _parse_gb(text, "HIERPLAN_MEMORY_LIMIT_GB") if text else default_budget()
+        name = "HIERPLAN_MEMORY_LIMIT_GB"
+        _budget = positive_amount(text, name, GB, "GB") if text else default_budget()
     return _budget
-
-
-def _parse_gb(text: str, what: str) -> int:
-    try:
-        value = float(text)
-    except ValueError:
-        raise InputError(f"{what} must be a positive number of GB, got {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise InputError(f"{what} must be a positive number of GB, got {text!r}")
-    return max(1, int(value * GB))
 
 
 def set_memory_budget(nbytes: int | None) -> None:

@@ -43,6 +43,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from hierplan_opt.core.errors import InputError, OutputError
+from hierplan_opt.core.options import positive_amount
 
 MB = 1 << 20
 #: Peak bytes per grid cell while a grid graph is built (measured: about 320 on 2D and
@@ -54,13 +55,7 @@ def _env_int(name: str, default: int, scale: int = 1) -> int:
     text = os.environ.get(name, "").strip()
     if not text:
         return default
-    try:
-        value = float(text)
-    except ValueError:
-        raise InputError(f"{name} must be a positive number, got {text!r}") from None
-    if not math.isfinite(value) or value <= 0:
-        raise InputError(f"{name} must be a positive number, got {text!r}")
-    return max(1, int(value * scale))
+    return positive_amount(text, name, scale)
 
 
 @dataclass(frozen=True)
