@@ -635,8 +635,8 @@ def _check_options(**kw: Any) -> None:
     if kw["mode"] not in MODES:
         raise OptionError(f"unknown mode {kw['mode']!r} (use {', '.join(MODES)})")
     solver = kw["solver"]
-    if solver not in (*SOLVERS, "auto"):
-        raise OptionError(f"unknown solver {solver!r} (use auto, {', '.join(SOLVERS)})")
+    if solver not in (*SOLVERS, "profile", "auto"):
+        raise OptionError(f"unknown solver {solver!r} (use auto, profile, {', '.join(SOLVERS)})")
     for name in ("accel_weight", "time_weight", "step_weight", "corridor"):
         v = kw[name]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
@@ -702,8 +702,11 @@ def refine(
         ``path``: on the planned polyline, the schedule's safety distance carries over;
         ``corridor``: corners cut within ``corridor`` metres (double integrator only),
         the guarantee drops by ``2 * corridor``.
-    solver : {"auto", "ipopt", "fatrop"}
-        ``auto``: :data:`AUTO_SOLVERS` (IPOPT with MUMPS).
+    solver : {"auto", "ipopt", "fatrop", "profile"}
+        ``auto``: :data:`AUTO_SOLVERS` (IPOPT with MUMPS). ``profile`` (path mode): no
+        NLP; every knot at the stretched schedule's time, speeds between decided for
+        all robots at once (:mod:`hierplan_opt.trajectory.profile`); much faster, at a
+        larger stretch factor.
     split : float
         Share of each precedence's slack given to the earlier event (:func:`decouple`).
     stretch : None, "auto" or float >= 1
@@ -793,51 +796,57 @@ def refine(
         "base": int(intervals_per_piece),
     }
     t0 = time.perf_counter()
-    # Path mode: every robot once with a free stretch factor of its windows (the
-    # smallest factor that makes it feasible, 1 for most robots); corridor mode: f = 1.
-    opts["free"] = mode == "path"
-    outs = _solve_all(paths, windows, opts, workers)
-    opts["free"] = False
-    failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
-    late = [j for j, o in enumerate(outs) if o is not None and o["ok"] and _factor(o) > 1.0]
-    # A factor a hair above 1 is round-off (windows met within 1e-9 of their times).
-    for j in [j for j in late if _factor(outs[j]) <= 1.0 + 1e-9]:
-        outs[j] = dict(outs[j], f=1.0)  # type: ignore[arg-type]
-    late = [j for j in late if _factor(outs[j]) > 1.0]
-    if stretch != "auto":
-        # Close to 1: solve those robots with f = 1.
-        for j in [j for j in late if 1.0 < _factor(outs[j]) <= 1.0 + STRETCH_RTOL / 10]:
-            o = _solve_one(paths[j], windows, opts)
-            outs[j] = o
-            if not _ok(o):
-                failed.append(j)
-        late = [j for j in late if _ok(outs[j]) and _factor(outs[j]) > 1.0]
     found_stretch = None
-    if failed or late:
-        found_stretch, sols = smallest_stretch(
-            [paths[j] for j in late + failed],
-            windows,
-            opts,
-            known=[_factor(outs[j]) for j in late] + [None] * len(failed),
-            known_sols=[outs[j] for j in late] + [None] * len(failed),
-        )
-        if found_stretch is not None and (stretch == "auto" or found_stretch <= 1.0):
-            # Every solution slowed down to the final factor stays feasible (the
-            # monotonicity argument above): no robot is solved again.
-            f = found_stretch
-            if f > 1.0:
-                windows = windows.stretched(f)
-            todo = set(late + failed)
-            outs = [
-                o if not _ok(o) or j in todo else _dilate(o, f, paths[j])
-                for j, o in enumerate(outs)
-            ]
-            for j, (fj, o) in zip(late + failed, sols, strict=True):
-                outs[j] = None if o is None else _dilate(o, f / fj, paths[j])
-            failed = late = []
+    if solver == "profile":
+        if mode != "path":
+            raise OptionError("solver 'profile' works in mode='path' only")
+        outs, windows, found_stretch = _solve_profiles(paths, windows, stretch, net)
+    else:
+        # Path mode: every robot once with a free stretch factor of its windows (the
+        # smallest factor that makes it feasible, 1 for most robots); corridor mode: f = 1.
+        opts["free"] = mode == "path"
+        outs = _solve_all(paths, windows, opts, workers)
+        opts["free"] = False
+        failed = [j for j, o in enumerate(outs) if o is not None and not o["ok"]]
+        late = [j for j, o in enumerate(outs) if o is not None and o["ok"] and _factor(o) > 1.0]
+        # A factor a hair above 1 is round-off (windows met within 1e-9 of their times).
+        for j in [j for j in late if _factor(outs[j]) <= 1.0 + 1e-9]:
+            outs[j] = dict(outs[j], f=1.0)  # type: ignore[arg-type]
+        late = [j for j in late if _factor(outs[j]) > 1.0]
+        if stretch != "auto":
+            # Close to 1: solve those robots with f = 1.
+            for j in [j for j in late if 1.0 < _factor(outs[j]) <= 1.0 + STRETCH_RTOL / 10]:
+                o = _solve_one(paths[j], windows, opts)
+                outs[j] = o
+                if not _ok(o):
+                    failed.append(j)
+            late = [j for j in late if _ok(outs[j]) and _factor(outs[j]) > 1.0]
+        found_stretch = None
         if failed or late:
-            worst = (late + failed)[0]
-            raise _infeasible(paths[worst], windows, opts, net, found_stretch, stretch)
+            found_stretch, sols = smallest_stretch(
+                [paths[j] for j in late + failed],
+                windows,
+                opts,
+                known=[_factor(outs[j]) for j in late] + [None] * len(failed),
+                known_sols=[outs[j] for j in late] + [None] * len(failed),
+            )
+            if found_stretch is not None and (stretch == "auto" or found_stretch <= 1.0):
+                # Every solution slowed down to the final factor stays feasible (the
+                # monotonicity argument above): no robot is solved again.
+                f = found_stretch
+                if f > 1.0:
+                    windows = windows.stretched(f)
+                todo = set(late + failed)
+                outs = [
+                    o if not _ok(o) or j in todo else _dilate(o, f, paths[j])
+                    for j, o in enumerate(outs)
+                ]
+                for j, (fj, o) in zip(late + failed, sols, strict=True):
+                    outs[j] = None if o is None else _dilate(o, f / fj, paths[j])
+                failed = late = []
+            if failed or late:
+                worst = (late + failed)[0]
+                raise _infeasible(paths[worst], windows, opts, net, found_stretch, stretch)
     t_solve = time.perf_counter() - t0
 
     robots = []
@@ -872,6 +881,67 @@ def refine(
         margin=net.margin if net.enforced else 0.0,
         enforced=net.enforced,
     )
+
+
+def _solve_profiles(
+    paths: list[RobotPath], windows: Windows, stretch: Any, net: EventNetwork
+) -> tuple[list[dict | None], Windows, float | None]:
+    """``solver="profile"``: the fleet's factor (bisection), then every robot's motion."""
+    from hierplan_opt.trajectory import profile as P
+
+    t0 = time.perf_counter()
+    moving = [j for j, p in enumerate(paths) if p.num_pieces > 0]
+    fleet = P.Fleet.of([paths[j] for j in moving])
+    base = windows.stretch
+    found = None
+    if stretch == "auto":
+        found = P.smallest_factor(fleet, base, MAX_STRETCH, STRETCH_RTOL / 10)
+        if found is None:
+            raise InfeasibleWindowsError(
+                f"no stretch factor up to {MAX_STRETCH:g} lets the profile solver meet "
+                "every window", paths[moving[0]].name, None, None,
+            )  # fmt: skip
+        if found > 1.0:
+            windows = windows.stretched(found)
+    f = windows.stretch
+    ra, rb, fail = P.forward(fleet, f)
+    if (fail >= 0).any():
+        b = int(np.flatnonzero(fail >= 0)[0])
+        path = fleet.paths[b]
+        k = int(fail[b]) + 1
+        ev = int(path.knot_event[k]) if path.knot_event[k] >= 0 else int(path.knot_event[k - 1])
+        where = net.where(ev)
+        factor = P.smallest_factor(fleet, base, MAX_STRETCH, STRETCH_RTOL / 10)
+        msg = (
+            f"{where} cannot be passed at its scheduled time {f * path.knot_t[k]:.6g} s "
+            f"with the profile solver (v_max {path.limits.v_max:g}, a_max "
+            f"{path.limits.a_max:g})"
+        )
+        if factor is not None:
+            msg += f"; stretching the schedule by {factor:.4g} makes every robot feasible"
+        raise InfeasibleWindowsError(msg, path.name, where, factor)
+    V = P.backward(fleet, f, ra, rb)
+    wall = (time.perf_counter() - t0) / max(len(moving), 1)
+    outs: list[dict | None] = [None] * len(paths)
+    for b, i in enumerate(fleet.index.tolist()):
+        j = moving[i]
+        X, U, pp = P.grid(paths[j], f, V[b])
+        if not _feasible(X, U, path_bounds(pp, windows)):
+            raise HierplanError(f"profile solver: the motion of {paths[j].name} fails its checks")
+        outs[j] = {
+            "ok": True,
+            "f": 1.0,
+            "X": X,
+            "U": U,
+            "pp": pp,
+            "wall": wall,
+            "iterations": 0,
+            "solver": "profile",
+            "status": "fixed times",
+            "tries": (),
+            "N": pp.N,
+        }
+    return outs, windows, found
 
 
 def _guarantee_text(net: EventNetwork, mode: str, c: float, sd: float) -> str:
