@@ -886,62 +886,88 @@ def refine(
 def _solve_profiles(
     paths: list[RobotPath], windows: Windows, stretch: Any, net: EventNetwork
 ) -> tuple[list[dict | None], Windows, float | None]:
-    """``solver="profile"``: the fleet's factor (bisection), then every robot's motion."""
+    """``solver="profile"``: every robot at the factor asked for, or (``"auto"``) at its
+    own smallest factor, then slowed down to the fleet's (the largest)."""
     from hierplan_opt.trajectory import profile as P
 
-    t0 = time.perf_counter()
-    moving = [j for j, p in enumerate(paths) if p.num_pieces > 0]
-    fleet = P.Fleet.of([paths[j] for j in moving])
     base = windows.stretch
-    found = None
-    if stretch == "auto":
-        found = P.smallest_factor(fleet, base, MAX_STRETCH, STRETCH_RTOL / 10)
-        if found is None:
-            raise InfeasibleWindowsError(
-                f"no stretch factor up to {MAX_STRETCH:g} lets the profile solver meet "
-                "every window", paths[moving[0]].name, None, None,
-            )  # fmt: skip
-        if found > 1.0:
-            windows = windows.stretched(found)
-    f = windows.stretch
-    ra, rb, fail = P.forward(fleet, f)
-    if (fail >= 0).any():
-        b = int(np.flatnonzero(fail >= 0)[0])
-        path = fleet.paths[b]
-        k = int(fail[b]) + 1
-        ev = int(path.knot_event[k]) if path.knot_event[k] >= 0 else int(path.knot_event[k - 1])
-        where = net.where(ev)
-        factor = P.smallest_factor(fleet, base, MAX_STRETCH, STRETCH_RTOL / 10)
-        msg = (
-            f"{where} cannot be passed at its scheduled time {f * path.knot_t[k]:.6g} s "
-            f"with the profile solver (v_max {path.limits.v_max:g}, a_max "
-            f"{path.limits.a_max:g})"
-        )
-        if factor is not None:
-            msg += f"; stretching the schedule by {factor:.4g} makes every robot feasible"
-        raise InfeasibleWindowsError(msg, path.name, where, factor)
-    V = P.backward(fleet, f, ra, rb)
-    wall = (time.perf_counter() - t0) / max(len(moving), 1)
     outs: list[dict | None] = [None] * len(paths)
-    for b, i in enumerate(fleet.index.tolist()):
-        j = moving[i]
-        X, U, pp = P.grid(paths[j], f, V[b])
-        if not _feasible(X, U, path_bounds(pp, windows)):
-            raise HierplanError(f"profile solver: the motion of {paths[j].name} fails its checks")
+    factors = [1.0] * len(paths)
+    failed: list[tuple[int, int]] = []
+    best = 1.0
+    for j, path in enumerate(paths):
+        if path.num_pieces == 0:
+            continue
+        t0 = time.perf_counter()
+        lo, hi = _effective_windows(path, windows, None)
+        lo, hi = lo / base, hi / base
+        # "auto": first at 1 (most robots), then at the largest factor so far (raised
+        # by bisection when a robot needs more); solutions are slowed down later.
+        f = base * best if stretch == "auto" else base
+        pr = P.solve(path, f, lo, hi)
+        if stretch == "auto":
+            if pr.ok:
+                factors[j] = best
+            else:
+                found = P.smallest(path, lo, hi, MAX_STRETCH, STRETCH_RTOL / 10, start=best)
+                if found is None:
+                    failed.append((j, -1))
+                    continue
+                factors[j], pr = found
+                best = factors[j]
+        if not pr.ok:
+            failed.append((j, pr.failed_knot))
+            continue
         outs[j] = {
             "ok": True,
             "f": 1.0,
-            "X": X,
-            "U": U,
-            "pp": pp,
-            "wall": wall,
-            "iterations": 0,
+            "X": pr.X,
+            "U": pr.U,
+            "pp": pr.pp,
+            "wall": time.perf_counter() - t0,
+            "iterations": pr.delays,
             "solver": "profile",
-            "status": "fixed times",
+            "status": "profile",
             "tries": (),
-            "N": pp.N,
+            "N": pr.pp.N if pr.pp is not None else 0,
         }
-    return outs, windows, found
+    if failed:
+        j, k = failed[0]
+        path = paths[j]
+        need = [P.smallest(paths[i], *_unstretched(paths[i], windows), MAX_STRETCH, 1e-4)
+                for i, _ in failed]  # fmt: skip
+        factor = None if any(x is None for x in need) else max(x[0] for x in need if x)
+        if k < 0:  # no factor helps: name the robot's goal
+            ev = int(path.event_ids[-1])
+        else:  # the end of a turn: name the vertex it turns at
+            ev = int(path.knot_event[k]) if path.knot_event[k] >= 0 else int(path.knot_event[k - 1])
+        where = net.where(ev)
+        msg = (
+            f"{where} cannot be passed inside its window with the profile solver "
+            f"(v_max {path.limits.v_max:g}, a_max {path.limits.a_max:g})"
+        )
+        total = None if factor is None else base * factor
+        if total is not None:
+            msg += f"; stretching the schedule by {total:.4g} makes every robot feasible"
+        raise InfeasibleWindowsError(msg, path.name, where, total)
+    found_stretch = None
+    if stretch == "auto":
+        F = max(factors)
+        found_stretch = F
+        if F > 1.0:
+            windows = windows.stretched(F)
+            outs = [
+                o if o is None else _dilate(o, F / factors[j], paths[j]) for j, o in enumerate(outs)
+            ]
+    for j, o in enumerate(outs):
+        if o is not None and not _feasible(o["X"], o["U"], path_bounds(o["pp"], windows)):
+            raise HierplanError(f"profile solver: the motion of {paths[j].name} fails its checks")
+    return outs, windows, found_stretch
+
+
+def _unstretched(path: RobotPath, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
+    lo, hi = _effective_windows(path, windows, None)
+    return lo / windows.stretch, hi / windows.stretch
 
 
 def _guarantee_text(net: EventNetwork, mode: str, c: float, sd: float) -> str:
