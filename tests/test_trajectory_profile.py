@@ -15,6 +15,7 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.schedule import postprocess
 from hierplan_opt.trajectory import InfeasibleWindowsError, refine
 from hierplan_opt.trajectory import profile as P
+from hierplan_opt.trajectory.refine import Limits, RobotPath
 from hierplan_opt.trajectory.verify import verify
 
 R = importlib.import_module("hierplan_opt.trajectory.refine")
@@ -40,13 +41,13 @@ def grid_plan() -> tuple[Instance, Plan]:
     return inst, res.plan
 
 
-def line_path(sigma, t, stop) -> R.RobotPath:
+def line_path(sigma, t, stop) -> RobotPath:
     """A straight 1-D path with knots at ``sigma`` (v_max = a_max = 1)."""
     n = len(sigma)
     one = np.ones(n - 1)
     dirs = np.tile([1.0, 0.0], (n - 1, 1))
-    return R.RobotPath(
-        "r", "double_integrator", R.Limits(1.0, 1.0, np.inf, np.inf), np.asarray(sigma, float),
+    return RobotPath(
+        "r", "double_integrator", Limits(1.0, 1.0, np.inf, np.inf), np.asarray(sigma, float),
         np.arange(n), np.asarray(stop), np.asarray(t, float), np.zeros((n, 2)),
         np.zeros(n - 1, bool), dirs, np.zeros(n - 1), one, one, one, 0.0, np.arange(n),
         np.asarray(sigma, float),
