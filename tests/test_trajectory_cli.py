@@ -124,3 +124,17 @@ def test_edited_schedule_times_are_refused(
     code, _, err = run(capsys, "refine", PART1, str(bad), "--out", str(tmp_path / "t.csv"))
     assert code == 2
     assert str(bad) in one_line(err)
+
+
+def test_refine_with_the_profile_solver_turns_unicycles_and_verifies(
+    schedule: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "p.csv"
+    code, text, _ = run(
+        capsys, "refine", PART1, str(schedule), "--out", str(out), "--stretch", "auto",
+        "--solver", "profile",
+    )  # fmt: skip
+    assert code == 0, text
+    assert "(path mode, profile)" in text and "; verified:" in text
+    rows = [ln for ln in out.read_text().splitlines() if not ln.startswith("#")]
+    assert rows[0] == "agent,t,x,y,vx,vy,theta"

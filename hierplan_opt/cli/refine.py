@@ -70,9 +70,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--solver",
-        choices=("auto", "ipopt", "fatrop"),
+        choices=("auto", "ipopt", "fatrop", "profile"),
         default="auto",
-        help="NLP solver (auto: IPOPT)",
+        help="NLP solver (auto: IPOPT), or profile: path mode without an NLP (fast)",
     )
     p.add_argument(
         "--stretch",
