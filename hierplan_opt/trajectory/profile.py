@@ -55,7 +55,7 @@ BIG = 1e9
 #: until ``theta2 tau``, linear to ``w`` (fractions of the segment's duration).
 SHAPES = np.array(
     [(0.5, 0.5), (0.2, 0.2), (0.8, 0.8), (0.1, 0.9), (0.25, 0.75), (0.05, 0.95), (0.1, 0.4),
-     (0.6, 0.9)]
+     (0.6, 0.9), (0.4, 0.6), (0.3, 0.5), (0.5, 0.7)]
 )  # fmt: skip
 #: How many segments back a failing segment may take its delay from.
 LOOKBACK = 1
