@@ -22,14 +22,13 @@ R = importlib.import_module("hierplan_opt.trajectory.refine")
 
 
 def crossing() -> tuple[Instance, Plan]:
-    g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
+    # Two robots exchange ends of a 5 x 2 strip (they must pass each other).
+    g = Graph.grid(5, 2)
     kin = Kinematics(v_max=1.0, a_max=2.0, radius=0.2)
-    inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 2)], kinematics=kin)
-    v = g.vertex
-    plan = Plan.from_paths(
-        [[v((0, 1)), v((1, 1)), v((2, 1))], [v((1, 0)), v((1, 0)), v((1, 1)), v((1, 2))]]
-    )
-    return inst, plan
+    inst = Instance.mapf(g, [(0, 0), (4, 0)], [(4, 0), (0, 0)], kinematics=kin)
+    res = hp.solve(inst, "cbs", time_limit=10)
+    assert res.plan is not None
+    return inst, res.plan
 
 
 def grid_plan() -> tuple[Instance, Plan]:
@@ -64,7 +63,7 @@ def test_profile_keeps_windows_limits_and_distance_like_the_nlp(case) -> None:
         rep = verify(tr, inst)
         assert rep.ok, rep.message()
         assert rep.min_distance >= tr.safety_distance > 0
-        assert rep.max_speed_ratio <= 1 + 1e-6 and rep.max_accel_ratio <= 1 + 1e-6
+        assert rep.max_speed_ratio <= 1 + 1e-5 and rep.max_accel_ratio <= 1 + 1e-5
     assert tp.safety_distance == ti.safety_distance
     # The restricted family never needs less stretch than the NLP (up to its tolerance).
     assert tp.stretch >= ti.stretch * (1 - 2e-3)
