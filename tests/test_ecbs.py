@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import random
 from pathlib import Path
 
 import pytest
@@ -400,3 +401,60 @@ def test_polish_only_lowers_the_cost(solver: str) -> None:
     assert polished.stats["cost_before_polish"] == plain.cost
     assert polished.cost == plain.cost - polished.stats["polish_gain"]
     assert polished.lower_bound <= polished.cost <= plain.cost
+
+
+@pytest.mark.parametrize("w", [1.0, 1.2])
+def test_low_level_fallback_keeps_the_bound(w: float) -> None:
+    # After `budget` expansions the low level stops trading cost for conflicts and
+    # finishes as A*: the path must still cost <= w * lb with lb <= the optimum (a
+    # greedy order there once returned detours beyond the bound, e.g. 9 for lb 8).
+    rng = random.Random(1)
+    broken = []
+    for trial in range(1500):
+        width, height = rng.randint(3, 7), rng.randint(2, 5)
+        obst = [(x, y) for x in range(width) for y in range(height) if rng.random() < 0.3]
+        g = Graph.grid(width, height, obstacles=obst)
+        free = [v for v in range(g.n) if g.passable[v]]
+        if len(free) < 3:
+            continue
+        start, goal = rng.sample(free, 2)
+        dist = g.dist_list(goal)
+        if dist[start] >= 1 << 29:
+            continue
+        cons = AgentConstraints()
+        for _ in range(rng.randint(0, 10)):  # constraints make the heuristic inexact
+            cons = cons.add((NEG_V, 0, rng.choice(free), -1, rng.randint(1, 8)), n=g.n, goal=goal)
+        res = Reservations(g.n)
+        for i in range(rng.randint(0, 4)):  # other agents walking about
+            p = [rng.choice(free)]
+            for _ in range(rng.randint(1, 12)):
+                p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
+            res.add(i, tuple(p))
+        exact = focal_path(g.adj, start, goal, dist, cons, Reservations(g.n), budget=-1)
+        for budget in (1, 2, 3, 5):
+            out = focal_path(g.adj, start, goal, dist, cons, res, w=w, budget=budget)
+            assert (out is None) == (exact is None)
+            if out is None or exact is None:
+                continue
+            path, lb = out
+            if not lb <= len(exact[0]) - 1 or len(path) - 1 > w * lb + 1e-9:
+                broken.append((trial, budget, path, lb))
+    assert not broken
+
+
+def test_partner_conflicts_weigh_more() -> None:
+    # Two ways around a block, each crossing one other agent: with `partner` the low
+    # level takes the way that avoids the partner even though both count one conflict.
+    g = Graph.grid(3, 3, obstacles=[(1, 1)])
+    n = g.n
+    start, goal = g.vertex((0, 0)), g.vertex((2, 2))
+    res = Reservations(n)
+    res.add(5, (g.vertex((1, 0)), g.vertex((1, 0)), g.vertex((1, 0))))  # on the top way
+    res.add(6, (g.vertex((0, 1)), g.vertex((0, 1)), g.vertex((0, 1))))  # on the left way
+    dist = g.dist_list(goal)
+    for partner, avoided in ((5, (1, 0)), (6, (0, 1))):
+        out = focal_path(g.adj, start, goal, dist, AgentConstraints(), res, partner=partner)
+        assert out is not None
+        path, lb = out
+        assert lb == 4 == len(path) - 1
+        assert g.vertex(avoided) not in path

@@ -15,7 +15,11 @@ The search reports ``lower_bound = LB_min`` so ``cost / lower_bound`` is the pro
 suboptimality.
 
 The conflict split is a target conflict (an agent on another's goal after that one
-has arrived for good, or as it arrives) when there is one, else the earliest. With
+has arrived for good, or as it arrives) when there is one, else the earliest. A child
+replans its agent with conflicts with the other agent of the split weighted heavily in
+the low level's FOCAL (``focal_path(..., partner=)``), so the new path avoids that agent
+rather than meeting it one step later (the ping-pong of two agents head-on in an
+aisle); the order of FOCAL is free, so the bound is untouched. With
 ``polish=True`` the solution is finally improved agent by agent (shortest path around
 the others, never longer), which keeps the plan valid and the bound.
 
@@ -124,6 +128,8 @@ class _ECBS:
     """
 
     name = "ecbs"
+    #: Weigh conflicts with the other agent of the split in the child's low level.
+    avoid_partner = True
 
     def __init__(
         self,
@@ -150,6 +156,7 @@ class _ECBS:
         self.w_high = w  # the high level's factor (w * w_hwy with highways)
         self.polish = polish
         self.bypass = bypass
+        self.split_pair = (-1, -1)  # the agents of the conflict split last
         self.res = Reservations(g.n)
         self.best_known_lb = instance.soc_lower_bound()
         self.stats: dict[str, Any] = {
@@ -178,8 +185,9 @@ class _ECBS:
         self.inc_cost = int(incumbent.cost or 0) if incumbent is not None else 0
 
     # ------------------------------------------------------------------ low level
-    def plan(self, a: int, cons: AgentConstraints) -> tuple[Path, int] | None:
-        """Agent ``a``'s focal path around the paths in ``self.res`` and its lower bound."""
+    def plan(self, a: int, cons: AgentConstraints, partner: int = -1) -> tuple[Path, int] | None:
+        """Agent ``a``'s focal path around the paths in ``self.res`` and its lower bound
+        (conflicts with ``partner`` weigh more in FOCAL)."""
         self.stats["low_level_calls"] += 1
         return focal_path(
             self.adj,
@@ -191,6 +199,7 @@ class _ECBS:
             w=self.w,
             deadline=self.deadline,
             stats=self.stats,
+            partner=partner if self.avoid_partner else -1,
         )
 
     # ------------------------------------------------------------------ root
@@ -266,6 +275,7 @@ class _ECBS:
         paths = node.paths
         c = min(node.conflicts, key=lambda c: split_order(c, paths))
         t, kind, a, b, u, v = c
+        self.split_pair = (a, b)
         if kind == EDGE:  # b moves v -> u while a moves u -> v, arriving at t
             self.stats["head_on_conflicts"] += 1
             return [(b, (NEG_E, b, v, u, t)), (a, (NEG_E, a, u, v, t))]
@@ -277,7 +287,8 @@ class _ECBS:
         cons[a] = cons[a].add(con, n=self.n, goal=self.goals[a])
         self.res.sync(node.paths)
         self.res.remove(a)
-        out = self.plan(a, cons[a])
+        pa, pb = self.split_pair
+        out = self.plan(a, cons[a], pb if a == pa else pa)
         if out is None:
             return None
         path, lb = out

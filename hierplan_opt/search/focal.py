@@ -42,12 +42,26 @@ from hierplan_opt.search.reservations import Reservations
 #: warehouse-10-20-10-2-1: 4x fewer for 200 agents, sum of costs about 3 % higher).
 _TIE = 1 << 20
 
+#: Weight of a conflict with the ``partner`` agent in FOCAL's count.
+PARTNER_WEIGHT = 1 << 10
+
 #: Expansions after which FOCAL gives up trading cost for conflicts (see ``budget``).
 DEFAULT_BUDGET = 10_000
 
 
 class SearchTimeout(Exception):
     """Raised by the low level when the deadline expires mid-search."""
+
+
+def _time(key: int, n: int) -> int:
+    """The timestep of a state key (``t * n + v``, terminal ``-(t * n + v + 1)``).
+
+    Example
+    -------
+    >>> _time(7, 3), _time(-8, 3)
+    (2, 2)
+    """
+    return (key if key >= 0 else -key - 1) // n
 
 
 def unwind(parent: dict[int, int], key: int, goal: int, n: int) -> list[int]:
@@ -84,6 +98,7 @@ def focal_path(
     budget: int = DEFAULT_BUDGET,
     avoid: bool = False,
     limit: int = -1,
+    partner: int = -1,
 ) -> tuple[tuple[int, ...], int] | None:
     """A path for one agent of cost ``<= w * lb`` with few conflicts, and ``lb``.
 
@@ -113,6 +128,10 @@ def focal_path(
     max_t
         No state later than this is generated (defaults to the last constraint time
         plus the number of vertices, after which waiting is never forced).
+    partner
+        An agent of ``res`` whose conflicts count :data:`PARTNER_WEIGHT` times each (the
+        other agent of the conflict ECBS just split on, so the new path avoids it
+        rather than meeting it one step later); only the order of FOCAL changes.
 
     Returns
     -------
@@ -144,6 +163,13 @@ def focal_path(
     et = res.et
     park_t = res.park_t
     n_goal_times = len(goal_times)
+    pw = PARTNER_WEIGHT
+    partner_path = res.paths[partner] if 0 <= partner < len(res.paths) else None
+    partner_goal = partner_path[-1] if partner_path is not None else -1
+    # the partner's visits to this agent's goal (it would meet the parked agent there)
+    partner_times = (
+        [t for t, x in enumerate(partner_path) if x == goal] if partner_path is not None else []
+    )
     has_v = bool(vcons)
     has_e = bool(econs)
 
@@ -203,7 +229,10 @@ def focal_path(
         if best[key] != c:
             continue  # stale entry
         if key < 0:
-            # Terminal node: the agent parks at its goal from time f on.
+            # Terminal node: the agent parks at its goal from time f on. In the fallback
+            # (A* order by f) every live state has f >= this one's, so f is a lower bound.
+            if fallback and f > fmin:
+                fmin = f
             path = unwind(parent, key, goal, n)
             while len(path) > 1 and path[-2] == goal:
                 path.pop()  # cannot happen (hold logic), kept for safety
@@ -220,13 +249,15 @@ def focal_path(
         if expanded == budget:
             # Too much effort spent avoiding conflicts (typically a late constraint on
             # the goal makes a wide plateau of equal f): finish as plain A* (by f,
-            # deeper first, then conflicts). The path still costs <= w * f_min.
+            # deeper first, then conflicts). The first terminal popped then has the
+            # smallest f of all live states, so its cost is a lower bound and within
+            # w * f_min (ordering by g + 2h here could return a path up to 2 f_min).
             fallback = True
             entries = focal
             for b in buckets.values():
                 entries.extend(b)
             buckets.clear()
-            focal = [(e[1], e[0], e[2], e[3]) for e in entries]
+            focal = [(e[2] * _TIE - _time(e[3], n), e[0], e[2], e[3]) for e in entries]
             heapify(focal)
             bound = 1 << 62
         if deadline is not None and not expanded & 1023 and deadline.expired():
@@ -246,12 +277,18 @@ def focal_path(
                 occ = vt.get(nk)
                 if occ:
                     nc += len(occ)
+                    if partner in occ:
+                        nc += pw
                 if nt > park_t[u]:
                     nc += 1
+                    if u == partner_goal:  # the partner is the one parked at u
+                        nc += pw
                 if u != v:
                     occ = et.get((base + u) * n + v)  # someone moves u -> v: a swap
                     if occ:
                         nc += len(occ)
+                        if partner in occ:
+                            nc += pw
                 if avoid and nc:
                     continue
                 hu = h[u]
@@ -264,7 +301,7 @@ def focal_path(
                     best[nk] = nc
                     parent[nk] = key
                     entry = (
-                        ((nf + hu) * _TIE - nt, nc, nf, nk)
+                        (nf * _TIE - nt, nc, nf, nk)
                         if fallback
                         else (nc, (nf + hu) * _TIE - nt, nf, nk)
                     )
@@ -279,6 +316,8 @@ def focal_path(
                 if u == goal and nt >= hold:
                     tk = -(nk + 1)
                     tc = nc + n_goal_times - bisect_right(goal_times, nt)
+                    if partner_times:
+                        tc += pw * (len(partner_times) - bisect_right(partner_times, nt))
                     if avoid and tc:
                         continue
                     old = best.get(tk)

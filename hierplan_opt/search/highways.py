@@ -317,9 +317,9 @@ class _HighwayMixin:
             bound=self.w_high, w_hwy=w_hwy, hwy_mode=mode, highway_edges=len(highways)
         )
 
-    def plan(self, a: int, cons: AgentConstraints) -> tuple[Path, int] | None:
+    def plan(self, a: int, cons: AgentConstraints, partner: int = -1) -> tuple[Path, int] | None:
         if self.mode == "heuristic":
-            out: tuple[Path, float] | None = super().plan(a, cons)  # type: ignore[misc]
+            out: tuple[Path, float] | None = super().plan(a, cons, partner)  # type: ignore[misc]
         else:
             self.stats["low_level_calls"] += 1
             out = inflated_focal_path(
