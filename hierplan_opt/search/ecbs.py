@@ -15,11 +15,12 @@ The search reports ``lower_bound = LB_min`` so ``cost / lower_bound`` is the pro
 suboptimality.
 
 The conflict split is a target conflict (an agent on another's goal after that one
-has arrived for good, or as it arrives) when there is one, else the earliest. A child
-replans its agent with conflicts with the other agent of the split weighted heavily in
-the low level's FOCAL (``focal_path(..., partner=)``), so the new path avoids that agent
-rather than meeting it one step later (the ping-pong of two agents head-on in an
-aisle); the order of FOCAL is free, so the bound is untouched. With
+has arrived for good, or as it arrives) when there is one, else the earliest. When the
+pair was split on before in the branch, each child replans its agent with conflicts
+with the other one weighted heavily in the low level's FOCAL (``focal_path(...,
+partner=)``), so the new path avoids that agent rather than meeting it one step later
+(the ping-pong of two agents head-on in an aisle); the order of FOCAL is free, so the
+bound is untouched. With
 ``polish=True`` the solution is finally improved agent by agent (shortest path around
 the others, never longer), which keeps the plan valid and the bound.
 
@@ -74,7 +75,9 @@ class _Node:
     """A constraint-tree node: one path, one low-level bound ``lbs[i]`` and one
     :class:`AgentConstraints` per agent (shared with the parent unless changed)."""
 
-    __slots__ = ("paths", "lbs", "cons", "cost", "lb", "conflicts", "id", "fhat", "closed", "depth")
+    __slots__ = (
+        "paths", "lbs", "cons", "cost", "lb", "conflicts", "id", "fhat", "closed", "depth", "pairs"
+    )  # fmt: skip
 
     def __init__(
         self,
@@ -84,6 +87,7 @@ class _Node:
         conflicts: list[Conflict],
         nid: int,
         depth: int,
+        pairs: frozenset[tuple[int, int]] = frozenset(),
     ) -> None:
         self.paths = paths
         self.lbs = lbs
@@ -95,6 +99,7 @@ class _Node:
         self.fhat = float(self.cost)
         self.closed = False
         self.depth = depth
+        self.pairs = pairs  # the pairs of agents split on from the root to here
 
 
 def split_order(c: Conflict, paths: list[Path]) -> tuple[int, int, int, int, int, int]:
@@ -128,7 +133,8 @@ class _ECBS:
     """
 
     name = "ecbs"
-    #: Weigh conflicts with the other agent of the split in the child's low level.
+    #: On a repeated split of a pair, weigh conflicts with the other agent in the
+    #: child's low level (class attribute so experiments can turn it off).
     avoid_partner = True
 
     def __init__(
@@ -199,7 +205,7 @@ class _ECBS:
             w=self.w,
             deadline=self.deadline,
             stats=self.stats,
-            partner=partner if self.avoid_partner else -1,
+            partner=partner,
         )
 
     # ------------------------------------------------------------------ root
@@ -275,7 +281,7 @@ class _ECBS:
         paths = node.paths
         c = min(node.conflicts, key=lambda c: split_order(c, paths))
         t, kind, a, b, u, v = c
-        self.split_pair = (a, b)
+        self.split_pair = (min(a, b), max(a, b))
         if kind == EDGE:  # b moves v -> u while a moves u -> v, arriving at t
             self.stats["head_on_conflicts"] += 1
             return [(b, (NEG_E, b, v, u, t)), (a, (NEG_E, a, u, v, t))]
@@ -287,8 +293,12 @@ class _ECBS:
         cons[a] = cons[a].add(con, n=self.n, goal=self.goals[a])
         self.res.sync(node.paths)
         self.res.remove(a)
-        pa, pb = self.split_pair
-        out = self.plan(a, cons[a], pb if a == pa else pa)
+        pair = self.split_pair
+        # the pair was split on before in this branch: make the new path avoid the other
+        partner = -1
+        if self.avoid_partner and pair in node.pairs:
+            partner = pair[1] if a == pair[0] else pair[0]
+        out = self.plan(a, cons[a], partner)
         if out is None:
             return None
         path, lb = out
@@ -300,7 +310,9 @@ class _ECBS:
         lbs[a] = max(lbs[a], lb)
         self.nid += 1
         self.stats["high_level_generated"] += 1
-        return _Node(paths, lbs, cons, kept + new_conf, self.nid, node.depth + 1)
+        return _Node(
+            paths, lbs, cons, kept + new_conf, self.nid, node.depth + 1, node.pairs | {pair}
+        )
 
     def bypassed(self, node: _Node, child: _Node, a: int, lbm: int) -> _Node | None:
         """``node`` with ``child``'s path of ``a`` and no new constraint, if allowed.
@@ -319,7 +331,15 @@ class _ECBS:
             return None
         self.nid += 1
         self.stats["bypasses"] += 1
-        return _Node(child.paths, list(node.lbs), node.cons, child.conflicts, self.nid, node.depth)
+        return _Node(
+            child.paths,
+            list(node.lbs),
+            node.cons,
+            child.conflicts,
+            self.nid,
+            node.depth,
+            node.pairs,
+        )
 
     # ------------------------------------------------------------------ search
     def search(self) -> Result:

@@ -11,9 +11,9 @@ goal: ``AgentConstraints.min_finish``). ``h`` is consistent, so ``f_min`` (the s
 constraints. *FOCAL* = {``f <= w * f_min``} is ordered by the number of conflicts with
 the other agents' paths, then by ``g + 2h`` (towards the goal), then deeper first. The
 path returned costs at most ``w * f_min``. After ``budget`` expansions the search stops
-trading cost for conflicts and finishes as plain A* (still within the bound): this caps
-the rare calls that would otherwise sweep the whole focal region when a conflict is
-unavoidable.
+trading cost for conflicts: FOCAL (still ``f <= w * f_min``) is then ordered by
+``g + 2h`` first, heading for the goal; this caps the rare calls that would otherwise
+sweep the whole focal region when a conflict is unavoidable.
 
 Conflicts are counted incrementally from the
 :class:`~hierplan_opt.search.reservations.Reservations` of the other agents' paths:
@@ -51,17 +51,6 @@ DEFAULT_BUDGET = 10_000
 
 class SearchTimeout(Exception):
     """Raised by the low level when the deadline expires mid-search."""
-
-
-def _time(key: int, n: int) -> int:
-    """The timestep of a state key (``t * n + v``, terminal ``-(t * n + v + 1)``).
-
-    Example
-    -------
-    >>> _time(7, 3), _time(-8, 3)
-    (2, 2)
-    """
-    return (key if key >= 0 else -key - 1) // n
 
 
 def unwind(parent: dict[int, int], key: int, goal: int, n: int) -> list[int]:
@@ -115,10 +104,10 @@ def focal_path(
     w
         Suboptimality factor of the focal list (``>= 1``).
     budget
-        After this many expansions (if positive) FOCAL shrinks to ``{f = f_min}``:
-        the search stops trading cost for fewer conflicts and ends like A* (ties
-        broken by conflicts). Caps the rare calls that would otherwise explore the
-        whole focal region when a conflict cannot be avoided.
+        After this many expansions (if positive) FOCAL (still ``f <= w * f_min``) is
+        ordered by ``g + 2h`` before conflicts: the search stops trading cost for
+        fewer conflicts and heads for the goal. Caps the rare calls that would
+        otherwise explore the whole focal region when a conflict cannot be avoided.
     limit
         Give up (return None) after this many expansions, if positive.
     avoid
@@ -130,7 +119,7 @@ def focal_path(
         plus the number of vertices, after which waiting is never forced).
     partner
         An agent of ``res`` whose conflicts count :data:`PARTNER_WEIGHT` times each (the
-        other agent of the conflict ECBS just split on, so the new path avoids it
+        other agent of a conflict ECBS split on repeatedly, so the new path avoids it
         rather than meeting it one step later); only the order of FOCAL changes.
 
     Returns
@@ -229,10 +218,7 @@ def focal_path(
         if best[key] != c:
             continue  # stale entry
         if key < 0:
-            # Terminal node: the agent parks at its goal from time f on. In the fallback
-            # (A* order by f) every live state has f >= this one's, so f is a lower bound.
-            if fallback and f > fmin:
-                fmin = f
+            # Terminal node: the agent parks at its goal from time f on.
             path = unwind(parent, key, goal, n)
             while len(path) > 1 and path[-2] == goal:
                 path.pop()  # cannot happen (hold logic), kept for safety
@@ -248,18 +234,15 @@ def focal_path(
             break
         if expanded == budget:
             # Too much effort spent avoiding conflicts (typically a late constraint on
-            # the goal makes a wide plateau of equal f): finish as plain A* (by f,
-            # deeper first, then conflicts). The first terminal popped then has the
-            # smallest f of all live states, so its cost is a lower bound and within
-            # w * f_min (ordering by g + 2h here could return a path up to 2 f_min).
+            # the goal makes a wide plateau of equal f): FOCAL is now ordered by g + 2h
+            # (deeper first, then conflicts), heading for the goal. It still admits
+            # only f <= w * f_min, so the path still costs <= w * f_min (admitting
+            # everything here once returned paths beyond that).
             fallback = True
-            entries = focal
-            for b in buckets.values():
-                entries.extend(b)
-            buckets.clear()
-            focal = [(e[2] * _TIE - _time(e[3], n), e[0], e[2], e[3]) for e in entries]
+            focal = [(e[1], e[0], e[2], e[3]) for e in focal]
             heapify(focal)
-            bound = 1 << 62
+            for fb, b in buckets.items():
+                buckets[fb] = [(e[1], e[0], e[2], e[3]) for e in b]
         if deadline is not None and not expanded & 1023 and deadline.expired():
             raise SearchTimeout
         t = key // n
@@ -301,7 +284,7 @@ def focal_path(
                     best[nk] = nc
                     parent[nk] = key
                     entry = (
-                        (nf * _TIE - nt, nc, nf, nk)
+                        ((nf + hu) * _TIE - nt, nc, nf, nk)
                         if fallback
                         else (nc, (nf + hu) * _TIE - nt, nf, nk)
                     )
