@@ -125,6 +125,42 @@ def memory_guard(args: argparse.Namespace) -> Iterator[None]:
         yield
 
 
+def add_progress_arguments(p: argparse.ArgumentParser) -> None:
+    """``--progress`` and ``--progress-interval SECONDS`` (see :func:`progress_of`)."""
+    p.add_argument(
+        "--progress",
+        action="store_true",
+        help="show how the long work goes: a bar on a terminal, else a status line "
+        "(INFO, hidden by -q) every --progress-interval seconds and one at the end",
+    )
+    p.add_argument(
+        "--progress-interval",
+        type=positive_float,
+        default=10.0,
+        metavar="SECONDS",
+        help="seconds between two status lines on a non-terminal (default: 10)",
+    )
+
+
+@contextlib.contextmanager
+def progress_of(args: argparse.Namespace, description: str) -> Iterator[None]:
+    """The command's work, with progress shown when ``--progress`` asks (not with -q).
+
+    Example
+    -------
+    >>> args = argparse.Namespace(progress=False, quiet=False)
+    >>> with progress_of(args, "solve cbs"):
+    ...     pass
+    """
+    from hierplan_opt.core.progress import Progress, reporting
+
+    show = getattr(args, "progress", False) and not getattr(args, "quiet", False)
+    interval = getattr(args, "progress_interval", 10.0)
+    progress = Progress(description, interval=interval) if show else None
+    with reporting(progress):
+        yield
+
+
 #: Room beyond the model budget for everything else a command holds (instance, plan,
 #: distance tables, Python objects), so the model estimate speaks first.
 DATA_HEADROOM = 512 << 20

@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 import math
 
-from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments
+from hierplan_opt.cli.common import (
+    OK,
+    PLAN_INVALID,
+    add_instance_arguments,
+    add_progress_arguments,
+    progress_of,
+)
 
 HELP = "turn a plan into an execution schedule (MAPF-POST: TPG, STN, graph or LP)"
 
@@ -22,6 +28,7 @@ def _metres(text: str) -> float:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
+    add_progress_arguments(p)
     p.add_argument(
         "plan", metavar="PLAN", help="plan file (YAML/JSON, libMultiRobotPlanning layout)"
     )
@@ -96,16 +103,17 @@ def run(args: argparse.Namespace) -> int:
     if args.margin is not None and args.delta is not None:
         raise InputError("give --margin or its old name --delta, not both")
     margin = args.margin if args.margin is not None else (args.delta or 0.0)
-    schedule = postprocess(
-        instance,
-        plan,
-        args.objective,
-        margin=margin,
-        clearance=not args.no_clearance,
-        method=method,
-        acceleration=not args.no_acceleration,
-        lp_backend=args.lp_backend,
-    )
+    with progress_of(args, f"post {method}"):
+        schedule = postprocess(
+            instance,
+            plan,
+            args.objective,
+            margin=margin,
+            clearance=not args.no_clearance,
+            method=method,
+            acceleration=not args.no_acceleration,
+            lp_backend=args.lp_backend,
+        )
     write_schedule(schedule, args.out)
     if args.dot:
         assert schedule.stn is not None

@@ -12,8 +12,10 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_INVALID,
     add_instance_arguments,
+    add_progress_arguments,
     positive_float,
     positive_int,
+    progress_of,
 )
 from hierplan_opt.core.errors import InputError
 
@@ -47,6 +49,7 @@ def _fraction(text: str) -> float:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
+    add_progress_arguments(p)
     p.add_argument("schedule", metavar="SCHEDULE", help="schedule file written by `hierplan post`")
     p.add_argument("--out", required=True, metavar="FILE", help="output trajectories .csv or .npz")
     p.add_argument(
@@ -129,19 +132,20 @@ def run(args: argparse.Namespace) -> int:
     instance = load_instance_from_args(args)
     network = from_file(instance, args.schedule)
     try:
-        traj = refine(
-            instance,
-            network,
-            model=args.model,
-            mode=args.mode,
-            corridor=args.corridor,
-            solver=args.solver,
-            split=args.split,
-            stretch=args.stretch,
-            a_max=args.a_max,
-            alpha_max=args.alpha_max,
-            workers=args.workers,
-        )
+        with progress_of(args, "refine"):
+            traj = refine(
+                instance,
+                network,
+                model=args.model,
+                mode=args.mode,
+                corridor=args.corridor,
+                solver=args.solver,
+                split=args.split,
+                stretch=args.stretch,
+                a_max=args.a_max,
+                alpha_max=args.alpha_max,
+                workers=args.workers,
+            )
     except InfeasibleWindowsError as exc:
         print(f"hierplan refine: infeasible: {exc}", file=sys.stderr)
         return INFEASIBLE

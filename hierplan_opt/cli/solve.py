@@ -15,12 +15,15 @@ from hierplan_opt.cli.common import (
     PLAN_SUFFIXES,
     add_instance_arguments,
     add_memory_argument,
+    add_progress_arguments,
     check_outputs,
     load_instance_from_args,
     positive_float,
+    progress_of,
 )
 from hierplan_opt.core.errors import InputError, UnknownSolverError
 from hierplan_opt.core.options import parse_pairs
+from hierplan_opt.core.progress import note
 
 HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning layout)"
 
@@ -28,6 +31,7 @@ HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning lay
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
     add_memory_argument(p)
+    add_progress_arguments(p)
     chosen = ["cbs"]  # the solver whose options --help lists
 
     class SolverName(argparse.Action):
@@ -196,14 +200,16 @@ def run(args: argparse.Namespace) -> int:
         options["w"] = args.w
     instance = load_instance_from_args(args)
     instance = highway_options(args, instance, options)
-    result = hierplan_opt.solve(
-        instance,
-        args.solver,
-        time_limit=args.time_limit,
-        seed=args.seed,
-        objective=args.objective,
-        **options,
-    )
+    with progress_of(args, f"solve {args.solver}"):
+        result = hierplan_opt.solve(
+            instance,
+            args.solver,
+            time_limit=args.time_limit,
+            seed=args.seed,
+            objective=args.objective,
+            **options,
+        )
+        note(status=str(result.status), lb=result.lower_bound, best=result.cost)
     line = summary(result, instance)
     if result.plan is not None and args.out:
         save_plan(args.out, instance, result)

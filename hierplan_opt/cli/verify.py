@@ -10,8 +10,10 @@ from hierplan_opt.cli.common import (
     PLAN_INVALID,
     add_instance_arguments,
     add_memory_argument,
+    add_progress_arguments,
     load_instance_from_args,
     positive_float,
+    progress_of,
 )
 from hierplan_opt.core.result import Status
 
@@ -29,6 +31,7 @@ HELP = "certify that a plan is optimal with an exact formulation (CP-SAT or MIP)
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
     add_memory_argument(p)
+    add_progress_arguments(p)
     p.add_argument("plan", metavar="PLAN", help="plan file (as written by `hierplan solve`)")
     p.add_argument(
         "--objective",
@@ -59,13 +62,14 @@ def run(args: argparse.Namespace) -> int:
 
     instance = load_instance_from_args(args)
     plan = load_plan(args.plan, instance)
-    res = verify(
-        instance,
-        plan,
-        objective=args.objective,
-        method=args.method,
-        time_limit=args.time_limit,
-    )
+    with progress_of(args, f"verify {args.method}"):
+        res = verify(
+            instance,
+            plan,
+            objective=args.objective,
+            method=args.method,
+            time_limit=args.time_limit,
+        )
     print(res.message())
     for v in res.violations[1:]:
         print(f"  {v}")

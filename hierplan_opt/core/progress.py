@@ -11,6 +11,12 @@ to show them:
   logger every ``interval`` seconds and one at the end, so ``hierplan -q`` hides them;
 * with ``enabled=False``, nothing at all (the figures are still kept).
 
+Solvers do not take a progress object: the caller makes one the *active* progress with
+:func:`reporting` (``hierplan solve --progress`` does), and a long loop calls
+:func:`tick` with its count and figures (CBS and ECBS once per high-level expansion,
+the formulations once per horizon, trajectory refinement once per robot). Without an
+active progress :func:`tick` is one context-variable lookup.
+
 Rich is imported only when a bar is drawn.
 """
 
@@ -20,6 +26,9 @@ import logging
 import math
 import sys
 import time
+from collections.abc import Generator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from types import TracebackType
 from typing import Any, TextIO
 
@@ -171,8 +180,7 @@ class Progress:
 
     def status_line(self) -> str:
         """``"sweep: 12/40 runs, solved 9, 0:31 elapsed, ETA 1:40"``."""
-        count = f"{self.completed}" if self.total is None else f"{self.completed}/{self.total}"
-        parts = [f"{self.description}: {count}{' ' + self.unit if self.unit else ''}"]
+        parts = [f"{self.description}: {self._count()}"]
         if self.fields:
             parts.append(self._figures())
         parts.append(f"{format_duration(self.elapsed)} elapsed")
@@ -195,8 +203,8 @@ class Progress:
         columns: list[Any] = [TextColumn("[bold]{task.description}")]
         if self.total is not None:
             columns += [BarColumn(), MofNCompleteColumn()]
-        else:
-            columns += [TextColumn("{task.completed} " + self.unit)]
+        else:  # a count whose unit (and total) the work may set later
+            columns += [TextColumn("{task.fields[count]}")]
         columns += [TextColumn("{task.fields[figures]}"), TimeElapsedColumn()]
         if self.total is not None:
             columns += [TextColumn("ETA"), TimeRemainingColumn()]
@@ -205,10 +213,69 @@ class Progress:
         )
         self._bar.start()
         self._task = self._bar.add_task(
-            self.description, total=self.total, completed=self.completed, figures=""
+            self.description, total=self.total, completed=self.completed, figures="", count=""
         )
+        self._refresh_bar()
+
+    def _count(self) -> str:
+        count = f"{self.completed}" if self.total is None else f"{self.completed}/{self.total}"
+        return count + (" " + self.unit if self.unit else "")
 
     def _refresh_bar(self) -> None:
         self._bar.update(
-            self._task, completed=self.completed, total=self.total, figures=self._figures()
+            self._task,
+            completed=self.completed,
+            total=self.total,
+            figures=self._figures(),
+            count=self._count(),
         )
+
+
+_ACTIVE: ContextVar[Progress | None] = ContextVar("hierplan_opt_progress", default=None)
+
+
+@contextmanager
+def reporting(progress: Progress | None) -> Generator[Progress | None]:
+    """Make ``progress`` the active one inside the block (opened and closed with it);
+    ``None`` leaves progress off.
+
+    Example
+    -------
+    >>> with reporting(Progress("solve", enabled=False)) as p:
+    ...     for n in range(1, 4):
+    ...         tick("expanded", n, lb=10 + n)
+    >>> p.status_line().split(",")[:2], active() is None
+    (['solve: 3 expanded', ' lb 13'], True)
+    """
+    if progress is None:
+        yield None
+        return
+    token = _ACTIVE.set(progress)
+    try:
+        with progress:
+            yield progress
+    finally:
+        _ACTIVE.reset(token)
+
+
+def active() -> Progress | None:
+    """The progress :func:`tick` updates now, if any."""
+    return _ACTIVE.get()
+
+
+def note(**fields: Any) -> None:
+    """Set figures of the active progress (None values are left out), e.g. the final
+    cost and bound of a result; nothing without an active progress."""
+    progress = _ACTIVE.get()
+    if progress is not None:
+        progress.update(**{k: v for k, v in fields.items() if v is not None})
+
+
+def tick(unit: str, done: int, total: int | None = None, **fields: Any) -> None:
+    """Report ``done`` steps (``unit``: ``"expanded"``, ``"robots"``...) and figures to
+    the active progress; nothing without one (see :func:`reporting`)."""
+    progress = _ACTIVE.get()
+    if progress is not None:
+        progress.unit = unit
+        shown = {k: v for k, v in fields.items() if v is not None}
+        progress.update(completed=done, total=total, **shown)

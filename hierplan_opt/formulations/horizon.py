@@ -46,6 +46,7 @@ import numpy as np
 from hierplan_opt.core.feasibility import makespan_upper_bound
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import tick
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.formulations.memory import ModelTooLarge, check_model
@@ -172,6 +173,9 @@ def _search(
             else:
                 stats[key] = value  # the last solve's value
         log.info("%s: horizon %d, %d arcs: %s", backend.name, net.horizon, net.num_arcs, out.status)
+        tick(
+            "solves", stats["solves"], horizon=net.horizon, status=str(out.status), bound=out.bound
+        )
         if out.status is Status.ERROR:
             raise _BackendError(out.stats.get("error", "solver error"))
         return out

@@ -21,6 +21,7 @@ import numpy as np
 from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import tick
 from hierplan_opt.core.validate import validate
 from hierplan_opt.schedule.clearance import finite_nonnegative
 from hierplan_opt.schedule.output import Schedule, build_schedule
@@ -107,11 +108,14 @@ def postprocess(
     t0 = time.perf_counter()
     tpg = build_tpg(instance, plan, margin, clearance=clearance)
     t1 = time.perf_counter()
+    tick("steps", 1, 3, step="STN", tpg_nodes=tpg.num_nodes)
     stn = build_stn(instance, tpg, epsilon=epsilon, acceleration=acceleration, deadlines=deadlines)
     t2 = time.perf_counter()
+    tick("steps", 2, 3, step=f"{method} {objective}", stn_arcs=stn.num_arcs)
     earliest = earliest_times(stn)  # also the consistency check (InconsistentSTNError)
     times, lp_stats = _times(stn, earliest, objective, method, lp_backend, time_limit)
     t3 = time.perf_counter()
+    tick("steps", 3, 3, step="done", lp_time=lp_stats.get("lp_time"))
     early, late = windows(stn, times, earliest=earliest)
     crit = critical_path(stn, times)
     t4 = time.perf_counter()

@@ -41,6 +41,7 @@ from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import tick
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
@@ -578,6 +579,7 @@ class _CBS:
             expanded += 1
             if not self.sub:
                 st["high_level_expanded"] += 1
+                tick("expanded", expanded, lb=self.lower_bound, open=len(openl))
                 now = time.perf_counter()
                 if now - last_log > 5.0:
                     last_log = now

@@ -46,6 +46,7 @@ from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import tick
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
@@ -378,6 +379,12 @@ class _ECBS:
             if not node.conflicts:
                 return self.finish(node, lbm)
             self.stats["high_level_expanded"] += 1
+            tick(
+                "expanded",
+                self.stats["high_level_expanded"],
+                lb=lbm,
+                best=None if self.inc_plan is None else self.inc_cost,
+            )
             try:
                 done = self.expand(node, lbm)
             except SearchTimeout:

@@ -32,6 +32,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import HierplanError, InputError, OptionError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.progress import tick
 from hierplan_opt.schedule.stn import accel_time
 from hierplan_opt.trajectory.events import EventNetwork, from_schedule
 from hierplan_opt.trajectory.model import SOLVERS, SolveResult, grid_size
@@ -1087,16 +1088,23 @@ def _solve_all(
 ) -> list[dict | None]:
     warm = warm or [None] * len(paths)
     if workers <= 1 or len(paths) < 2 * workers:
-        return [_solve_one(p, windows, opts, warm=w) for p, w in zip(paths, warm, strict=True)]
+        done: list[dict | None] = []
+        for p, w in zip(paths, warm, strict=True):
+            done.append(_solve_one(p, windows, opts, warm=w))
+            tick("robots", len(done), len(paths))
+        return done
     # Interleaved chunks balance long and short paths; every process builds its own NLPs
     # and gets the windows as plain arrays (the network's labels are closures).
     plain = SimpleNamespace(lo=windows.lo, hi=windows.hi, stretch=windows.stretch)
     chunks = [(paths[i::workers], plain, opts, warm[i::workers]) for i in range(workers)]
     out: list[dict | None] = [None] * len(paths)
+    solved = 0
     with ProcessPoolExecutor(max_workers=workers) as ex:
         for i, res in enumerate(ex.map(_solve_chunk, chunks)):
             for k, r in enumerate(res):
                 out[i + k * workers] = r
+            solved += len(res)
+            tick("robots", solved, len(paths))
     return out
 
 
