@@ -15,6 +15,7 @@ from hierplan_opt.cli.common import (
     positive_float,
     progress_of,
 )
+from hierplan_opt.core.progress import note
 from hierplan_opt.core.result import Status
 
 #: Exit code of each verdict: proven optimal, not optimal, invalid plan, undecided.
@@ -70,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
             method=args.method,
             time_limit=args.time_limit,
         )
+        note(verdict=str(res.outcome))
     print(res.message())
     for v in res.violations[1:]:
         print(f"  {v}")

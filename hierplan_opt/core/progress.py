@@ -218,6 +218,8 @@ class Progress:
         self._refresh_bar()
 
     def _count(self) -> str:
+        if self.total is None and not self.unit and not self.completed:
+            return "started"  # nothing counted (yet)
         count = f"{self.completed}" if self.total is None else f"{self.completed}/{self.total}"
         return count + (" " + self.unit if self.unit else "")
 
