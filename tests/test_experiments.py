@@ -439,6 +439,52 @@ def test_cli_report_export_and_canned(tmp_path: Path) -> None:
     assert main(["sweep", "--resume", "--db", str(tmp_path / "none.sqlite")]) == 2
 
 
+def test_post_stage_sweep_records_the_schedule_and_reports_its_statistics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """MAPF-POST as a sweep (the canned post specs): every run plans, post-processes and
+    replays; the sizes recorded are those of postprocess on the same plan."""
+    import hierplan_opt
+    from hierplan_opt.cli import main
+    from hierplan_opt.io import load_instance
+    from hierplan_opt.schedule import postprocess
+
+    target = "hierplan_opt.experiments.stages:post"
+    spec = {
+        "solvers": [
+            {"name": "post", "target": target, "label": "graph", "options": {"method": "graph"}},
+            {"name": "post", "target": target, "label": "lp", "options": {"planner": "cbs"}},
+        ],
+        "instances": [empty8([3, 5])],
+        "time_limit": 30,
+        "db": str(tmp_path / "post.sqlite"),
+    }
+    summary = sweep(spec, progress=False)
+    assert summary.ran == 4 and sum(summary.statuses.values()) == 4
+    con = store.connect(tmp_path / "post.sqlite")
+    rows = store.rows(con)
+    con.close()
+    assert len(rows) == 4 and all(r["stats"]["post_replay_ok"] for r in rows)
+    for r in rows:  # the same plan (deterministic planners) post-processed here
+        inst = load_instance(MOVINGAI / "empty-8-8.map", scen=MOVINGAI / "empty-8-8-even-1.scen",
+                             agents=r["agents"])  # fmt: skip
+        planner = "cbs" if r["label"] == "lp" else "ecbs"
+        assert r["stats"]["planner"] == planner
+        res = hierplan_opt.solve(inst, planner, **({"w": 1.5} if planner == "ecbs" else {}))
+        assert res.plan is not None and r["cost"] == res.cost
+        method = "lp" if r["label"] == "lp" else "graph"
+        sched = postprocess(inst, res.plan, "makespan", method=method)
+        assert r["stats"]["post_stn_arcs"] == sched.stats["stn_arcs"]
+        assert r["stats"]["post_makespan"] == pytest.approx(sched.makespan)
+    db = str(tmp_path / "post.sqlite")
+    assert main(["sweep", "report", db, "--stats", "post_stn_arcs,post_solve_time"]) == 0
+    out = capsys.readouterr().out
+    assert "Median post_stn_arcs of solved runs by number of agents" in out
+    assert "Median post_solve_time" in out
+    assert main(["sweep", "report", db, "--stats", "nope"]) == 2
+    assert "no solved run recorded the statistic 'nope'" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("name", sorted(data.canned_specs()))
 def test_canned_specs_parse_and_find_their_instances(name: str) -> None:
     from hierplan_opt.experiments.sweeps import check_instances

@@ -5,7 +5,7 @@
     hierplan sweep SPEC.yaml [--db FILE] [--workers N] [--dask local | --dask-scheduler ADDR]
     hierplan sweep --canned NAME [--instances-dir DIR] [--db FILE] ...   |  --list-canned
     hierplan sweep --resume --db FILE      (or: hierplan sweep FILE.sqlite --resume)
-    hierplan sweep report DB [--plots DIR]
+    hierplan sweep report DB [--plots DIR] [--stats KEY,...]
     hierplan sweep export DB OUT.csv|OUT.parquet
 """
 
@@ -25,7 +25,7 @@ USAGE = """\
 hierplan sweep SPEC.yaml [--db FILE] [--workers N] [--dask local | --dask-scheduler ADDR]
        hierplan sweep --canned NAME [--instances-dir DIR] [options]  |  --list-canned
        hierplan sweep --resume --db FILE
-       hierplan sweep report DB [--plots DIR]
+       hierplan sweep report DB [--plots DIR] [--stats KEY,...]
        hierplan sweep export DB OUT.csv|OUT.parquet"""
 
 
@@ -64,6 +64,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar or status lines")
     p.add_argument(
         "--plots", metavar="DIR", help="report: write success_rate.png, runtime.png, cactus.png"
+    )
+    p.add_argument(
+        "--stats",
+        metavar="KEY,...",
+        help="report: also the median of these run statistics (node counts, stage sizes "
+        "and times, e.g. high_level_expanded or post_stn_arcs) by solver and agents",
     )
 
 
@@ -145,8 +151,9 @@ def _report(args: argparse.Namespace) -> int:
     from hierplan_opt.experiments.reports import report, save_figures
 
     if len(args.paths) != 1:
-        raise InputError("usage: hierplan sweep report DB [--plots DIR]")
-    print(report(args.paths[0]))
+        raise InputError("usage: hierplan sweep report DB [--plots DIR] [--stats KEY,...]")
+    keys = [k.strip() for k in (args.stats or "").split(",") if k.strip()]
+    print(report(args.paths[0], stats=keys))
     if args.plots:
         for p in save_figures(args.paths[0], args.plots):
             print(f"wrote {p}")

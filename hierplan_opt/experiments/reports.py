@@ -9,7 +9,10 @@ Tables (:func:`report` prints all three):
   unsolved run counted as twice its time limit);
 * **cost over lower bound** — per solver, over its solved runs: how many are proven
   optimal, the median and largest cost / own lower bound, and the median and largest
-  cost / best lower bound any solver proved for the same instance, K and objective.
+  cost / best lower bound any solver proved for the same instance, K and objective;
+* on request, **statistics by agents** (:func:`stats_table`) — per solver and number of
+  agents, the median of a statistic the runs recorded (node counts, a stage's sizes and
+  times).
 
 Figures are matplotlib ``Figure`` objects built without pyplot (no backend is chosen
 or switched): :func:`success_rate_figure` (success-rate curves against the number of
@@ -126,8 +129,42 @@ def cost_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out).set_index("solver") if out else pd.DataFrame()
 
 
-def report(db: str | Path) -> str:
-    """The three standard tables of a sweep database as text.
+def stats_table(df: pd.DataFrame, key: str) -> pd.DataFrame:
+    """Median of statistic ``key`` (from the runs' ``stats``) of the solved runs per
+    solver (rows) and number of agents (columns); :class:`InputError` when no run
+    recorded ``key`` as a number.
+
+    Example
+    -------
+    >>> import pandas as pd
+    >>> df = pd.DataFrame({"label": ["a", "a", "a"], "agents": [2, 2, 4],
+    ...     "solved": [True, True, True], "stats": ['{"n": 3}', '{"n": 5}', '{"n": 9}']})
+    >>> stats_table(df, "n").to_dict()
+    {2: {'a': 4.0}, 4: {'a': 9.0}}
+    """
+    import json
+
+    def value(text: Any) -> float:
+        v = json.loads(text).get(key) if isinstance(text, str) and text else None
+        return float(v) if isinstance(v, (int, float)) else math.nan
+
+    d: Any = df[df["solved"]].copy()
+    d["value"] = d["stats"].map(value)
+    d = d[d["value"].notna()]
+    if d.empty:
+        raise InputError(f"no solved run recorded the statistic {key!r}")
+    t = d.pivot_table(index="label", columns="agents", values="value", aggfunc="median")
+    return t.reindex([x for x in _labels(df) if x in t.index])
+
+
+def _number(v: float) -> str:
+    """A count as an integer, anything else with four significant digits."""
+    return f"{v:.0f}" if math.isfinite(v) and v == int(v) else f"{v:.4g}"
+
+
+def report(db: str | Path, stats: list[str] | tuple[str, ...] = ()) -> str:
+    """The three standard tables of a sweep database as text (and with ``stats``, the
+    median of each of those run statistics by solver and agents).
 
     Example
     -------
@@ -147,6 +184,11 @@ def report(db: str | Path) -> str:
         f"instances: " + ", ".join(f"{k} {v}" for k, v in statuses.items())
     )
     succ = success_table(df).map(lambda v: "-" if v != v else f"{100 * v:.0f}%")
+    extra = [
+        f"Median {key} of solved runs by number of agents\n"
+        + stats_table(df, key).to_string(float_format=_number)
+        for key in stats
+    ]
     return "\n\n".join(
         [
             head,
@@ -155,6 +197,7 @@ def report(db: str | Path) -> str:
             + runtime_table(df).to_string(float_format=lambda v: f"{v:.3g}"),
             "Cost over lower bound (solved runs with a plan)\n"
             + cost_table(df).to_string(float_format=lambda v: f"{v:.4f}"),
+            *extra,
         ]
     )
 
