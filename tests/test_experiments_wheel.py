@@ -43,6 +43,28 @@ def test_package_data_covers_the_canned_specs_and_their_instances() -> None:
                 assert f.resolve() in shipped, f"{name}: {f} is not package data"
 
 
+def test_package_data_covers_the_bench_instances() -> None:
+    """The files ``hierplan bench`` reads (lacam, trajectory, post) are package data."""
+    from hierplan_opt.bench import lacam, post, trajectory
+
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    pkg = ROOT / "hierplan_opt"
+    shipped = {p.resolve() for pat in cfg["package-data"]["hierplan_opt"] for p in pkg.glob(pat)}
+    files = [f for pair in lacam.CASES.values() for f in pair]
+    files += [
+        data.shipped_file(name)
+        for name in (
+            trajectory.WAREHOUSE_MAP,
+            trajectory.WAREHOUSE_SCEN,
+            "instances/paper/formation-usc.yaml",
+            post.DEFAULT_MAP,
+            post.DEFAULT_SCEN,
+        )
+    ]
+    for f in files:
+        assert f.is_relative_to(pkg / "data") and f.resolve() in shipped, f
+
+
 @pytest.mark.slow
 def test_canned_sweep_and_bench_run_from_an_installed_wheel(tmp_path: Path) -> None:
     src = tmp_path / "src"
@@ -61,6 +83,8 @@ def test_canned_sweep_and_bench_run_from_an_installed_wheel(tmp_path: Path) -> N
     names = zipfile.ZipFile(wheel).namelist()
     assert "hierplan_opt/data/movingai/random-32-32-20.map" in names
     assert "hierplan_opt/experiments/specs/cbs-quick.yaml" in names
+    assert "hierplan_opt/experiments/specs/post-quick.yaml" in names
+    assert "hierplan_opt/data/large/empty-64-64-gen-1.scen" in names
 
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True)
@@ -98,3 +122,13 @@ def test_canned_sweep_and_bench_run_from_an_installed_wheel(tmp_path: Path) -> N
     )  # fmt: skip
     assert res.returncode == 0, res.stderr
     assert "OPTIMAL" in res.stdout
+    # the areas that read more than MovingAI samples: generated scenarios, paper instances
+    for area in (
+        ["lacam", "--quick", "--instance", "first:random-32-32-10-random-1:20"],
+        ["formulations", "--sizes-only", "--maps", "room-32-32-4", "--agents", "2"],
+        ["post", "--quick", "--agents", "20", "--fleet", "0"],
+    ):
+        res = subprocess.run(
+            [*hierplan, "bench", *area], cwd=work, capture_output=True, text=True, timeout=600
+        )
+        assert res.returncode == 0, (area, res.stderr[-2000:])

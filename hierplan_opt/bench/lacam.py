@@ -47,10 +47,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.experiments.data import shipped_file
 
-_ROOT = Path(__file__).resolve().parents[2]
-_MOVINGAI = _ROOT / "instances" / "movingai"
-_LARGE = _ROOT / "instances" / "large"
+_MOVINGAI = shipped_file("instances/movingai")  # package data in an installed wheel too
+_LARGE = shipped_file("instances/large")
 
 
 @dataclass(frozen=True)

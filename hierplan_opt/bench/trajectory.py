@@ -31,14 +31,11 @@ WAREHOUSE_SCEN = "instances/movingai/warehouse-10-20-10-2-1-even-1.scen"
 WAREHOUSE_RADIUS = 0.3
 
 
-def _root() -> Path:
-    return Path(__file__).resolve().parents[2]
-
-
 def _formation():
     import hierplan_opt as hp
+    from hierplan_opt.experiments.data import shipped_file  # package data
 
-    inst = hp.load_instance(str(_root() / "instances/paper/formation-usc.yaml"))
+    inst = hp.load_instance(shipped_file("instances/paper/formation-usc.yaml"))
     res = hp.solve(inst, "flow", time_limit=60)
     if res.plan is None:
         raise RuntimeError(f"flow found no plan for the formation ({res.status})")
@@ -48,11 +45,12 @@ def _formation():
 def _warehouse(k: int, w: float, cache: str | None, time_limit: float):
     from hierplan_opt.bench.post import make_plan
     from hierplan_opt.core.instance import Instance, Kinematics
+    from hierplan_opt.experiments.data import shipped_file  # package data
     from hierplan_opt.io import load_plan, save_plan
     from hierplan_opt.io.movingai import load_map, load_scen
 
-    g = load_map(str(_root() / WAREHOUSE_MAP))
-    inst = load_scen(str(_root() / WAREHOUSE_SCEN), g, agents=k)
+    g = load_map(shipped_file(WAREHOUSE_MAP))
+    inst = load_scen(shipped_file(WAREHOUSE_SCEN), g, agents=k)
     kin = Kinematics("warehouse-robot", v_max=1.0, a_max=1.0, radius=WAREHOUSE_RADIUS)
     inst = Instance(
         inst.graph, tuple(replace(a, kinematics=kin) for a in inst.agents), name=inst.name

@@ -38,6 +38,19 @@ def instances_dir() -> Path:
     return Path(__file__).resolve().parents[1] / "data"
 
 
+def shipped_file(name: str | Path) -> Path:
+    """A benchmark file named by its path in the repository (``instances/...``), in
+    :func:`instances_dir` (the package's copy in an installed wheel).
+
+    Example
+    -------
+    >>> shipped_file("instances/paper/formation-usc.yaml").is_file()
+    True
+    """
+    parts = Path(name).parts
+    return instances_dir().joinpath(*(parts[1:] if parts[:1] == ("instances",) else parts))
+
+
 def movingai_files(scen_stem: str) -> tuple[Path, Path]:
     """(map, scen) of a shipped MovingAI scenario, e.g. ``"room-32-32-4-even-1"``.
 
