@@ -132,3 +132,4 @@ def test_canned_sweep_and_bench_run_from_an_installed_wheel(tmp_path: Path) -> N
             [*hierplan, "bench", *area], cwd=work, capture_output=True, text=True, timeout=600
         )
         assert res.returncode == 0, (area, res.stderr[-2000:])
+        assert " ERROR " not in res.stdout, (area, res.stdout[-2000:])  # rows of failed runs
