@@ -3,7 +3,9 @@ hidden by ``-q``, and the counts shown are the solvers' own counts."""
 
 from __future__ import annotations
 
+import logging
 import types
+from collections.abc import Iterator
 
 import pytest
 
@@ -20,6 +22,19 @@ progress_module = __import__("hierplan_opt.core.progress", fromlist=["time"])
 
 SCEN = "random-32-32-20-random-1"
 K = 20  # CBS expands a few nodes, ECBS too
+
+
+@pytest.fixture(autouse=True)
+def _package_logging() -> Iterator[None]:
+    """The package's loggers at their defaults (``hierplan bench teams`` in-process, as
+    its doctest runs it, sets ``hierplan_opt`` to WARNING for good)."""
+    loggers = [logging.getLogger(n) for n in ("hierplan_opt", "hierplan_opt.progress")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.NOTSET)
+    yield
+    for lg, level in zip(loggers, levels, strict=True):
+        lg.setLevel(level)
 
 
 def _progress_lines(err: str) -> list[str]:
