@@ -579,7 +579,7 @@ class _CBS:
             expanded += 1
             if not self.sub:
                 st["high_level_expanded"] += 1
-                tick("expanded", expanded, lb=self.lower_bound, open=len(openl))
+                tick("expanded", expanded, lb=self.lower_bound or None, open=len(openl))
                 now = time.perf_counter()
                 if now - last_log > 5.0:
                     last_log = now
