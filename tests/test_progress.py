@@ -119,6 +119,12 @@ def test_formulation_ladder_reports_each_horizon() -> None:
     assert p.unit == "solves" and p.completed == r.stats["solves"] >= 2
     assert p.fields["horizon"] == r.stats["horizons"][-1][0] == r.cost
     assert p.fields["status"] == r.stats["horizons"][-1][1]
+    # sum of costs: CP-SAT's solutions show their objective and bound during the solve
+    mp, scen = movingai_files(SCEN)
+    with reporting(Progress("solve cpsat", enabled=False)) as p:
+        r = hp.solve(load_movingai(mp, scen, 6), "cpsat")
+    assert p is not None and r.status is hp.Status.OPTIMAL
+    assert p.fields["objective"] == r.cost and p.completed == r.stats["solves"]
 
 
 def test_post_and_refine_report_their_steps_and_robots() -> None:

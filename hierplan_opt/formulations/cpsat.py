@@ -35,6 +35,7 @@ from hierplan_opt import registry
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import active
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import validate
 from hierplan_opt.formulations.horizon import Outcome, solve_with
@@ -208,7 +209,7 @@ class CpSatBackend:
             p.cp_model_presolve = False
         if time_limit is not None:
             p.max_time_in_seconds = max(0.01, time_limit - (time.perf_counter() - t0))
-        code = cp.solve(model)
+        code = cp.solve(model, _reporter(cp_model, objective))
         stats["cpsat_status"] = cp.status_name(code)
         stats["conflicts"] = cp.num_conflicts
         status = _status(code)
@@ -224,6 +225,20 @@ class CpSatBackend:
         values = np.array([cp.value(var) for var in index.x], dtype=float)
         obj = cp.objective_value if objective == "soc" else 0.0
         return Outcome(status, values, obj, bound, stats)
+
+
+def _reporter(cp_model: Any, objective: str) -> Any:
+    """With ``--progress``: a callback that shows each solution's objective and CP-SAT's
+    bound during a long solve (it runs in CP-SAT's thread, so it holds the progress)."""
+    progress = active()
+    if progress is None or objective != "soc":
+        return None
+
+    class Report(cp_model.CpSolverSolutionCallback):
+        def on_solution_callback(self) -> None:
+            progress.update(objective=self.objective_value, bound=self.best_objective_bound)
+
+    return Report()
 
 
 def _status(code: Any) -> Status:
