@@ -597,3 +597,74 @@ def test_rectangle_fuzz_against_no_rectangle_long():
         off = check(inst, rectangle=False, symmetry=False)
         assert on.status == off.status == Status.OPTIMAL
         assert on.cost == off.cost
+
+
+def _both_ranges_hit(g, starts, cons, hits) -> bool:
+    """Whether two conflict-free paths obeying ``cons`` (vertex constraints) can both be
+    at their ``(vertex, last)`` of ``hits`` at some time in ``[1, last]``."""
+    n = g.n
+    horizon = max(last for _, last in hits)
+    layer = {(starts[0], starts[1], False, False)}
+    for t in range(1, horizon + 1):
+        nxt = set()
+        for p1, p2, h1, h2 in layer:
+            for q1 in (p1, *g.adj[p1]):
+                if t * n + q1 in cons[0].vertex:
+                    continue
+                for q2 in (p2, *g.adj[p2]):
+                    if t * n + q2 in cons[1].vertex or q1 == q2 or (q1 == p2 and q2 == p1):
+                        continue
+                    k1 = h1 or (q1 == hits[0][0] and t <= hits[0][1])
+                    k2 = h2 or (q2 == hits[1][0] and t <= hits[1][1])
+                    if k1 and k2:
+                        return True
+                    nxt.add((q1, q2, k1, k2))
+        layer = nxt
+    return False
+
+
+def test_corridor_ranges_are_complete_against_joint_search():
+    """Generalised corridor lemma: no conflict-free pair breaks both range constraints,
+    for degree-2 chains and for single edges (pseudo-corridors), under constraints."""
+    import random
+
+    from hierplan_opt.search.constraints import NEG_V, AgentConstraints
+    from hierplan_opt.search.symmetry import Corridors, corridor_ranges, travel_time
+
+    rng = random.Random(3)
+    found = bogus_caught = 0
+    for _ in range(120):
+        w, h = rng.choice([(5, 4), (5, 5), (6, 4)])
+        cells = [(x, y) for y in range(h) for x in range(w)]
+        obs = rng.sample(cells, rng.choice([2, 4, 6]))
+        g = Graph.grid(w, h, obstacles=obs)
+        free = [g.vertex(c) for c in cells if c not in obs]
+        s = rng.sample(free, 2)
+        cons = []
+        for i in range(2):
+            c = AgentConstraints.root(g.n, s[i])
+            for _ in range(rng.choice([0, 1, 3])):
+                c = c.add((NEG_V, i, rng.choice(free), -1, rng.randint(1, 6)), n=g.n, goal=s[i])
+            cons.append(c)
+
+        def travel(x, target, blocked, upper, g=g, s=s, cons=cons):
+            return travel_time(g.adj, s[x], target, g.dist_list(target), cons[x], blocked, upper)
+
+        p = rng.choice(free)
+        if not g.adj[p]:
+            continue
+        q = rng.choice(g.adj[p])
+        cases = [((0, q, p), (1, p, q), 1)]
+        cor = Corridors(g).corridor(q) if len(g.adj[q]) == 2 else None
+        if cor is not None and not set(s) & set(cor[0]):
+            chain, el, er = cor
+            cases.append(((0, er, chain[-1]), (1, el, chain[0]), len(chain) + 1))
+        for x, y, length in cases:
+            tx, ty = corridor_ranges(travel, x, y, length)
+            if tx < 1 or ty < 1:
+                continue
+            found += 1
+            assert not _both_ranges_hit(g, s, cons, [(x[1], tx), (y[1], ty)]), (obs, s, x, y)
+            bogus_caught += _both_ranges_hit(g, s, cons, [(x[1], tx + 2), (y[1], ty + 2)])
+    assert found >= 50
+    assert bogus_caught >= 1

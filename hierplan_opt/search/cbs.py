@@ -68,7 +68,9 @@ from hierplan_opt.search.symmetry import (
     Corridors,
     Rectangles,
     corridor_split,
+    pseudo_corridor_split,
     rectangle_split,
+    travel_time,
 )
 
 log = logging.getLogger(__name__)
@@ -349,9 +351,17 @@ class _CBS:
             self.stats["target_splits"] += 1
             return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
         if self.corridors is not None and kind != TARGET:
+            cons = node.cons
+
+            def travel(x: int, target: int, blocked: tuple[int, int] | None, upper: int) -> int:
+                return self.travel(x, cons[x], target, blocked, upper)
+
             res = corridor_split(
-                self.corridors, self.starts, node.paths, a, b, (v,) if kind == VERTEX else (u, v)
-            )
+                self.corridors, travel, self.starts, node.paths, a, b,
+                (v,) if kind == VERTEX else (u, v),
+            )  # fmt: skip
+            if res is None and rank == 0 and self.corridors.enabled and self._head_on(node, c):
+                res = pseudo_corridor_split(travel, node.paths, a, b, u, v, t)
             if res is not None:
                 self.stats["corridor_splits"] += 1
                 return res
@@ -379,6 +389,46 @@ class _CBS:
                 x = b
             return [(x, [(POS_V, x, v, -1, t)]), (x, [(NEG_V, x, v, -1, t)])]
         return [(a, [(NEG_V, a, v, -1, t)]), (b, [(NEG_V, b, v, -1, t)])]
+
+    def travel(
+        self,
+        a: int,
+        cons: AgentConstraints,
+        target: int,
+        blocked: tuple[int, int] | None,
+        upper: int,
+    ) -> int:
+        """:func:`~hierplan_opt.search.symmetry.travel_time` of agent ``a``, cached."""
+        assert self.corridors is not None
+        cache = self.corridors.travel_cache
+        key = (cons.ver, self.starts[a], target, blocked)
+        hit = cache.get(key)
+        if hit is not None and (hit[0] < hit[1] or upper <= hit[1]):
+            return min(hit[0], upper)
+        val = travel_time(
+            self.adj, self.starts[a], target, self.dist_of(target), cons, blocked, upper
+        )
+        if len(cache) > MDD_CACHE_SIZE:
+            cache.clear()
+        cache[key] = (val, upper)
+        return val
+
+    def _head_on(self, node: _Node, c: Conflict) -> bool:
+        """Whether every optimal path of both agents makes the moves of the conflict
+        (a cardinal vertex conflict also needs singletons one step before and after)."""
+        t, kind, a, b, _, _ = c
+        if kind != VERTEX:
+            return kind == EDGE  # cardinal edge conflict: singletons at t-1 and t
+        ma, mb = self.mdd(node, a), self.mdd(node, b)
+        pa, pb = node.paths[a], node.paths[b]
+        if len(pa) <= t + 1 or len(pb) <= t + 1:
+            return False
+        return (
+            ma.single(t - 1, pa[t - 1])
+            and ma.single(t + 1, pa[t + 1])
+            and mb.single(t - 1, pb[t - 1])
+            and mb.single(t + 1, pb[t + 1])
+        )
 
     def child(self, node: _Node, agent: int, new: list[Constraint]) -> _Node | None:
         n = self.n

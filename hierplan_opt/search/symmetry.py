@@ -23,11 +23,22 @@ because breaking both makes both agents cross with ``tau_x <= E_y + k + 1 < tau_
 and ``tau_y <= E_x + k + 1 < tau_x + k + 2``. These two range constraints replace the
 single vertex/edge split when the current paths break both (so both children change
 the paths); otherwise the ordinary split is used.
+
+Generalised (Li et al., AIJ 2021): every bound may come from the agents' constraints at
+the CT node instead of the bare graph, since a node's descendants only add constraints.
+``E_x`` becomes the earliest time ``x`` can reach ``e_R`` under its constraints and
+``B_x`` the same with the last edge ``c_k - e_R`` blocked (:func:`travel_time`; any
+lower bound is sound). The lemma only needs "a first arrival at the exit before
+``B_x`` comes through the corridor", so it also holds for a single edge ``(p, q)``
+(``k = 0``): a *pseudo-corridor*, used for a head-on meeting of two agents whose
+every optimal path makes the meeting moves (:func:`pseudo_corridor_split`).
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable, Sequence
+from heapq import heappop, heappush
 
 import numpy as np
 
@@ -53,6 +64,9 @@ class Corridors:
         self.enabled = not graph.directed
         self._cache: dict[int, tuple[tuple[int, ...], int, int] | None] = {}
         self._bypass: dict[tuple[int, int], list[int]] = {}
+        #: ``travel_time`` values shared by a search and its WDG sub-searches:
+        #: (constraints version, start, target, blocked edge) -> (value, upper bound used).
+        self.travel_cache: dict[tuple[int, int, int, tuple[int, int] | None], tuple[int, int]] = {}
 
     def corridor(self, v: int) -> tuple[tuple[int, ...], int, int] | None:
         """``(chain, e_L, e_R)`` for a degree-2 vertex ``v``, or None."""
@@ -114,8 +128,116 @@ def _first_visit(path: tuple[int, ...], v: int) -> int | None:
     return None
 
 
+def _visits_by(path: tuple[int, ...], v: int, last: int) -> bool:
+    """Whether ``path`` (parked at its end afterwards) is at ``v`` at a time in ``[1, last]``."""
+    end = len(path) - 1
+    for t in range(1, min(last, end) + 1):
+        if path[t] == v:
+            return True
+    return last > end and path[-1] == v
+
+
+def travel_time(
+    adj: Sequence[Sequence[int]],
+    start: int,
+    target: int,
+    h: Sequence[int],
+    cons: AgentConstraints,
+    blocked: tuple[int, int] | None = None,
+    upper: int = UNREACHABLE,
+) -> int:
+    """A lower bound on the earliest time an agent under ``cons`` can be at ``target``.
+
+    Space-time A* (heuristic ``h``: distances to ``target``) obeying the vertex, edge
+    and forbidden-from constraints of ``cons`` (landmarks and finish bounds are
+    ignored, so the value is a lower bound); ``blocked`` is an edge the agent may not
+    use in either direction. Returns ``upper`` when the target cannot be reached
+    before ``upper``.
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 1)
+    >>> c = AgentConstraints.root(g.n, 2).add((NEG_V, 0, 1, -1, 1), n=g.n, goal=2)
+    >>> h = g.dist_list(2)
+    >>> travel_time(g.adj, 0, 2, h, AgentConstraints()), travel_time(g.adj, 0, 2, h, c)
+    (2, 3)
+    >>> travel_time(g.adj, 0, 2, h, c, blocked=(1, 2))
+    1073741824
+    """
+    if start == target:
+        return 0
+    if h[start] >= upper:
+        return upper
+    n = len(adj)
+    vc, ec, ff = cons.vertex, cons.edge, cons.forbid_from
+    if blocked is None and not vc and not ec and not ff:
+        return h[start]
+    tcap = cons.tmax + 1
+    bx, by = blocked if blocked is not None else (-1, -1)
+    # Entries (f, -t, v): among equal f the deepest first reaches the target soonest.
+    heap: list[tuple[int, int, int]] = [(h[start], 0, start)]
+    closed: set[int] = set()
+    while heap:
+        _, negt, v = heappop(heap)
+        t = -negt
+        if v == target:
+            return t
+        key = (t if t < tcap else tcap) * n + v
+        if key in closed:
+            continue
+        closed.add(key)
+        t1 = t + 1
+        base = t1 * n
+        for u in (*adj[v], v):
+            if (v == bx and u == by) or (v == by and u == bx):
+                continue
+            if base + u in vc:
+                continue
+            if ec and u != v and ((base + v) * n + u) in ec:
+                continue
+            if ff and u in ff and t1 >= ff[u]:
+                continue
+            hu = h[u]
+            if t1 + hu >= upper:
+                continue
+            if (t1 if t1 < tcap else tcap) * n + u in closed:
+                continue
+            heappush(heap, (t1 + hu, -t1, u))
+    return upper
+
+
+#: ``travel(agent, target, blocked_edge, upper)``: see :func:`travel_time`.
+Travel = Callable[[int, int, "tuple[int, int] | None", int], int]
+
+
+def corridor_ranges(
+    travel: Travel,
+    x: tuple[int, int, int],
+    y: tuple[int, int, int],
+    length: int,
+) -> tuple[int, int]:
+    """Range ends ``(T_x, T_y)`` for two agents crossing a corridor in opposite directions.
+
+    ``x = (agent, exit, inner)``: the agent leaves the corridor at ``exit`` by the edge
+    from ``inner``; likewise ``y`` at the other end; ``length`` is the number of edges
+    from one exit to the other. Every conflict-free pair of paths avoids ``exit_x`` at
+    all times in ``[1, T_x]`` with ``x`` or ``exit_y`` in ``[1, T_y]`` with ``y``
+    (see the module docstring; -1 when there is no such range).
+    """
+    ax, ex, ix = x
+    ay, ey, iy = y
+    tx = travel(ax, ex, None, UNREACHABLE)
+    ty = travel(ay, ey, None, UNREACHABLE)
+    if tx >= UNREACHABLE or ty >= UNREACHABLE:
+        return -1, -1
+    bx = travel(ax, ex, (ix, ex), ty + length + 1)
+    by = travel(ay, ey, (iy, ey), tx + length + 1)
+    return min(bx - 1, ty + length), min(by - 1, tx + length)
+
+
 def corridor_split(
     corridors: Corridors,
+    travel: Travel,
     starts: list[int],
     paths: list[tuple[int, ...]],
     a: int,
@@ -125,6 +247,7 @@ def corridor_split(
     """Range-constraint children for a conflict of ``a`` and ``b`` in a corridor, or None.
 
     ``vertices`` are the conflict's vertices (one for a vertex conflict, two for a swap).
+    Used only when both current paths break their range (both children replan).
     """
     for v in vertices:
         cor = corridors.corridor(v)
@@ -134,30 +257,54 @@ def corridor_split(
         inside = set(chain)
         if starts[a] in inside or starts[b] in inside:
             return None
-        k = len(chain)
-        g = corridors.graph
-        dist_l = g.dist_list(el)
-        dist_r = g.dist_list(er)
-        byp_l = corridors.bypass(chain, el)
-        byp_r = corridors.bypass(chain, er)
+        length = len(chain) + 1
         for x, y in ((a, b), (b, a)):
-            # x crosses towards e_R, y towards e_L. Starts are outside the chain and,
-            # when tx, ty >= 0, not at e_R / e_L either, so time 0 needs no constraint.
-            ex, ey = dist_r[starts[x]], dist_l[starts[y]]
-            tx = min(ey + k + 1, byp_r[starts[x]] - 1)
-            ty = min(ex + k + 1, byp_l[starts[y]] - 1)
-            if tx < 0 or ty < 0:
+            # x crosses towards e_R, y towards e_L.
+            if _first_visit(paths[x], er) is None or _first_visit(paths[y], el) is None:
                 continue
-            fx = _first_visit(paths[x], er)
-            fy = _first_visit(paths[y], el)
-            if fx is None or fy is None or fx > tx or fy > ty:
+            tx, ty = corridor_ranges(travel, (x, er, chain[-1]), (y, el, chain[0]), length)
+            if tx < 1 or ty < 1:
                 continue
-            return [
-                (x, [(NEG_RANGE, x, er, 1, tx)]),
-                (y, [(NEG_RANGE, y, el, 1, ty)]),
-            ]
+            if not _visits_by(paths[x], er, tx) or not _visits_by(paths[y], el, ty):
+                continue
+            return [(x, [(NEG_RANGE, x, er, 1, tx)]), (y, [(NEG_RANGE, y, el, 1, ty)])]
         return None
     return None
+
+
+def pseudo_corridor_split(
+    travel: Travel,
+    paths: list[tuple[int, ...]],
+    a: int,
+    b: int,
+    u: int,
+    v: int,
+    t: int,
+) -> list[tuple[int, list[Constraint]]] | None:
+    """Range-constraint children for a head-on conflict over one edge, or None.
+
+    A vertex conflict at ``(v, t)`` (``u == -1``) where ``a`` goes ``p -> v -> q`` and
+    ``b`` goes ``q -> v -> p``, or a swap of ``a: u -> v`` with ``b: v -> u`` at ``t``,
+    is a corridor of length 1: ``a`` leaves it at ``q`` (``v``), ``b`` at ``v``
+    (``u``). The caller checks that every optimal path of both agents makes these
+    moves (singleton MDD levels), else the split rarely pays.
+    """
+    pa, pb = paths[a], paths[b]
+    if u < 0:
+        if len(pa) <= t + 1 or len(pb) <= t + 1 or t < 1:
+            return None
+        q = pa[t + 1]
+        if pa[t - 1] != pb[t + 1] or q != pb[t - 1] or q == v:
+            return None
+        x, y = (a, q, v), (b, v, q)
+    else:
+        x, y = (a, v, u), (b, u, v)
+    tx, ty = corridor_ranges(travel, x, y, 1)
+    if tx < 1 or ty < 1:
+        return None
+    if not _visits_by(pa, x[1], tx) or not _visits_by(pb, y[1], ty):
+        return None
+    return [(a, [(NEG_RANGE, a, x[1], 1, tx)]), (b, [(NEG_RANGE, b, y[1], 1, ty)])]
 
 
 class Rectangles:
