@@ -95,6 +95,7 @@ class _Node:
         "seq",
         "pairw",
         "ranks",
+        "corr",
     )
 
     def __init__(
@@ -126,6 +127,10 @@ class _Node:
         # choice and a smaller CG bound, never a wrong one). Saves rebuilding the MDDs
         # of agents whose constraints changed but whose paths did not.
         self.ranks: dict[Conflict, int] = {}
+        # Corridor splits found for conflicts (None: not a corridor conflict), inherited
+        # like ``ranks``: the range bounds come from constraints that a descendant only
+        # extends, so they stay valid, and the paths they were checked on are unchanged.
+        self.corr: dict[Conflict, list[tuple[int, list[Constraint]]] | None] = {}
 
 
 class _CBS:
@@ -342,14 +347,25 @@ class _CBS:
                 if r == 0 and c[1] == TARGET:
                     break
         assert best is not None and best_key is not None
-        return best, best_key[0]
+        r = best_key[0]
+        if self.corridors is not None and best[1] != TARGET and not self.sub:
+            # Among the conflicts of the best class, a corridor conflict first (its
+            # split resolves the whole corridor at once), then the earliest.
+            cands = sorted((c for c in confs if ranks[c] == r), key=lambda c: c[0])
+            for c in cands:
+                if self.corridor(node, c, r) is not None:
+                    return c, r
+        return best, r
 
-    def split(self, node: _Node, c: Conflict, rank: int) -> list[tuple[int, list[Constraint]]]:
-        """The children's new constraints: ``[(agent, [constraints]), ...]``."""
+    def corridor(
+        self, node: _Node, c: Conflict, rank: int
+    ) -> list[tuple[int, list[Constraint]]] | None:
+        """The corridor split of conflict ``c`` (see :mod:`.symmetry`) or None, cached."""
+        cache = node.corr
+        if c in cache:
+            return cache[c]
+        res = None
         t, kind, a, b, u, v = c
-        if kind == TARGET and self.symmetry:
-            self.stats["target_splits"] += 1
-            return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
         if self.corridors is not None and kind != TARGET:
             cons = node.cons
 
@@ -362,6 +378,17 @@ class _CBS:
             )  # fmt: skip
             if res is None and rank == 0 and self.corridors.enabled and self._head_on(node, c):
                 res = pseudo_corridor_split(travel, node.paths, a, b, u, v, t)
+        cache[c] = res
+        return res
+
+    def split(self, node: _Node, c: Conflict, rank: int) -> list[tuple[int, list[Constraint]]]:
+        """The children's new constraints: ``[(agent, [constraints]), ...]``."""
+        t, kind, a, b, u, v = c
+        if kind == TARGET and self.symmetry:
+            self.stats["target_splits"] += 1
+            return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
+        if self.corridors is not None and kind != TARGET:
+            res = self.corridor(node, c, rank)
             if res is not None:
                 self.stats["corridor_splits"] += 1
                 return res
@@ -460,6 +487,7 @@ class _CBS:
             gone = set(replan)
             confs = [c for c in node.conflicts if c[2] not in gone and c[3] not in gone]
             ranks = {c: r for c, r in node.ranks.items() if c[2] not in gone and c[3] not in gone}
+            corr = {c: r for c, r in node.corr.items() if c[2] not in gone and c[3] not in gone}
             occ = self._occ
             occ.sync(paths)
             done: set[int] = set()
@@ -469,9 +497,11 @@ class _CBS:
         else:
             confs = list(node.conflicts)
             ranks = dict(node.ranks)
+            corr = dict(node.corr)
         ch = _Node(paths, costs, cons, g, confs, node.depth + 1)
         if not self.sub:  # measured: in the short WDG sub-searches stale classes cost time
             ch.ranks = ranks
+            ch.corr = corr
         ch.f = max(g, node.f) if not self.greedy else g
         ch.pairw = node.pairw
         return ch
@@ -674,6 +704,7 @@ class _CBS:
                     node.costs = ch.costs
                     node.conflicts = ch.conflicts
                     node.ranks = ch.ranks
+                    node.corr = ch.corr
                     st["bypasses"] += 1
                     adopted = True
                     break
