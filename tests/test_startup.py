@@ -58,6 +58,26 @@ def test_small_cbs_solve_loads_no_solver_backend() -> None:
     assert _heavy_after(code) == []
 
 
+def test_cli_solve_builds_only_its_own_arguments(tmp_path) -> None:
+    # `hierplan solve` fills in only solve's arguments: simulate's policy choices would
+    # import the execution layer (~0.1 s) for nothing.
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent / "instances" / "movingai"
+    code = (
+        "import contextlib, io, sys\n"
+        "from hierplan_opt.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        f"    rc = main(['-q', 'solve', {str(root / 'random-32-32-20.map')!r}, '--scen', "
+        f"{str(root / 'random-32-32-20-random-1.scen')!r}, '--agents', '4', "
+        f"'--out', {str(tmp_path / 'plan.yaml')!r}])\n"
+        "assert rc == 0, rc\n"
+        "assert not any(m.startswith('hierplan_opt.execution') for m in sys.modules)"
+    )
+    assert _heavy_after(code) == []
+    assert (tmp_path / "plan.yaml").is_file()
+
+
 def test_python_bfs_matches_scipy_distances() -> None:
     # Small batches use a Python BFS while scipy is not loaded; it must agree with scipy.
     import random

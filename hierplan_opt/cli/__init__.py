@@ -43,8 +43,13 @@ COMMANDS = (
 )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every available subcommand."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser with every available subcommand.
+
+    With ``command``, only that subcommand gets its arguments (the others are listed
+    with their help line): filling in another's choices may import heavy modules
+    (``simulate``'s policies import the execution layer, ~0.1 s).
+    """
     parser = argparse.ArgumentParser(
         prog="hierplan",
         description="Plan generation (MAPF/TAPF), MAPF-POST scheduling and execution "
@@ -63,14 +68,18 @@ def build_parser() -> argparse.ArgumentParser:
         mod = importlib.import_module(f"hierplan_opt.cli.{name}")
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         one_line_errors(p, f"hierplan {name}")
-        mod.add_arguments(p)
+        if command is None or name == command:
+            mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``hierplan`` console script; returns the exit code."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # The global options take no value, so the first other word names the subcommand.
+    word = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(word if word in COMMANDS else None)
     args = parser.parse_args(argv)
     level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
     logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
