@@ -19,7 +19,11 @@ Options (all on by default, each switchable off; none changes the optimal cost):
   there), the other the negative one, so children share no solution (Li et al. 2019);
 * ``symmetry``: target reasoning -- when an agent crosses another agent's goal after
   that agent has finished, branch on the finished agent's arrival time (length
-  constraints) instead of on a single vertex-time (Li et al. 2021); corridor reasoning;
+  constraints) instead of on a single vertex-time (Li et al. 2021); generalised
+  corridor reasoning -- two agents meeting head-on in a chain of degree-2 vertices, or
+  over one edge that all their optimal paths use (a pseudo-corridor), get range
+  constraints at the corridor's exits with bounds from travel times under the node's
+  constraints; such conflicts are split first within their class (Li et al. 2021);
   and, with ``rectangle`` (also on by default, 4-connected 2D grids only), rectangle
   reasoning -- a cardinal or semi-cardinal vertex conflict of two agents crossing a
   rectangle is split with two barrier constraints (Li et al., AAAI 2019).
@@ -202,11 +206,10 @@ class _CBS:
         if self.rectangles is not None and not self.rectangles.enabled:
             self.rectangles = None
         self.init_paths = init_paths
-        # Two tables of the node's paths: one for conflict detection (patched per child,
-        # its lists ordered as the paths were added) and one the low level uses as its
-        # conflict-avoidance table (without the agent being replanned).
-        self._occ = Reservations(g.n, moves=False)
-        self._cat = Reservations(g.n)
+        # One table of the node's paths, patched per child: the low level's
+        # conflict-avoidance table (without the agent being replanned) and the index
+        # the new paths' conflicts are found with (one table: each is patched once).
+        self._occ = self._cat = Reservations(g.n)
         # MDDs keyed by the constraint object's version (unique per agent and set);
         # shared with the two-agent sub-searches of WDG.
         self.mdd_cache: dict[int, MDD] = mdd_cache if mdd_cache is not None else {}
