@@ -668,3 +668,29 @@ def test_corridor_ranges_are_complete_against_joint_search():
             bogus_caught += _both_ranges_hit(g, s, cons, [(x[1], tx + 2), (y[1], ty + 2)])
     assert found >= 50
     assert bogus_caught >= 1
+
+
+def test_corridor_splits_match_brute_force_on_narrow_grids():
+    """Corridor and pseudo-corridor splits fire on small grids with obstacles and never
+    change the optimum (sum of costs and makespan) against the joint-state search."""
+    import random
+
+    rng = random.Random(1)
+    splits = checked = 0
+    for i in range(40):
+        w, h = rng.choice([(5, 3), (4, 4), (5, 4)])
+        cells = [(x, y) for y in range(h) for x in range(w)]
+        obs = rng.sample(cells, rng.choice([2, 3, 4]))
+        free = [c for c in cells if c not in obs]
+        inst = Instance.mapf(Graph.grid(w, h, obstacles=obs), rng.sample(free, 3),
+                             rng.sample(free, 3))  # fmt: skip
+        objective = "soc" if i % 4 else "makespan"
+        expected = brute_force(inst, objective)
+        if expected is None:
+            continue
+        r = check(inst, objective)
+        assert r.status == Status.OPTIMAL and r.cost == expected, (obs, objective)
+        checked += 1
+        splits += r.stats["corridor_splits"]
+    assert checked >= 25
+    assert splits >= 5
