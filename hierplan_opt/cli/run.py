@@ -89,4 +89,4 @@ def run(args: argparse.Namespace) -> int:
             f"{traj.stretch:.4g}, guaranteed distance {traj.safety_distance:.3g} m, "
             f"{traj.stats.get('total_time', 0.0):.2f} s"
         )
-    return execute(args, instance, schedule, title, traj)
+    return execute(args, instance, schedule, title, traj, plan_solver=args.solver)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from typing import Any
 
 from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, positive_int
@@ -32,10 +33,27 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
     p.add_argument("--workers", type=positive_int, metavar="W", help="Monte Carlo processes")
     p.add_argument(
+        "--replan-below",
+        type=probability,
+        metavar="P",
+        help="Monte Carlo: re-plan (delay-aware) when a location is on time with less than P",
+    )
+    p.add_argument(
         "--replan-solver", default="ecbs", metavar="NAME", help="MAPF solver of re-plans (ecbs)"
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
+
+
+def probability(text: str) -> float:
+    """argparse type: a number in [0, 1]."""
+    try:
+        x = float(text)
+    except ValueError:
+        x = math.nan
+    if not 0 <= x <= 1:
+        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
+    return x
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -84,15 +102,25 @@ def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any,
 
 
 def execute(
-    args: argparse.Namespace, instance: Any, schedule: Any, title: str, trajectories: Any = None
+    args: argparse.Namespace,
+    instance: Any,
+    schedule: Any,
+    title: str,
+    trajectories: Any = None,
+    plan_solver: str | None = None,
 ) -> int:
-    """Simulate (or Monte Carlo), print the readable report, write REPORT and pictures."""
+    """Simulate (or Monte Carlo), print the readable report, write REPORT and pictures.
+
+    ``plan_solver`` makes the delay-aware re-plan of ``--replan-below`` (default: the
+    re-plan solver)."""
     from hierplan_opt.core.errors import OptionError
     from hierplan_opt.execution import load_disturbances, simulate
     from hierplan_opt.execution.report import text_report, write_report
 
     if trajectories is not None and args.runs:
         raise OptionError("--runs (Monte Carlo) does not follow refined trajectories")
+    if args.replan_below is not None and not args.runs:
+        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
 
     dist = (
         load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
@@ -122,6 +150,8 @@ def execute(
             workers=args.workers,
             seed=args.seed,
             policy=args.policy,
+            replan_below=args.replan_below,
+            replan_solver=plan_solver or args.replan_solver,
         )
         s = mc.summary()
         report = {"statistics": report["statistics"], "monte_carlo": s, **report}
@@ -131,6 +161,18 @@ def execute(
             f"collisions, makespan p5/p50/p95 {p5:.4g}/{p50:.4g}/{p95:.4g} s, on time "
             f"(min over locations) {s['on_time_min']:.2f}"
         )
+        if mc.below:
+            print(f"{len(mc.below)} location(s) on time with less than {args.replan_below:g}")
+        if mc.replanned is not None:
+            new = mc.replanned
+            r = new.summary()
+            report["replanned_schedule"] = new.schedule.to_dict()["schedule"]
+            print(
+                f"delay-aware re-plan ({new.solver}, {new.rounds} buffering round(s), "
+                f"quantile {new.quantile:g}): on time (min) {s['on_time_min']:.2f} -> "
+                f"{r['on_time_min']:.2f}, planned makespan {mc.planned_makespan:.4g} -> "
+                f"{new.schedule.makespan:.4g} s, {new.result.collisions} collisions"
+            )
     if args.out:
         write_report(args.out, report)
         print(f"report -> {args.out}")

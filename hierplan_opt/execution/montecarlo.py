@@ -4,8 +4,19 @@
 ``seed, seed + 1, ...`` (random delays without a seed of their own draw from the run's
 seed), in parallel processes, with a progress bar. For every way-point at a vertex it
 estimates the probability that the robot gets there within its arrival window (by the
-schedule's latest time); the paper's delay-probability idea is ``replan_below``: the
-locations whose probability falls below it are listed and ``replan_advised`` is set.
+schedule's latest time).
+
+The paper's delay-probability idea is ``replan_below``: the locations whose probability
+falls below it are listed, and (with ``replan_solver``, the default) the plan is re-made
+(:func:`delay_aware_replan`): the MAPF instance is solved again by the registered solver,
+MAPF-POST turns the new plan into a schedule, and its target times are raised to the
+``quantile`` of the executed times that a Monte Carlo batch of the new schedule under the
+same delay model gives (rounds until every location is on time with at least the
+threshold, at most ``MAX_ROUNDS``). The per-node quantiles of runs that each satisfy the
+STN satisfy it too (``X_v >= X_u + lb`` in every run gives the same for quantiles), so
+the buffered times are a schedule of the new STN: the plan validates and the schedule
+replays. The price is a later planned makespan; the result reports both schedules'
+probabilities and makespans side by side (``replanned``).
 """
 
 from __future__ import annotations
@@ -16,7 +27,7 @@ import os
 import statistics as pystats
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +43,35 @@ log = logging.getLogger(__name__)
 
 #: Tolerance of the window check (seconds).
 TOL = 1e-6
+#: At most this many buffering rounds of a delay-aware re-plan.
+MAX_ROUNDS = 4
+
+
+@dataclass(frozen=True, eq=False)
+class Replanned:
+    """A delay-aware re-plan triggered by :func:`monte_carlo` (read-only).
+
+    ``plan`` (valid for the instance) and ``schedule`` (its MAPF-POST schedule with
+    target times buffered by the delay quantiles); ``result`` the Monte Carlo estimate
+    of the new schedule (fresh seeds); ``rounds`` how many buffering rounds it took;
+    ``solver`` the MAPF solver; ``quantile`` the quantile the targets were raised to.
+    """
+
+    plan: Any
+    schedule: Schedule
+    result: MonteCarloResult
+    rounds: int
+    solver: str
+    quantile: float
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "solver": self.solver,
+            "rounds": self.rounds,
+            "quantile": self.quantile,
+            "planned_makespan": self.schedule.makespan,
+            **{k: v for k, v in self.result.summary().items() if k != "replanned"},
+        }
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,8 +81,9 @@ class MonteCarloResult:
     ``on_time[k]`` is the share of runs in which vertex event ``nodes[k]`` (STN node of
     the schedule) happened by its latest time; ``locations`` names them
     (``agent at (x, y)``). ``makespans`` / ``delays`` (makespan minus planned) per run;
-    ``runs_stats`` the statistics dict of each run; ``below`` the locations under
-    ``replan_below``.
+    ``runs_stats`` the statistics dict of each run; ``samples[run, k]`` the executed
+    time of ``nodes[k]`` (NaN: never); ``below`` the locations under ``replan_below``;
+    ``replanned`` the delay-aware re-plan it triggered (None: none).
     """
 
     runs: int
@@ -58,6 +99,13 @@ class MonteCarloResult:
     below: tuple[str, ...] = ()
     replan_advised: bool = False
     handled: dict[str, int] = field(default_factory=dict)
+    planned_makespan: float = math.nan
+    replanned: Replanned | None = None
+    samples: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    def on_time_of(self, location: str) -> float:
+        """On-time probability of one location (its label in ``locations``)."""
+        return float(self.on_time[self.locations.index(location)])
 
     @property
     def runs_per_second(self) -> float:
@@ -80,6 +128,8 @@ class MonteCarloResult:
             "below": list(self.below),
             "replan_advised": self.replan_advised,
             "runs_per_second": self.runs_per_second,
+            "planned_makespan": self.planned_makespan,
+            "replanned": self.replanned.summary() if self.replanned is not None else None,
         }
 
 
@@ -106,13 +156,16 @@ def monte_carlo(
     seed: int = 0,
     policy: str = "replan",
     replan_below: float | None = None,
+    replan_solver: str | None = "ecbs",
     progress: bool | None = None,
 ) -> MonteCarloResult:
     """Run ``runs`` seeded executions of ``schedule`` under ``delay_model``.
 
     ``workers``: processes (default: the CPUs, at most ``runs``; 1 runs in this
     process). ``replan_below``: list the vertex events whose on-time probability is
-    below it and set ``replan_advised``.
+    below it and set ``replan_advised``; then, unless ``replan_solver`` is None,
+    re-plan with :func:`delay_aware_replan` (same runs, workers and policy, fresh
+    seeds) and return its plan, schedule and estimate in ``replanned``.
 
     Example
     -------
@@ -125,13 +178,51 @@ def monte_carlo(
     ...                  progress=False, replan_below=0.9)
     >>> mc.collisions, mc.runs, mc.replan_advised, mc.on_time.shape
     (0, 20, True, (6,))
+    >>> new = mc.replanned
+    >>> float(mc.on_time.min()) < 0.9 <= float(new.result.on_time.min())
+    True
+    >>> new.schedule.makespan > s.makespan  # the buffer's price
+    True
     """
-    import time
-
     if not isinstance(runs, int) or runs < 1:
         raise OptionError(f"runs must be a positive integer, got {runs!r}")
     if replan_below is not None and not 0 <= replan_below <= 1:
         raise OptionError(f"replan_below must be a probability, got {replan_below!r}")
+    res = _estimate(instance, schedule, delay_model, runs, workers, seed, policy, progress)
+    if replan_below is None:
+        return res
+    below = tuple(res.locations[k] for k in np.flatnonzero(res.on_time < replan_below).tolist())
+    new = None
+    if below and replan_solver is not None:
+        log.info("%d location(s) below %g on time: delay-aware re-plan", len(below), replan_below)
+        new = delay_aware_replan(
+            instance,
+            schedule,
+            delay_model,
+            threshold=replan_below,
+            solver=replan_solver,
+            runs=runs,
+            workers=workers,
+            seed=seed + runs,
+            policy=policy,
+            progress=progress,
+        )
+    return replace(res, below=below, replan_advised=bool(below), replanned=new)
+
+
+def _estimate(
+    instance: Instance,
+    schedule: Schedule,
+    delay_model: Sequence[Disturbance],
+    runs: int,
+    workers: int | None,
+    seed: int,
+    policy: str,
+    progress: bool | None,
+) -> MonteCarloResult:
+    """The Monte Carlo batch itself (no threshold)."""
+    import time
+
     assert schedule.stn is not None
     tpg = schedule.stn.tpg
     nodes = np.flatnonzero(tpg.node_kind == VERTEX)
@@ -169,9 +260,6 @@ def monte_carlo(
     for s in stats:
         for k, v in s["handled"].items():
             handled[k] = handled.get(k, 0) + v
-    below: tuple[str, ...] = ()
-    if replan_below is not None:
-        below = tuple(locations[k] for k in np.flatnonzero(on_time < replan_below).tolist())
     return MonteCarloResult(
         runs=runs,
         policy=policy,
@@ -183,10 +271,85 @@ def monte_carlo(
         collisions=int(sum(s["collisions"] for s in stats)),
         runs_stats=stats,
         wall_time=wall,
-        below=below,
-        replan_advised=bool(below),
         handled=handled,
+        planned_makespan=schedule.makespan,
+        samples=times,
     )
+
+
+def delay_aware_replan(
+    instance: Instance,
+    schedule: Schedule,
+    delay_model: Sequence[Disturbance],
+    *,
+    threshold: float,
+    solver: str = "ecbs",
+    runs: int = 100,
+    workers: int | None = None,
+    seed: int = 0,
+    policy: str = "replan",
+    time_limit: float = 60.0,
+    progress: bool | None = None,
+) -> Replanned:
+    """A new plan and a schedule whose locations are on time with ``threshold``.
+
+    The instance is solved again by ``solver`` (validated), MAPF-POST makes its
+    schedule (the old schedule's margin), then every round runs a Monte Carlo batch
+    and raises each node's release to the ``quantile`` (halfway between ``threshold``
+    and 1) of its executed times, until the batch of the buffered schedule finds every
+    location on time with at least ``threshold`` or ``MAX_ROUNDS`` rounds are done.
+    Raises :class:`~hierplan_opt.core.errors.HierplanError` when the solver finds no
+    plan.
+    """
+    from hierplan_opt import registry
+    from hierplan_opt.core.errors import HierplanError
+    from hierplan_opt.core.validate import validate
+    from hierplan_opt.schedule.output import build_schedule
+    from hierplan_opt.schedule.post import postprocess
+    from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
+
+    res = registry.run(solver, instance, time_limit=time_limit)
+    if res.plan is None:
+        raise HierplanError(f"delay-aware re-plan: {solver} found no plan ({res.status})")
+    bad = validate(instance, res.plan)
+    if bad:
+        raise HierplanError(f"delay-aware re-plan: {solver}'s plan is invalid: {bad[0]}")
+    sched = postprocess(instance, res.plan, margin=schedule.margin, check_plan=False)
+    q = threshold + (1.0 - threshold) / 2
+    est = _estimate(instance, sched, delay_model, runs, workers, seed, policy, progress)
+    rounds = 0
+    while rounds < MAX_ROUNDS and est.on_time.min(initial=1.0) < threshold:
+        rounds += 1
+        stn = sched.stn
+        assert stn is not None
+        release = np.array(stn.release, dtype=float)
+        # Every node's executed time in every run (vertex nodes sampled; the pieces in
+        # between follow from the STN's lower bounds when the times are propagated).
+        never = np.where(np.isnan(est.samples), np.inf, est.samples)  # never: not on time
+        quant = np.quantile(never, q, axis=0, method="higher")
+        ok = np.isfinite(quant)
+        release[est.nodes[ok]] = np.maximum(release[est.nodes[ok]], quant[ok])
+        stn = stn.with_bounds(release=release)
+        times = earliest_times(stn)
+        early, late = windows(stn, times)
+        sched = build_schedule(
+            stn,
+            times,
+            early,
+            late,
+            critical_path(stn, times),
+            objective="makespan",
+            method="graph",
+            scale=sched.scale,
+            safety_distance=sched.safety_distance,
+            margin=sched.margin,
+            clearance=sched.clearance,
+            stats={**sched.stats, "delay_quantile": q},
+        )
+        est = _estimate(
+            instance, sched, delay_model, runs, workers, seed + rounds * runs, policy, progress
+        )
+    return Replanned(res.plan, sched, est, rounds, solver, q)
 
 
 def median(xs: Sequence[float]) -> float:
