@@ -311,6 +311,26 @@ def test_reorder_lets_the_robot_behind_a_late_one_pass_first(radius):
     assert phase.stn.topo.is_dag and check_bounds(phase.stn, phase.times) == []
 
 
+def _max_acceleration(tr: np.ndarray, scale: float, dt: float) -> float:
+    """Largest |acceleration| (vector, m/s^2) of a trajectory sampled every ``dt``."""
+    t, p = tr[:, 0], tr[:, 1:] * scale
+    grid = np.arange(0.0, t[-1] + dt / 2, dt)
+    P = np.column_stack([np.interp(grid, t, p[:, k]) for k in range(p.shape[1])])
+    a = (P[2:] - 2 * P[1:-1] + P[:-2]) / dt**2
+    return float(np.linalg.norm(a, axis=1).max(initial=0.0))
+
+
+def _check_limits(inst, s, ex, dt):
+    for a, tr in zip(inst.agents, ex.trajectories, strict=True):
+        step = np.diff(tr[:, 0])
+        speed = np.linalg.norm(np.diff(tr[:, 1:], axis=0), axis=1) * s.scale / step
+        assert speed.max() <= a.kinematics.v_max * (1 + 1e-6)
+        # Vector acceleration: corners are taken at rest, holds are braked for.
+        assert _max_acceleration(tr, s.scale, dt) <= a.kinematics.a_max * (1 + 1e-6), a.name
+    assert ex.statistics["acceleration_violations"] == 0
+    assert ex.statistics["max_acceleration_ratio"] <= 1 + 1e-6
+
+
 @pytest.mark.parametrize("policy", ["slack", "stn", "adg"])
 def test_robot_mode_keeps_limits_and_distance(warehouse, policy):
     inst, s = warehouse
@@ -320,13 +340,58 @@ def test_robot_mode_keeps_limits_and_distance(warehouse, policy):
     st = ex.statistics
     assert st["collisions"] == 0 and st["distance_kept"] and st["finished"] == inst.num_agents
     assert st["makespan"] >= agent.statistics["makespan"] - 1e-6  # accelerating costs time
-    for a, tr in zip(inst.agents, ex.trajectories, strict=True):
-        dt = np.diff(tr[:, 0])
-        speed = np.linalg.norm(np.diff(tr[:, 1:], axis=0), axis=1) * s.scale / dt
-        assert speed.max() <= a.kinematics.v_max * (1 + 1e-6)
+    _check_limits(inst, s, ex, 0.05)
 
 
-def test_robot_mode_refuses_replans(warehouse):
+def test_robot_mode_replans_within_a_max(warehouse):
+    """A seeded batch with stops, breakdowns and re-plans: robots brake before they
+    follow a new plan, never exceed a_max, and never collide."""
     inst, s = warehouse
-    with pytest.raises(InputError, match="robot mode"):
-        simulate(inst, s, disturbances=[Breakdown("youbot8", 10.0)], mode="robot")
+    names = [a.name for a in inst.agents]
+    replans = 0
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        dist = [
+            RandomDelays(0.1, "exponential", 2.0),
+            Stop(names[int(rng.integers(len(names)))], 5.0, at_time=float(rng.uniform(0, 15))),
+            Breakdown("youbot8", float(rng.uniform(3, 15))),  # blocks youbot7
+        ]
+        agent = simulate(inst, s, disturbances=dist, policy="replan", seed=seed)
+        ex = simulate(inst, s, disturbances=dist, policy="replan", seed=seed, mode="robot", dt=0.05)
+        st = ex.statistics
+        assert st["replans"] == agent.statistics["replans"] >= 1
+        assert st["collisions"] == 0 and st["distance_kept"]
+        assert st["finished"] == agent.statistics["finished"] == inst.num_agents - 1
+        for inst2, plan in ex.replans:
+            assert hp.validate(inst2, plan) == []
+        _check_limits(inst, s, ex, 0.05)
+        # The broken robot stands where the re-plan took it for an obstacle.
+        k = names.index("youbot8")
+        np.testing.assert_allclose(ex.trajectories[k][-1, 1:], agent.trajectories[k][-1, 1:])
+        replans += st["replans"]
+    assert replans >= 5
+
+
+def test_robot_mode_records_what_a_max_cannot_do():
+    """A robot that learns of a re-plan too late to brake for its new start is stopped
+    there anyway, and the run says so (never hidden)."""
+    from dataclasses import replace
+
+    from hierplan_opt.execution.robot import robot_run
+    from hierplan_opt.execution.simulate import _Sim
+
+    k = Kinematics("bot", "omni", v_max=1.0, a_max=0.5, radius=0.2)
+    g = Graph.grid(9, 3)
+    inst = Instance.mapf(g, [(1, 0), (0, 0), (0, 2)], [(5, 0), (4, 0), (8, 2)], kinematics=k)
+    s = postprocess(inst, hp.solve(inst, "cbs").plan)
+    sim = _Sim(inst, s, [Breakdown("agent0", 1.5)], "replan", 0, "ecbs", 30.0)
+    sim.run()
+    assert len(sim.phases) == 2
+    honest = robot_run(sim, inst, 0.05)
+    assert honest.violations == () and honest.max_ratio <= 1 + 1e-6
+    # Had agent2 heard of the re-plan only when it got to its new start at full speed:
+    late = replace(sim.phases[1], start=6.0)
+    sim.phases[1] = late
+    out = robot_run(sim, inst, 0.05)
+    assert out.violations and all(need > k.a_max for _, _, need in out.violations)
+    assert {g for _, g, _ in out.violations} == {2} and out.max_ratio > 1

@@ -81,9 +81,13 @@ def test_simulate_robot_mode(tmp_path: Path, capsys) -> None:
     code, text, _ = run(capsys, *argv, "--out", str(out))
     assert code == 0 and "robot mode" in text
     assert yaml.safe_load(out.read_text())["statistics"]["mode"] == "robot"
+    # The disturbances re-plan (a breakdown): robot mode follows the new plan too.
     argv = ["simulate", WAREHOUSE, str(plan), "--mode", "robot", "--disturbances", DISTURBANCES]
-    code, _, err = run(capsys, *argv, "--out", str(tmp_path / "r2.yaml"))
-    assert code == 2 and "robot mode follows one schedule" in err
+    code, text, _ = run(capsys, *argv, "--out", str(tmp_path / "r2.yaml"))
+    st = yaml.safe_load((tmp_path / "r2.yaml").read_text())["statistics"]
+    assert code == 0 and "youbot8 breakdown -> replan" in text
+    assert st["replans"] == 1 and st["collisions"] == 0 and st["acceleration_violations"] == 0
+    assert st["max_acceleration_ratio"] <= 1 + 1e-6
 
 
 def test_simulate_a_roadmap_schedule(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -85,7 +85,7 @@ def restrict_to_frontier(sim: _Sim, now: float) -> None:
         if sim.broken[sim.gid[j]] or h >= int(ends[j + 1]) - 1:
             front.append(h)
             continue
-        f = int(min(S.next_vertex[h + 1], ends[j + 1] - 1))
+        f = _braking_vertex(sim, j, h, now)
         front.append(min(f, first_blocked[j] - 1))
     changed = True
     while changed:
@@ -104,6 +104,31 @@ def restrict_to_frontier(sim: _Sim, now: float) -> None:
     for j in range(K):
         sim.active[front[j] + 1 : int(ends[j + 1])] = False
     sim.front = front
+
+
+def _braking_vertex(sim: _Sim, j: int, h: int, now: float) -> int:
+    """The first vertex node after ``h`` that robot ``j`` can still stop at: at least
+    its braking distance ``v_max^2 / (2 a_max)`` ahead when it is moving (so a robot
+    with bounded acceleration, which is never ahead of this run by more than it
+    cannot help, brakes before it follows the new plan)."""
+    S = sim.S
+    tpg = S.tpg
+    end = int(tpg.agent_ptr[j + 1]) - 1
+    first = int(min(S.next_vertex[h + 1], end))
+    kin = sim.instance.agents[sim.gid[j]].kinematics
+    n = h + 1
+    moving = not np.isnan(sim.phys[n]) and sim.phys[n] > now and not sim.broken[sim.gid[j]]
+    if not moving or not kin.a_max:
+        return first
+    need = kin.v_max**2 / (2 * kin.a_max)
+    pos = sim.traj_pos(sim.gid[j], now, n) * sim.scale
+    ahead = float(np.linalg.norm(tpg.node_pos[n] - pos))
+    for v in range(n, end + 1):
+        if v > n:
+            ahead += float(np.linalg.norm(tpg.node_pos[v] - tpg.node_pos[v - 1]))
+        if v >= first and S.is_vertex[v] and ahead >= need - 1e-9:
+            return v
+    return end
 
 
 def _start_vertex(sim: _Sim, h: int) -> int:
@@ -154,6 +179,11 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         dist = float(np.linalg.norm((g.coords[s] - p_h) * sim.scale))
         holds[gid] = (max(t_h, t_r), p_h, dist / v_max)
         goals[gid] = int(tpg.node_vertex[int(tpg.agent_ptr[j + 1]) - 1])
+    for gid in np.flatnonzero(sim.broken).tolist():
+        if gid not in sim.gid:  # broke down before an earlier re-plan: still there
+            p = sim.traj[gid][-1][1] * sim.scale
+            near = np.linalg.norm(pos_v - p, axis=1) < radius[gid] + r_max + margin
+            extra_blocked |= near & g.passable
     for s in starts.values():
         extra_blocked[s] = False  # never block a robot's own start
     gid2 = tuple(sorted(starts))
@@ -202,6 +232,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     # ways to a start vertex come close), then new paths wait for nearby hand-overs.
     ready: dict[int, float] = {}
     ways: dict[int, np.ndarray] = {}
+    deps: list[tuple[str, int, int, int]] = []
     for k, gid in enumerate(gid2):
         t_h, p_h, move = holds[gid]
         ways[gid] = _way(sim, gid, t_r, g.coords[starts[gid]]) * sim.scale
@@ -210,6 +241,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
             need = radius[gid] + radius[gid_a] + margin
             if _close(ways[gid_a], ways[gid][-2:], need):
                 depart = max(depart, ready[gid_a])
+                deps.append(("depart", gid, -1, gid_a))
         if depart > t_h + 1e-12:
             sim._record(gid, depart, p_h)
         ready[gid] = depart + move
@@ -229,7 +261,9 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
                 if _close(ways[gid_a], seg, need):
                     v = int(nodes[i])
                     release[v] = max(release[v], ready[gid_a])
+                    deps.append(("node", gid, v, gid_a))
                     break
+    sim.handover[len(sim.phases)] = deps
     new_stn = stn.with_bounds(release=release, deadline=deadline)
     times = earliest_times(new_stn)
     early, late = windows(new_stn, times)

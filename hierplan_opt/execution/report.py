@@ -33,6 +33,19 @@ def text_report(ex: Execution, title: str = "") -> str:
         f"safety: {st['collisions']} collisions, min distance {_f(st['min_distance'])} m "
         f"vs guaranteed {_f(st['guaranteed_distance'])} m ({kept})"
     )
+    if "acceleration_violations" in st:
+        n = st["acceleration_violations"]
+        worst = st.get("worst_acceleration")
+        more = (
+            f" (worst: {worst['agent']} at t={worst['time']:.2f} s needed "
+            f"{worst['needed']:.3g} m/s^2)"
+            if worst
+            else ""
+        )
+        lines.append(
+            f"dynamics: max |a| / a_max {_f(st['max_acceleration_ratio'])}, "
+            f"{n} acceleration violation(s){more}"
+        )
     h = st["handled"]
     rt = st["runtime"]
     lines.append(

@@ -343,6 +343,10 @@ class _Sim:
         self.seq = 0
         self.replans: list[Any] = []
         self.front: list[int] = []
+        #: Hand-over waits of each re-planned phase (robot mode keeps them as events):
+        #: ``("depart", g, -1, g_a)``: ``g`` leaves its held place after ``g_a`` reached
+        #: its new start; ``("node", g, v, g_a)``: node ``v`` of the new STN after that.
+        self.handover: dict[int, list[tuple[str, int, int, int]]] = {}
 
     # ------------------------------------------------------------ phases
     def run(self) -> None:

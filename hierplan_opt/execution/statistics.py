@@ -134,10 +134,12 @@ def finish(
 
         traj, slack = follow_run(sim, dt)
         required, guaranteed = sim.follow.required, sim.follow.safety_distance
+    robot = None
     if mode == "robot":
         from hierplan_opt.execution.robot import robot_run
 
-        traj, arrival = robot_run(sim, instance, dt)
+        robot = robot_run(sim, instance, dt)
+        traj, arrival = robot.trajectories, robot.arrival
     for tr in traj:
         tr.setflags(write=False)
     exe = executed_schedule(sim.names, traj, schedule, policy)
@@ -169,6 +171,12 @@ def finish(
         "handled": {k: handled.get(k, 0) for k in ("slack", "stn", "replan", "reorder", "none")},
         "runtime": dict(sim.runtime),
     }
+    if robot is not None:
+        stats["acceleration_violations"] = len(robot.violations)
+        stats["max_acceleration_ratio"] = robot.max_ratio
+        if robot.violations:
+            t, g, need = max(robot.violations, key=lambda x: x[2])
+            stats["worst_acceleration"] = {"agent": sim.names[g], "time": t, "needed": need}
     arrival.setflags(write=False)
     return Execution(
         policy=policy,
