@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from hierplan_opt import Graph, Instance
+from hierplan_opt import Graph, Instance, solve
 from hierplan_opt.cli import main
 from hierplan_opt.core.validate import validate
 from hierplan_opt.execution import RandomDelays
@@ -23,8 +24,6 @@ def crossing():
     make late arrivals likely."""
     g = Graph.grid(5, 5)
     inst = Instance.mapf(g, [(0, 2), (2, 0), (4, 2)], [(4, 2), (2, 4), (0, 2)])
-    from hierplan_opt import solve
-
     plan = solve(inst, "cbs", time_limit=30).plan
     assert plan is not None
     return inst, postprocess(inst, plan)
@@ -85,3 +84,20 @@ def test_cli_replan_below(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     assert set(data["replanned_schedule"]) == set(data["schedule"])
     code = main(["run", warehouse, "--solver", "cbm", "--replan-below", "0.9", "--out", str(out)])
     assert code == 2 and "--runs" in capsys.readouterr().err
+
+
+def test_monte_carlo_in_robot_mode(crossing):
+    inst, s = crossing
+    from hierplan_opt.core.instance import Kinematics
+
+    k = Kinematics("bot", "omni", v_max=1.0, a_max=0.5, radius=0.3)
+    inst = Instance(inst.graph, tuple(replace(a, kinematics=k) for a in inst.agents), (), None)
+    s = postprocess(inst, solve(inst, "cbs", time_limit=30).plan)
+    delays = [RandomDelays(0.3, "constant", 1.0)]
+    agent = monte_carlo(inst, s, delays, runs=8, workers=1, progress=False)
+    robot = monte_carlo(inst, s, delays, runs=8, workers=1, progress=False, mode="robot")
+    assert robot.collisions == 0 and all(st["mode"] == "robot" for st in robot.runs_stats)
+    assert all(st["acceleration_violations"] == 0 for st in robot.runs_stats)
+    # Accelerating and taking corners at rest costs time: the robots are later.
+    assert np.nanmean(robot.samples) > np.nanmean(agent.samples)
+    assert robot.makespans.mean() > agent.makespans.mean()

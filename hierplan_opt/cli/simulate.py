@@ -152,6 +152,7 @@ def execute(
             policy=args.policy,
             replan_below=args.replan_below,
             replan_solver=plan_solver or args.replan_solver,
+            mode=args.mode,
         )
         s = mc.summary()
         report = {"statistics": report["statistics"], "monte_carlo": s, **report}

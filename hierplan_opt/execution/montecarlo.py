@@ -134,16 +134,18 @@ class MonteCarloResult:
 
 
 def _one_run(args: tuple[Any, ...]) -> tuple[dict[str, Any], np.ndarray]:
-    instance, schedule, disturbances, policy, seed, nodes = args
+    instance, schedule, disturbances, policy, seed, nodes, mode = args
     from hierplan_opt.execution.simulate import simulate
 
-    ex = simulate(instance, schedule, disturbances=disturbances, policy=policy, seed=seed)
+    ex = simulate(
+        instance, schedule, disturbances=disturbances, policy=policy, seed=seed, mode=mode
+    )
     return ex.statistics, ex.event_times[nodes]
 
 
 def _chunk(args: tuple[Any, ...]) -> list[tuple[dict[str, Any], np.ndarray]]:
-    instance, schedule, disturbances, policy, seeds, nodes = args
-    return [_one_run((instance, schedule, disturbances, policy, s, nodes)) for s in seeds]
+    instance, schedule, disturbances, policy, seeds, nodes, mode = args
+    return [_one_run((instance, schedule, disturbances, policy, s, nodes, mode)) for s in seeds]
 
 
 def monte_carlo(
@@ -158,8 +160,12 @@ def monte_carlo(
     replan_below: float | None = None,
     replan_solver: str | None = "ecbs",
     progress: bool | None = None,
+    mode: str = "agent",
 ) -> MonteCarloResult:
     """Run ``runs`` seeded executions of ``schedule`` under ``delay_model``.
+
+    ``mode``: as in :func:`~hierplan_opt.execution.simulate` (``robot``: statistics
+    and on-time probabilities of the robot-mode runs, bounded acceleration included).
 
     ``workers``: processes (default: the CPUs, at most ``runs``; 1 runs in this
     process). ``replan_below``: list the vertex events whose on-time probability is
@@ -188,7 +194,9 @@ def monte_carlo(
         raise OptionError(f"runs must be a positive integer, got {runs!r}")
     if replan_below is not None and not 0 <= replan_below <= 1:
         raise OptionError(f"replan_below must be a probability, got {replan_below!r}")
-    res = _estimate(instance, schedule, delay_model, runs, workers, seed, policy, progress)
+    if mode not in ("agent", "robot"):
+        raise OptionError(f"unknown mode {mode!r} (use agent, robot)")
+    res = _estimate(instance, schedule, delay_model, runs, workers, seed, policy, progress, mode)
     if replan_below is None:
         return res
     below = tuple(res.locations[k] for k in np.flatnonzero(res.on_time < replan_below).tolist())
@@ -206,6 +214,7 @@ def monte_carlo(
             seed=seed + runs,
             policy=policy,
             progress=progress,
+            mode=mode,
         )
     return replace(res, below=below, replan_advised=bool(below), replanned=new)
 
@@ -219,6 +228,7 @@ def _estimate(
     seed: int,
     policy: str,
     progress: bool | None,
+    mode: str = "agent",
 ) -> MonteCarloResult:
     """The Monte Carlo batch itself (no threshold)."""
     import time
@@ -235,14 +245,14 @@ def _estimate(
     with Progress(f"monte carlo {policy}", runs, unit="runs", enabled=progress) as bar:
         if workers == 1:
             for s in seeds:
-                results.append(_one_run((instance, schedule, delay_model, policy, s, nodes)))
+                results.append(_one_run((instance, schedule, delay_model, policy, s, nodes, mode)))
                 bar.advance(collisions=sum(r[0]["collisions"] for r in results))
         else:
             size = max(1, min(16, runs // (workers * 4)))
             chunks = [seeds[i : i + size] for i in range(0, runs, size)]
             with ProcessPoolExecutor(workers) as pool:
                 futures = [
-                    pool.submit(_chunk, (instance, schedule, delay_model, policy, c, nodes))
+                    pool.submit(_chunk, (instance, schedule, delay_model, policy, c, nodes, mode))
                     for c in chunks
                 ]
                 for fut in futures:
@@ -290,6 +300,7 @@ def delay_aware_replan(
     policy: str = "replan",
     time_limit: float = 60.0,
     progress: bool | None = None,
+    mode: str = "agent",
 ) -> Replanned:
     """A new plan and a schedule whose locations are on time with ``threshold``.
 
@@ -316,7 +327,7 @@ def delay_aware_replan(
         raise HierplanError(f"delay-aware re-plan: {solver}'s plan is invalid: {bad[0]}")
     sched = postprocess(instance, res.plan, margin=schedule.margin, check_plan=False)
     q = threshold + (1.0 - threshold) / 2
-    est = _estimate(instance, sched, delay_model, runs, workers, seed, policy, progress)
+    est = _estimate(instance, sched, delay_model, runs, workers, seed, policy, progress, mode)
     rounds = 0
     while rounds < MAX_ROUNDS and est.on_time.min(initial=1.0) < threshold:
         rounds += 1
@@ -347,7 +358,15 @@ def delay_aware_replan(
             stats={**sched.stats, "delay_quantile": q},
         )
         est = _estimate(
-            instance, sched, delay_model, runs, workers, seed + rounds * runs, policy, progress
+            instance,
+            sched,
+            delay_model,
+            runs,
+            workers,
+            seed + rounds * runs,
+            policy,
+            progress,
+            mode,
         )
     return Replanned(res.plan, sched, est, rounds, solver, q)
 

@@ -70,13 +70,16 @@ class _Path:
 
 @dataclass(frozen=True)
 class RobotRun:
-    """Trajectories ``(time, coords...)`` per robot, arrival times and the violations of
-    the acceleration bound (``(time, agent index, needed deceleration)``)."""
+    """Trajectories ``(time, coords...)`` per robot, arrival times, the violations of
+    the acceleration bound (``(time, agent index, needed deceleration)``) and the
+    robot-mode times of the first schedule's nodes."""
 
     trajectories: list[np.ndarray]
     arrival: np.ndarray
     violations: tuple[tuple[float, int, float], ...]
     max_ratio: float
+    #: When the robots passed each node of the first schedule (NaN: never).
+    event_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def _paths(sim: _Sim) -> tuple[list[_Path], list[list[tuple[int, float]]], int]:
@@ -98,39 +101,42 @@ def _paths(sim: _Sim) -> tuple[list[_Path], list[list[tuple[int, float]]], int]:
             for k in np.flatnonzero(cross).tolist():
                 u, v = int(stn.arc_src[k]), int(stn.arc_dst[k])
                 preds.setdefault(off + v, []).append((off + u, float(stn.lb[k])))
-        starts = {g: off + int(tpg.agent_ptr[j]) for j, g in enumerate(ph.agents)}
+        # A re-plan's hand-over: every robot first arrives at its new start vertex (a
+        # point of its own, where it stands still), the waits of :mod:`.replan` are
+        # kept as events on these arrivals.
+        arrive: dict[int, int] = {}
+        if p:
+            for g in ph.agents:
+                arrive[g] = nid
+                nid += 1
+        prior = dict(broken_end)
         deps = sim.handover.get(p, []) if p else []
         for kind, _g, v, g_a in deps:
             if kind == "node":
-                preds.setdefault(off + v, []).append((starts[g_a], 0.0))
+                preds.setdefault(off + v, []).append((arrive[g_a], 0.0))
         for j, g in enumerate(ph.agents):
             nodes = np.arange(int(tpg.agent_ptr[j]), int(tpg.agent_ptr[j + 1]))
             done = nodes[~np.isnan(ph.times[nodes])]
             if not len(done):
                 continue
             path = paths[g]
+            v0 = int(done[0])
             if p and path.ids:
+                # Learnt of at the re-plan: until then the robot expects its old plan
+                # (``ghost``: the nodes the re-plan cut off).
+                boundary = len(path.ids)
                 waits = [g_a for kind, gg, _, g_a in deps if kind == "depart" and gg == g]
-                if waits:  # leaves its held place after these robots' hand-overs
-                    preds[nid] = [(starts[g_a], 0.0) for g_a in waits]
-                    _add(path, nid, path.coords[-1], path.target[-1], -math.inf, False)
+                if waits:  # leaves its held place after these robots' arrivals
+                    preds[nid] = [(arrive[g_a], 0.0) for g_a in waits]
+                    _add(path, nid, path.coords[-1], path.target[-1], ph.start, False)
                     nid += 1
-                first = starts[g]
-                for b, (end, when) in broken_end.items():
-                    if b != g and when <= ph.start + 1e-9:
-                        preds.setdefault(first, []).append((end, 0.0))
-            for k, v in enumerate(done.tolist()):
-                new_start = p > 0 and k == 0 and bool(path.ids)
-                _add(
-                    path,
-                    off + v,
-                    tpg.node_coord[v],
-                    float(ph.times[v]),
-                    ph.start if new_start else -math.inf,
-                    new_start,
-                )
-                if new_start:
-                    path.ghost[-1] = ahead.pop(g, [])
+                _add(path, arrive[g], tpg.node_coord[v0], float(ph.times[v0]), ph.start, True)
+                path.ghost[boundary] = ahead.pop(g, [])
+                for b, (end, _when) in prior.items():  # broken robots are in place
+                    if b != g:
+                        preds.setdefault(off + v0, []).append((end, 0.0))
+            for v in done.tolist():
+                _add(path, off + v, tpg.node_coord[v], float(ph.times[v]), -math.inf, False)
             if len(done) == len(nodes):
                 path.rest[-1] = True  # its goal in this schedule
             cut = nodes[len(done) :]
@@ -347,7 +353,8 @@ def robot_run(sim: _Sim, instance: Instance, dt: float) -> RobotRun:
     for _t, g, need in violations:
         a = kin[g].a_max or math.inf
         max_ratio = max(max_ratio, need / a)
-    return RobotRun(out, arrival, tuple(violations), max_ratio)
+    first = passed[: sim.phases[0].stn.num_nodes].copy()
+    return RobotRun(out, arrival, tuple(violations), max_ratio, first)
 
 
 def _free(pre: list[tuple[int, float]], passed: np.ndarray, t: float) -> bool:

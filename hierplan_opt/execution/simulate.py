@@ -149,6 +149,8 @@ class Execution:
         When each robot reached its goal (NaN: never).
     replans : tuple of (Instance, Plan)
         The MAPF instances (broken robots as obstacles) and plans of the re-plans.
+    robot_times : (N,) float or None
+        Robot mode: when each robot passed each node of the first schedule's TPG.
     statistics : dict
         ``collisions``, ``min_distance``, ``guaranteed_distance``, ``distance_kept``,
         ``makespan``, ``arrival_avg``, ``arrival_max``, ``arrival_sum``, ``finished``,
@@ -167,11 +169,13 @@ class Execution:
     statistics: dict[str, Any] = field(default_factory=dict)
     arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
     replans: tuple[tuple[Instance, Any], ...] = ()
+    robot_times: np.ndarray | None = None
 
     @property
     def event_times(self) -> np.ndarray:
-        """Executed time of every node of the first schedule's TPG (NaN: never)."""
-        return self.phases[0].times
+        """Executed time of every node of the first schedule's TPG (NaN: never); in
+        robot mode when the robot passed it (the agent run's times are in ``phases``)."""
+        return self.phases[0].times if self.robot_times is None else self.robot_times
 
     def report(self) -> dict[str, Any]:
         """``{statistics, events, schedule}``: the YAML report (plain values)."""

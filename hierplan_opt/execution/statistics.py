@@ -190,4 +190,5 @@ def finish(
         statistics=stats,
         arrival=arrival,
         replans=tuple(sim.replans),
+        robot_times=robot.event_times if robot is not None else None,
     )
