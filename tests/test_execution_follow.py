@@ -110,8 +110,6 @@ def test_mismatched_trajectories_are_refused(convoy_refined) -> None:
         simulate(other, postprocess(other, plan), trajectories=tr)
     with pytest.raises(HierplanError, match=r"do not match .* agent1 missing"):
         simulate(inst, sched, trajectories=replace(tr, robots=tr.robots[:1]))
-    with pytest.raises(HierplanError, match="agent mode"):
-        simulate(inst, sched, trajectories=tr, mode="robot")
 
 
 def test_npz_round_trip_is_exact(convoy_refined, tmp_path: Path) -> None:
@@ -167,3 +165,31 @@ def test_cli_simulate_and_run_follow_refined_trajectories(
     assert main(argv) == 0
     text = capsys.readouterr().out
     assert "refined (path mode)" in text and "0 collisions" in text
+
+
+def test_robot_mode_and_monte_carlo_follow_refined_timing(convoy_refined) -> None:
+    from hierplan_opt.execution.montecarlo import monte_carlo
+
+    inst, sched, tr = convoy_refined
+    dist = [Stop("agent0", 2.0, at_time=1.0)]
+    agent = simulate(inst, sched, disturbances=dist, trajectories=tr)
+    ex = simulate(inst, sched, disturbances=dist, trajectories=tr, mode="robot", dt=0.05)
+    plain = simulate(inst, sched, disturbances=dist, mode="robot", dt=0.05)
+    st = ex.statistics
+    assert st["trajectories"] == "refined" and st["collisions"] == 0 and st["distance_kept"]
+    assert st["acceleration_violations"] == 0 and st["max_acceleration_ratio"] <= 1 + 1e-6
+    assert st["guaranteed_distance"] == pytest.approx(sched.safety_distance)
+    # Paced by the refined event times: never before them, later than the
+    # constant-velocity targets would pace it.
+    assert np.all(ex.robot_times >= agent.event_times - 0.05 - 1e-9)
+    assert not np.allclose(ex.robot_times, plain.robot_times)
+    mc = monte_carlo(
+        inst,
+        sched,
+        [RandomDelays(0.3, "constant", 1.0)],
+        runs=4,
+        workers=1,
+        progress=False,
+        trajectories=tr,
+    )
+    assert mc.collisions == 0 and all(s["trajectories"] == "refined" for s in mc.runs_stats)

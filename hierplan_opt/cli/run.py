@@ -72,13 +72,8 @@ def run(args: argparse.Namespace) -> int:
     )
     traj = None
     if args.refine:
-        from hierplan_opt.core.errors import OptionError
         from hierplan_opt.trajectory import InfeasibleWindowsError, refine
 
-        if args.mode != "agent":
-            raise OptionError("--refine follows trajectories in agent mode (not --mode robot)")
-        if args.runs:
-            raise OptionError("--runs (Monte Carlo) does not follow refined trajectories")
         try:
             traj = refine(instance, schedule, stretch="auto")
         except InfeasibleWindowsError as exc:

@@ -117,8 +117,6 @@ def execute(
     from hierplan_opt.execution import load_disturbances, simulate
     from hierplan_opt.execution.report import text_report, write_report
 
-    if trajectories is not None and args.runs:
-        raise OptionError("--runs (Monte Carlo) does not follow refined trajectories")
     if args.replan_below is not None and not args.runs:
         raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
 
@@ -153,6 +151,7 @@ def execute(
             replan_below=args.replan_below,
             replan_solver=plan_solver or args.replan_solver,
             mode=args.mode,
+            trajectories=trajectories,
         )
         s = mc.summary()
         report = {"statistics": report["statistics"], "monte_carlo": s, **report}

@@ -19,6 +19,10 @@ The robot always stays on its refined path and passes its way-points in the TPG
 order, so the pair distance ``Trajectories.required(i, j)`` of the refinement carries
 over. After a MAPF re-plan the new schedule is followed at constant velocity (it is
 not refined again; the log says so).
+
+In ``robot`` mode the event times of this run pace the robot-mode controller
+(:mod:`.robot`): bounded acceleration along the polylines, holds braked for; its
+distances are checked against the schedule's ``r_i + r_j + margin``.
 """
 
 from __future__ import annotations
@@ -37,14 +41,12 @@ if TYPE_CHECKING:
 MAX_STEP = 0.05
 
 
-def check_trajectories(schedule: Any, traj: Trajectories, mode: str) -> None:
+def check_trajectories(schedule: Any, traj: Trajectories, mode: str = "agent") -> None:
     """Refuse trajectories that were not refined from ``schedule`` (one line)."""
     from hierplan_opt.trajectory.result import Trajectories
 
     if not isinstance(traj, Trajectories):
         raise OptionError(f"trajectories must be a Trajectories object, got {type(traj).__name__}")
-    if mode != "agent":
-        raise OptionError("refined trajectories are followed in agent mode, not robot mode")
     names = tuple(schedule.agent_names)
     if traj.agent_names != names:
         extra = sorted(set(traj.agent_names) - set(names))

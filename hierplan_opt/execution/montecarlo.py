@@ -134,18 +134,26 @@ class MonteCarloResult:
 
 
 def _one_run(args: tuple[Any, ...]) -> tuple[dict[str, Any], np.ndarray]:
-    instance, schedule, disturbances, policy, seed, nodes, mode = args
+    instance, schedule, disturbances, policy, seed, nodes, mode, traj = args
     from hierplan_opt.execution.simulate import simulate
 
     ex = simulate(
-        instance, schedule, disturbances=disturbances, policy=policy, seed=seed, mode=mode
+        instance,
+        schedule,
+        disturbances=disturbances,
+        policy=policy,
+        seed=seed,
+        mode=mode,
+        trajectories=traj,
     )
     return ex.statistics, ex.event_times[nodes]
 
 
 def _chunk(args: tuple[Any, ...]) -> list[tuple[dict[str, Any], np.ndarray]]:
-    instance, schedule, disturbances, policy, seeds, nodes, mode = args
-    return [_one_run((instance, schedule, disturbances, policy, s, nodes, mode)) for s in seeds]
+    instance, schedule, disturbances, policy, seeds, nodes, mode, traj = args
+    return [
+        _one_run((instance, schedule, disturbances, policy, s, nodes, mode, traj)) for s in seeds
+    ]
 
 
 def monte_carlo(
@@ -161,11 +169,14 @@ def monte_carlo(
     replan_solver: str | None = "ecbs",
     progress: bool | None = None,
     mode: str = "agent",
+    trajectories: Any = None,
 ) -> MonteCarloResult:
     """Run ``runs`` seeded executions of ``schedule`` under ``delay_model``.
 
     ``mode``: as in :func:`~hierplan_opt.execution.simulate` (``robot``: statistics
     and on-time probabilities of the robot-mode runs, bounded acceleration included).
+    ``trajectories``: refined trajectories of ``schedule`` that every run follows (the
+    delay-aware re-plan makes a new schedule, followed at constant velocity).
 
     ``workers``: processes (default: the CPUs, at most ``runs``; 1 runs in this
     process). ``replan_below``: list the vertex events whose on-time probability is
@@ -196,7 +207,13 @@ def monte_carlo(
         raise OptionError(f"replan_below must be a probability, got {replan_below!r}")
     if mode not in ("agent", "robot"):
         raise OptionError(f"unknown mode {mode!r} (use agent, robot)")
-    res = _estimate(instance, schedule, delay_model, runs, workers, seed, policy, progress, mode)
+    if trajectories is not None:
+        from hierplan_opt.execution.follow import check_trajectories
+
+        check_trajectories(schedule, trajectories)
+    res = _estimate(
+        instance, schedule, delay_model, runs, workers, seed, policy, progress, mode, trajectories
+    )
     if replan_below is None:
         return res
     below = tuple(res.locations[k] for k in np.flatnonzero(res.on_time < replan_below).tolist())
@@ -229,6 +246,7 @@ def _estimate(
     policy: str,
     progress: bool | None,
     mode: str = "agent",
+    trajectories: Any = None,
 ) -> MonteCarloResult:
     """The Monte Carlo batch itself (no threshold)."""
     import time
@@ -245,14 +263,18 @@ def _estimate(
     with Progress(f"monte carlo {policy}", runs, unit="runs", enabled=progress) as bar:
         if workers == 1:
             for s in seeds:
-                results.append(_one_run((instance, schedule, delay_model, policy, s, nodes, mode)))
+                one = (instance, schedule, delay_model, policy, s, nodes, mode, trajectories)
+                results.append(_one_run(one))
                 bar.advance(collisions=sum(r[0]["collisions"] for r in results))
         else:
             size = max(1, min(16, runs // (workers * 4)))
             chunks = [seeds[i : i + size] for i in range(0, runs, size)]
             with ProcessPoolExecutor(workers) as pool:
                 futures = [
-                    pool.submit(_chunk, (instance, schedule, delay_model, policy, c, nodes, mode))
+                    pool.submit(
+                        _chunk,
+                        (instance, schedule, delay_model, policy, c, nodes, mode, trajectories),
+                    )
                     for c in chunks
                 ]
                 for fut in futures:

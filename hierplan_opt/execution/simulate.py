@@ -883,7 +883,8 @@ def simulate(
         (an instantaneous stop, then the rest of its trajectory time-shifted) where a
         disturbance halts it or a Type-2 predecessor is late; distances are checked
         against ``trajectories.required(i, j)``. A re-planned schedule is followed at
-        constant velocity (see :mod:`.follow`). Agent mode only.
+        constant velocity (see :mod:`.follow`). In robot mode the refined event times
+        pace the robots (bounded acceleration along the polylines).
 
     Example
     -------
