@@ -14,6 +14,12 @@ Three tables:
    delays handled by slack, STN re-solve and re-plan at three delay rates, with
    delivery windows (each robot due 10 % after its planned arrival) so that large
    delays make the STN inconsistent and escalate to a re-plan.
+4. **Robot mode through re-plans** (warehouse): seeded runs with random delays, a stop
+   and a blocking breakdown: re-plans, largest |a| / a_max (from the controller),
+   acceleration violations, collisions, makespan against the agent run, time per run.
+5. **Delay-aware re-plan** (warehouse, random delays p = 0.2 of 1 s): the lowest on-time
+   probability before and after ``monte_carlo(..., replan_below=0.9)``, the rounds and
+   the planned makespans.
 
 Figures are medians over ``--repeats``; plans are made once per robot count.
 """
@@ -223,4 +229,60 @@ def main(argv: list[str] | None = None) -> int:
             f"{h.get('stn', 0) / total:>7.1%} {h.get('replan', 0) / total:>7.1%} "
             f"{float(np.nanmean(mc.delays)):>9.2f}s {mc.collisions:>10}"
         )
+    robot_rows(wh, plain, 3 if args.quick else 10)
+    mc = monte_carlo(
+        wh,
+        plain,
+        [RandomDelays(0.2, "constant", 1.0)],
+        runs=args.layer_runs,
+        workers=args.workers,
+        progress=False,
+        replan_below=0.9,
+        replan_solver="cbm",
+    )
+    new = mc.replanned
+    _say(
+        f"\n5. Delay-aware re-plan on warehouse-part1 ({mc.runs} runs, delays p=0.2 of 1 s, "
+        "threshold 0.9)"
+    )
+    _say(f"{'':>6} {'on time min':>11} {'below':>6} {'planned makespan':>16} {'rounds':>6}")
+    _say(f"{'before':>6} {mc.on_time.min():>11.2f} {len(mc.below):>6} {plain.makespan:>15.2f}s")
+    if new is not None:
+        low = int(np.count_nonzero(new.result.on_time < 0.9))
+        _say(
+            f"{'after':>6} {new.result.on_time.min():>11.2f} {low:>6} "
+            f"{new.schedule.makespan:>15.2f}s {new.rounds:>6}"
+        )
     return 0
+
+
+def robot_rows(instance: Instance, schedule, seeds: int) -> None:
+    """Table 4: robot mode through re-plans on the warehouse."""
+    from hierplan_opt.execution import Breakdown, RandomDelays, Stop, simulate
+
+    names = [a.name for a in instance.agents]
+    _say(
+        f"\n4. Robot mode through re-plans on warehouse-part1 ({seeds} seeds: random delays "
+        "p=0.1, a stop, youbot8 breaks down; dt 0.05 s)"
+    )
+    _say(
+        f"{'seed':>4} {'replans':>7} {'max|a|/a_max':>12} {'violations':>10} "
+        f"{'collisions':>10} {'makespan':>8} {'agent':>7} {'run s':>6}"
+    )
+    for seed in range(seeds):
+        rng = np.random.default_rng(seed)
+        dist = [
+            RandomDelays(0.1, "exponential", 2.0),
+            Stop(names[int(rng.integers(len(names)))], 5.0, at_time=float(rng.uniform(0, 15))),
+            Breakdown("youbot8", float(rng.uniform(3, 15))),
+        ]
+        agent = simulate(instance, schedule, disturbances=dist, seed=seed)
+        t0 = time.perf_counter()
+        ex = simulate(instance, schedule, disturbances=dist, seed=seed, mode="robot", dt=0.05)
+        el = time.perf_counter() - t0
+        st = ex.statistics
+        _say(
+            f"{seed:>4} {st['replans']:>7} {st['max_acceleration_ratio']:>12.4f} "
+            f"{st['acceleration_violations']:>10} {st['collisions']:>10} "
+            f"{st['makespan']:>8.2f} {agent.statistics['makespan']:>7.2f} {el:>6.2f}"
+        )
