@@ -193,3 +193,45 @@ def test_robot_mode_and_monte_carlo_follow_refined_timing(convoy_refined) -> Non
         trajectories=tr,
     )
     assert mc.collisions == 0 and all(s["trajectories"] == "refined" for s in mc.runs_stats)
+
+
+def lane_and_bypass() -> Instance:
+    """agent1 follows agent0 along row 0; agent2 drives along row 2 (a breakdown of
+    agent0 blocks agent1: re-plan through row 1)."""
+    k = Kinematics("bot", "omni", v_max=1.0, a_max=0.5, radius=0.2)
+    g = Graph.grid(9, 3)
+    return Instance.mapf(g, [(1, 0), (0, 0), (0, 2)], [(5, 0), (4, 0), (8, 2)], kinematics=k)
+
+
+def test_a_replan_is_refined_again(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from hierplan_opt import solve
+    from hierplan_opt.execution import Breakdown
+
+    inst = lane_and_bypass()
+    sched = postprocess(inst, solve(inst, "cbs").plan)
+    tr = refine(inst, sched, stretch="auto")
+    ex = simulate(inst, sched, disturbances=[Breakdown("agent0", 1.5)], trajectories=tr)
+    st = ex.statistics
+    assert st["replans"] == 1 and st["collisions"] == 0 and st["distance_kept"]
+    assert any("refined again" in e.detail for e in ex.log)
+    # The new schedule's events happen when its refined trajectories pass them ...
+    (inst2, _plan2), phase = ex.replans[0], ex.phases[1]
+    tr2 = refine(inst2, phase.schedule, stretch="auto")
+    events = np.concatenate([r.event_times for r in tr2.robots])
+    np.testing.assert_allclose(phase.times, events, atol=1e-9)
+    # ... and the robots are where those trajectories are at every executed sample.
+    for j, g in enumerate(phase.agents):
+        tj = ex.trajectories[g]
+        r = tr2.robots[j]
+        inside = (tj[:, 0] >= r.event_times[0]) & (tj[:, 0] <= r.event_times[-1])
+        assert inside.sum() > 10
+        np.testing.assert_allclose(tj[inside, 1:], r.state(tj[inside, 0])["p"], atol=1e-6)
+    # The whole hierarchy from the command line: plan, post, refine, simulate, re-plan,
+    # refine again.
+    ipath, dpath = tmp_path / "lane.yaml", tmp_path / "d.yaml"
+    save_instance(ipath, inst)
+    dpath.write_text("disturbances:\n  - {kind: breakdown, agent: agent0, at_time: 1.5}\n")
+    argv = ["run", str(ipath), "--solver", "cbs", "--refine", "--disturbances", str(dpath)]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "refined again" in text and "0 collisions" in text

@@ -17,8 +17,10 @@ Afterwards the executed motion is ``p_j(tau_j(t))`` with a piecewise-linear cloc
 
 The robot always stays on its refined path and passes its way-points in the TPG
 order, so the pair distance ``Trajectories.required(i, j)`` of the refinement carries
-over. After a MAPF re-plan the new schedule is followed at constant velocity (it is
-not refined again; the log says so).
+over. After a MAPF re-plan the new schedule is refined again (same mode, ``stretch=
+"auto"``) and followed the same way; the way to a new start vertex is the event loop's
+constant-velocity hand-over; a re-plan that cannot be refined is followed at constant
+velocity (the log says which).
 
 In ``robot`` mode the event times of this run pace the robot-mode controller
 (:mod:`.robot`): bounded acceleration along the polylines, holds braked for; its
@@ -27,6 +29,7 @@ distances are checked against the schedule's ``r_i + r_j + margin``.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -107,44 +110,84 @@ def _clock(
 
 def follow_run(sim: _Sim, dt: float) -> tuple[list[np.ndarray], float]:
     """Executed ``(time, coords...)`` per robot (instance coordinates) and the bound on
-    how much closer two robots may come between samples than the samples show."""
-    traj = sim.follow
-    assert traj is not None
-    phase = sim.phases[0]
-    tpg = phase.stn.tpg
-    times = phase.times
-    rate = sim.rate0 if sim.rate0 is not None else np.ones(len(times))
+    how much closer two robots may come between samples than the samples show.
+
+    Phase by phase: on a refined schedule the robot's trajectory clock, on one followed
+    at constant velocity (a re-plan that could not be refined) and on the way to a
+    re-plan's start vertex the event loop's way-points."""
     scale = float(sim.schedule0.scale)
     h = min(float(dt), MAX_STEP)
     out: list[np.ndarray] = []
     acc = 0.0
-    for g, r in enumerate(traj.robots):
-        first = int(tpg.agent_ptr[g])
-        last_idx = int(tpg.agent_ptr[g + 1]) - 1
-        done = np.flatnonzero(~np.isnan(times[first : last_idx + 1]))
-        t_last = float(times[first + done[-1]]) if len(done) else 0.0
-        later = [(t, p) for t, p in sim.traj[g] if t > t_last + 1e-12]
-        # The robot leaves its trajectory at a breakdown (it stays there) or at a
-        # re-plan frontier (the new schedule's way-points follow).
-        end = t_last
-        if sim.broken[g] and len(done) and done[-1] != last_idx - first:
-            end = float(sim.traj[g][-1][0])
-            later = []
-        elif len(sim.phases) == 1:
-            later = []
-        pts = _clock(sim, g, r.event_times, times, rate, first, end)
-        ct = np.array([p[0] for p in pts])
-        ctau = np.array([p[1] for p in pts])
-        ct = np.maximum.accumulate(ct)
-        grid = np.arange(0.0, end + h, h)
-        ts = np.unique(np.concatenate([ct, grid[grid < end], [end]]))
-        tau = np.interp(ts, ct, ctau)
-        pos = r.state(tau)["p"] / scale
-        rows = [np.column_stack([ts, pos])]
-        if later:
-            rows.append(np.array([[t, *p] for t, p in later], dtype=float))
-        out.append(np.vstack(rows))
-        if len(r.a):
-            acc = max(acc, float(np.max(np.linalg.norm(r.a, axis=1))))
+    for g in range(sim.K):
+        rows: list[np.ndarray] = []
+        prev_end: float | None = None
+        for p, ph in enumerate(sim.phases):
+            if g not in ph.agents:
+                continue
+            j = ph.agents.index(g)
+            tpg = ph.stn.tpg
+            times = ph.times
+            first = int(tpg.agent_ptr[j])
+            last_idx = int(tpg.agent_ptr[j + 1]) - 1
+            done = np.flatnonzero(~np.isnan(times[first : last_idx + 1]))
+            if not len(done):
+                continue
+            t_first = float(times[first])
+            end = float(times[first + done[-1]])
+            if sim.broken[g] and done[-1] != last_idx - first:
+                end = max(end, float(sim.traj[g][-1][0]))  # broke down on the way
+            if prev_end is not None:  # on the way to the new start vertex
+                rows.append(_records(sim, g, prev_end, t_first, closed=False))
+            traj = sim.follows.get(p)
+            if traj is None:
+                rows.append(_records(sim, g, t_first, end, closed=True))
+            else:
+                r = traj.robots[j]
+                rate = sim.rates.get(p)
+                rate = rate if rate is not None else np.ones(len(times))
+                pts = _clock(sim, g, r.event_times, times, rate, first, end)
+                ct = np.maximum.accumulate(np.array([q[0] for q in pts]))
+                ctau = np.array([q[1] for q in pts])
+                t0 = 0.0 if p == 0 else t_first
+                grid = np.arange(t0, end + h, h)
+                ts = np.unique(np.concatenate([ct[ct >= t0], grid[grid < end], [t0, end]]))
+                tau = np.interp(ts, ct, ctau)
+                rows.append(np.column_stack([ts, r.state(tau)["p"] / scale]))
+                if len(r.a):
+                    acc = max(acc, float(np.max(np.linalg.norm(r.a, axis=1))))
+            prev_end = end
+        if prev_end is not None:  # anything recorded after (none but a broken robot's stop)
+            rows.append(_records(sim, g, prev_end, math.inf, closed=False))
+        arr = np.vstack([x for x in rows if len(x)])
+        keep = np.ones(len(arr), dtype=bool)
+        keep[1:] = arr[1:, 0] > arr[:-1, 0] + 1e-12
+        out.append(arr[keep])
     # Between samples a pair's relative position leaves the chord by <= A h^2 / 8.
     return out, 2.0 * acc * h * h / 8.0
+
+
+def _records(sim: _Sim, g: int, t0: float, t1: float, *, closed: bool) -> np.ndarray:
+    """The event loop's way-points of robot ``g`` in ``[t0, t1]`` (open: ``(t0, t1)``)."""
+    eps = 1e-12
+    if closed:
+        pts = [(t, q) for t, q in sim.traj[g] if t0 - eps <= t <= t1 + eps]
+    else:
+        pts = [(t, q) for t, q in sim.traj[g] if t0 + eps < t < t1 - eps]
+    if not pts:
+        return np.zeros((0, 1 + sim.S.tpg.node_coord.shape[1]))
+    return np.array([[t, *q] for t, q in pts], dtype=float)
+
+
+def required_distance(sim: _Sim) -> Any:
+    """``required(i, j)`` over every refined phase: the smallest of their distances."""
+    follows = [(sim.phases[p].agents, t) for p, t in sorted(sim.follows.items())]
+
+    def required(a: int, b: int) -> float:
+        need = math.inf
+        for agents, traj in follows:
+            if a in agents and b in agents:
+                need = min(need, float(traj.required(agents.index(a), agents.index(b))))
+        return need
+
+    return required

@@ -303,6 +303,10 @@ class _Sim:
         self.follow = follow
         self.holds: list[list[tuple[float, float]]] = [[] for _ in range(len(schedule.agent_names))]
         self.rate0: np.ndarray | None = None
+        #: Refined trajectories followed per phase (0: ``follow``; later: refined again
+        #: after a re-plan), and the slow factors of their pieces.
+        self.follows: dict[int, Any] = {0: follow} if follow is not None else {}
+        self.rates: dict[int, np.ndarray] = {}
         self.schedule0 = schedule
         self.policy = policy
         self.layers = LAYERS[policy]
@@ -380,17 +384,31 @@ class _Sim:
                 continue
             sched, stn, gid, targets = out
             self.counts["replans"] += 1
-            if self.follow is not None and len(self.phases) == 1:
-                self._log(
-                    t_r,
-                    "*",
-                    "trajectories",
-                    "replan",
-                    0.0,
-                    "the re-planned schedule is followed at constant velocity, not refined",
-                )
+            if self.follow is not None:
+                again = self._refine_again(sched, t_r)
+                if again is not None:
+                    self.follows[len(self.phases)] = again
+                    targets = np.concatenate([r.event_times for r in again.robots]).astype(float)
             self._phase(sched, stn, gid, targets, t_r)
         self.runtime["simulation"] = time.perf_counter() - t0 - self.runtime["replan"]
+
+    def _refine_again(self, sched: Schedule, t_r: float) -> Any:
+        """Refined trajectories of a re-planned schedule (as the first ones were made),
+        or None (logged): then it is followed at constant velocity."""
+        from hierplan_opt.core.errors import HierplanError
+        from hierplan_opt.trajectory import refine
+
+        t0 = time.perf_counter()
+        try:
+            out = refine(self.replans[-1][0], sched, mode=self.follow.mode, stretch="auto")
+        except HierplanError as exc:
+            out = None
+            why = f"the re-planned schedule is followed at constant velocity ({exc})"
+        else:
+            why = f"the re-planned schedule is refined again (stretch {out.stretch:.3g})"
+        self.runtime["refine"] = self.runtime.get("refine", 0.0) + time.perf_counter() - t0
+        self._log(t_r, "*", "trajectories", "replan", 0.0, why)
+        return out
 
     def _phase(
         self, sched: Schedule, stn: STN, gid: tuple[int, ...], targets: np.ndarray, start: float
@@ -415,11 +433,14 @@ class _Sim:
         self.rate = np.ones(n)  # slow factor of each piece (trajectory following)
         # Duration of each piece on the refined trajectory (first phase only).
         self.piece_dur: np.ndarray | None = None
-        if self.follow is not None and not self.phases:
+        follow = self.follows.get(len(self.phases))
+        if follow is not None:
             self.piece_dur = np.zeros(n)
-            ev = np.concatenate([r.event_times for r in self.follow.robots]).astype(float)
+            ev = np.concatenate([r.event_times for r in follow.robots]).astype(float)
             self.piece_dur[1:] = np.diff(ev)
-            self.rate0 = self.rate
+            self.rates[len(self.phases)] = self.rate
+            if not self.phases:
+                self.rate0 = self.rate
         self.remaining = S.cross_count.copy()
         self.version = np.zeros(n, dtype=np.int64)
         self.in_heap = np.zeros(n, dtype=bool)

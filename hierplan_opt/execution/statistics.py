@@ -130,10 +130,11 @@ def finish(
     arrival = sim.arrival.copy()
     slack, required, guaranteed = 0.0, None, schedule.safety_distance
     if sim.follow is not None:
-        from hierplan_opt.execution.follow import follow_run
+        from hierplan_opt.execution.follow import follow_run, required_distance
 
         traj, slack = follow_run(sim, dt)
-        required, guaranteed = sim.follow.required, sim.follow.safety_distance
+        required = required_distance(sim)
+        guaranteed = min(t.safety_distance for t in sim.follows.values())
     robot = None
     if mode == "robot":
         from hierplan_opt.execution.robot import robot_run
