@@ -214,6 +214,10 @@ def test_a_replan_is_refined_again(tmp_path: Path, capsys: pytest.CaptureFixture
     st = ex.statistics
     assert st["replans"] == 1 and st["collisions"] == 0 and st["distance_kept"]
     assert any("refined again" in e.detail for e in ex.log)
+    # agent0 stays where its refined trajectory had got to (the re-plan's obstacle).
+    here = tr.robots[0].state(np.array([1.5]))["p"][0] / sched.scale
+    np.testing.assert_allclose(ex.trajectories[0][-1, 1:], here, atol=1e-9)
+    assert ex.trajectories[0][-1, 0] == pytest.approx(1.5)
     # The new schedule's events happen when its refined trajectories pass them ...
     (inst2, _plan2), phase = ex.replans[0], ex.phases[1]
     tr2 = refine(inst2, phase.schedule, stretch="auto")

@@ -167,6 +167,19 @@ def follow_run(sim: _Sim, dt: float) -> tuple[list[np.ndarray], float]:
     return out, 2.0 * acc * h * h / 8.0
 
 
+def refined_position(sim: _Sim, j: int, now: float) -> np.ndarray:
+    """Where robot ``j`` (of the running phase) is at ``now`` on its refined trajectory
+    (instance coordinates)."""
+    traj = sim.follows[len(sim.phases) - 1]
+    g = sim.gid[j]
+    r = traj.robots[j]
+    first = int(sim.S.tpg.agent_ptr[j])
+    pts = _clock(sim, g, r.event_times, sim.t, sim.rate, first, now)
+    ct = np.maximum.accumulate(np.array([q[0] for q in pts]))
+    tau = float(np.interp(now, ct, np.array([q[1] for q in pts])))
+    return r.state(np.array([tau]))["p"][0] / float(sim.schedule0.scale)
+
+
 def _records(sim: _Sim, g: int, t0: float, t1: float, *, closed: bool) -> np.ndarray:
     """The event loop's way-points of robot ``g`` in ``[t0, t1]`` (open: ``(t0, t1)``)."""
     eps = 1e-12

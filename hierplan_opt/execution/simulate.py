@@ -794,6 +794,10 @@ class _Sim:
             self.pending.append(_shift(d, now))  # at its frontier: next schedule
             return
         if isinstance(d, Breakdown):
+            if self.piece_dur is not None:  # where its refined trajectory has got to
+                from hierplan_opt.execution.follow import refined_position
+
+                pos = refined_position(self, j, now)
             self._record(g, now, pos)
             self.broken[g] = True
             if n >= 0:
