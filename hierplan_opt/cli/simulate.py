@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 from typing import Any
 
 from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, positive_int
+from hierplan_opt.cli.refine import _fraction as fraction  # argparse type: a number in [0, 1]
 
 HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
 
@@ -34,7 +34,7 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=positive_int, metavar="W", help="Monte Carlo processes")
     p.add_argument(
         "--replan-below",
-        type=probability,
+        type=fraction,
         metavar="P",
         help="Monte Carlo: re-plan (delay-aware) when a location is on time with less than P",
     )
@@ -43,17 +43,6 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
-
-
-def probability(text: str) -> float:
-    """argparse type: a number in [0, 1]."""
-    try:
-        x = float(text)
-    except ValueError:
-        x = math.nan
-    if not 0 <= x <= 1:
-        raise argparse.ArgumentTypeError(f"expected a probability in [0, 1], got {text!r}")
-    return x
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -337,9 +337,8 @@ def delay_aware_replan(
     from hierplan_opt import registry
     from hierplan_opt.core.errors import HierplanError
     from hierplan_opt.core.validate import validate
-    from hierplan_opt.schedule.output import build_schedule
+    from hierplan_opt.execution.replan import rescheduled
     from hierplan_opt.schedule.post import postprocess
-    from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 
     res = registry.run(solver, instance, time_limit=time_limit)
     if res.plan is None:
@@ -362,23 +361,7 @@ def delay_aware_replan(
         quant = np.quantile(never, q, axis=0, method="higher")
         ok = np.isfinite(quant)
         release[est.nodes[ok]] = np.maximum(release[est.nodes[ok]], quant[ok])
-        stn = stn.with_bounds(release=release)
-        times = earliest_times(stn)
-        early, late = windows(stn, times)
-        sched = build_schedule(
-            stn,
-            times,
-            early,
-            late,
-            critical_path(stn, times),
-            objective="makespan",
-            method="graph",
-            scale=sched.scale,
-            safety_distance=sched.safety_distance,
-            margin=sched.margin,
-            clearance=sched.clearance,
-            stats={**sched.stats, "delay_quantile": q},
-        )
+        sched, _ = rescheduled(sched, stn.with_bounds(release=release), delay_quantile=q)
         est = _estimate(
             instance,
             sched,

@@ -265,22 +265,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
                     break
     sim.handover[len(sim.phases)] = deps
     new_stn = stn.with_bounds(release=release, deadline=deadline)
-    times = earliest_times(new_stn)
-    early, late = windows(new_stn, times)
-    sched = build_schedule(
-        new_stn,
-        times,
-        early,
-        late,
-        critical_path(new_stn, times),
-        objective="makespan",
-        method="graph",
-        scale=sched.scale,
-        safety_distance=sched.safety_distance,
-        margin=sched.margin,
-        clearance=sched.clearance,
-        stats=dict(sched.stats),
-    )
+    sched, times = rescheduled(sched, new_stn)
     sim._log(
         t_r,
         "-",
@@ -291,6 +276,28 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         f"{solve_time:.3g} s)",
     )
     return sched, new_stn, gid2, times
+
+
+def rescheduled(sched: Schedule, stn: STN, **stats: float) -> tuple[Schedule, np.ndarray]:
+    """``sched`` on ``stn`` (other node bounds): its earliest schedule, windows and
+    critical path (``stats`` added to the schedule's), and the times."""
+    times = earliest_times(stn)
+    early, late = windows(stn, times)
+    new = build_schedule(
+        stn,
+        times,
+        early,
+        late,
+        critical_path(stn, times),
+        objective="makespan",
+        method="graph",
+        scale=sched.scale,
+        safety_distance=sched.safety_distance,
+        margin=sched.margin,
+        clearance=sched.clearance,
+        stats={**sched.stats, **stats},
+    )
+    return new, times
 
 
 def _substitute_goals(
