@@ -39,7 +39,10 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
         help="Monte Carlo: re-plan (delay-aware) when a location is on time with less than P",
     )
     p.add_argument(
-        "--replan-solver", default="ecbs", metavar="NAME", help="MAPF solver of re-plans (ecbs)"
+        "--replan-solver",
+        metavar="NAME",
+        help="MAPF solver of re-plans (ecbs; of --replan-below: the plan's solver in 'run', "
+        "else ecbs, cbm for teams)",
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
@@ -121,7 +124,7 @@ def execute(
         policy=args.policy,
         mode=args.mode,
         seed=args.seed,
-        solver=args.replan_solver,
+        solver=args.replan_solver or "ecbs",
         trajectories=trajectories,
     )
     report: dict[str, Any] = ex.report()
@@ -138,7 +141,7 @@ def execute(
             seed=args.seed,
             policy=args.policy,
             replan_below=args.replan_below,
-            replan_solver=plan_solver or args.replan_solver,
+            replan_solver=plan_solver or args.replan_solver or "auto",
             mode=args.mode,
             trajectories=trajectories,
         )

@@ -44,7 +44,7 @@ log = logging.getLogger(__name__)
 #: Tolerance of the window check (seconds).
 TOL = 1e-6
 #: At most this many buffering rounds of a delay-aware re-plan.
-MAX_ROUNDS = 4
+MAX_ROUNDS = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,7 +166,7 @@ def monte_carlo(
     seed: int = 0,
     policy: str = "replan",
     replan_below: float | None = None,
-    replan_solver: str | None = "ecbs",
+    replan_solver: str | None = "auto",
     progress: bool | None = None,
     mode: str = "agent",
     trajectories: Any = None,
@@ -182,7 +182,8 @@ def monte_carlo(
     process). ``replan_below``: list the vertex events whose on-time probability is
     below it and set ``replan_advised``; then, unless ``replan_solver`` is None,
     re-plan with :func:`delay_aware_replan` (same runs, workers and policy, fresh
-    seeds) and return its plan, schedule and estimate in ``replanned``.
+    seeds) and return its plan, schedule and estimate in ``replanned`` (``auto``: ECBS
+    for MAPF, CBM for teams).
 
     Example
     -------
@@ -315,7 +316,7 @@ def delay_aware_replan(
     delay_model: Sequence[Disturbance],
     *,
     threshold: float,
-    solver: str = "ecbs",
+    solver: str = "auto",
     runs: int = 100,
     workers: int | None = None,
     seed: int = 0,
@@ -326,7 +327,8 @@ def delay_aware_replan(
 ) -> Replanned:
     """A new plan and a schedule whose locations are on time with ``threshold``.
 
-    The instance is solved again by ``solver`` (validated), MAPF-POST makes its
+    The instance is solved again by ``solver`` (validated; ``auto``: ECBS for MAPF,
+    CBM for teams), MAPF-POST makes its
     schedule (the old schedule's margin), then every round runs a Monte Carlo batch
     and raises each node's release to the ``quantile`` (halfway between ``threshold``
     and 1) of its executed times, until the batch of the buffered schedule finds every
@@ -340,6 +342,8 @@ def delay_aware_replan(
     from hierplan_opt.execution.replan import rescheduled
     from hierplan_opt.schedule.post import postprocess
 
+    if solver == "auto":
+        solver = "cbm" if instance.is_tapf else "ecbs"
     res = registry.run(solver, instance, time_limit=time_limit)
     if res.plan is None:
         raise HierplanError(f"delay-aware re-plan: {solver} found no plan ({res.status})")
