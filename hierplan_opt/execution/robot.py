@@ -26,8 +26,8 @@ a robot leaves its held place after the robots whose ways it crosses have reache
 new start vertices, new path nodes near another robot's way wait for that robot (the
 waits :mod:`.replan` imposes in time), and nobody starts a new plan before the robots
 that broke down stand still where the re-plan assumed them (a robot breaks down at the
-place where the agent simulation had it break down; it brakes for it from the
-breakdown's time on).
+place where the agent simulation had it break down and brakes for that place like for
+its goal: in robot mode a breakdown is a place, its time may differ).
 
 A robot never passes a node before its Type-2 predecessors, so the robot-mode run keeps
 the TPG order; the target times only pace it (the controller may arrive a little early
