@@ -101,3 +101,15 @@ def test_monte_carlo_in_robot_mode(crossing):
     # Accelerating and taking corners at rest costs time: the robots are later.
     assert np.nanmean(robot.samples) > np.nanmean(agent.samples)
     assert robot.makespans.mean() > agent.makespans.mean()
+
+
+def test_random_delays_with_their_own_seed_still_vary_between_runs(crossing):
+    # A seeded random disturbance (as in a YAML file with `seed: 1`) must not make every
+    # run of the batch draw the same delays: the batch's run seeds drive them.
+    inst, s = crossing
+    seeded = [RandomDelays(0.3, "exponential", 1.0, seed=1)]
+    unseeded = [RandomDelays(0.3, "exponential", 1.0)]
+    a = monte_carlo(inst, s, seeded, runs=20, workers=1, progress=False)
+    b = monte_carlo(inst, s, unseeded, runs=20, workers=1, progress=False)
+    assert len(set(a.makespans.tolist())) > 1
+    assert np.array_equal(a.makespans, b.makespans)

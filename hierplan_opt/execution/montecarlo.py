@@ -1,10 +1,11 @@
 """Monte Carlo runs of an execution: arrival-window probabilities, makespan and delay.
 
 :func:`monte_carlo` repeats :func:`~hierplan_opt.execution.simulate` with seeds
-``seed, seed + 1, ...`` (random delays without a seed of their own draw from the run's
-seed), in parallel processes, with a progress bar. For every way-point at a vertex it
-estimates the probability that the robot gets there within its arrival window (by the
-schedule's latest time).
+``seed, seed + 1, ...``, in parallel processes; the runs' seeds drive every random
+delay (a random disturbance's own ``seed`` would make every run draw the same delays, so
+the batch replaces it and says so in the log), with a progress bar. For every way-point
+at a vertex it estimates the probability that the robot gets there within its arrival
+window (by the schedule's latest time).
 
 The paper's delay-probability idea is ``replan_below``: the locations whose probability
 falls below it are listed, and (with ``replan_solver``, the default) the plan is re-made
@@ -237,6 +238,32 @@ def monte_carlo(
     return replace(res, below=below, replan_advised=bool(below), replanned=new)
 
 
+def per_run_seeds(delay_model: Sequence[Disturbance]) -> list[Disturbance]:
+    """The delay model a batch runs: random delays lose a seed of their own.
+
+    With its own seed a :class:`~hierplan_opt.execution.RandomDelays` draws the same
+    delays whatever the run's seed, and a batch of identical runs estimates nothing.
+
+    Example
+    -------
+    >>> from hierplan_opt.execution import RandomDelays
+    >>> per_run_seeds([RandomDelays(0.1, seed=1)])[0].seed is None
+    True
+    """
+    from hierplan_opt.execution.disturbances import RandomDelays
+
+    out: list[Disturbance] = []
+    for d in delay_model:
+        if isinstance(d, RandomDelays) and d.seed is not None:
+            log.info(
+                "monte carlo: random delays' own seed %d dropped: each run draws from its seed",
+                d.seed,
+            )
+            d = replace(d, seed=None)
+        out.append(d)
+    return out
+
+
 def _estimate(
     instance: Instance,
     schedule: Schedule,
@@ -251,6 +278,8 @@ def _estimate(
 ) -> MonteCarloResult:
     """The Monte Carlo batch itself (no threshold)."""
     import time
+
+    delay_model = per_run_seeds(delay_model)
 
     assert schedule.stn is not None
     tpg = schedule.stn.tpg
