@@ -1,4 +1,5 @@
-"""The NLP-free path-mode solver (``refine(solver="profile")``, trajectory.profile)."""
+"""The NLP-free path-mode solver (``refine(solver="profile")``, trajectory.profile) and its
+QP polish (``solver="profile+qp"``, trajectory.polish)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from hierplan_opt.core.instance import Instance, Kinematics
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.schedule import postprocess
 from hierplan_opt.trajectory import InfeasibleWindowsError, refine
+from hierplan_opt.trajectory import polish as Q
 from hierplan_opt.trajectory import profile as P
 from hierplan_opt.trajectory.refine import Limits, RobotPath
 from hierplan_opt.trajectory.verify import verify
@@ -148,3 +150,67 @@ def test_reach_intervals_are_exact_for_every_shape() -> None:
             step = 4 * (vmax + b - a) / 400 * 4
             assert wa[i] >= ws.min() - step and wb[i] <= ws.max() + step
     assert compared > 100
+
+
+# ---- the QP polish (solver="profile+qp", trajectory.polish) -----------------------------
+
+
+@pytest.mark.parametrize("case", [crossing, grid_plan])
+def test_polish_verifies_and_lowers_the_acceleration_objective(case) -> None:
+    inst, plan = case()
+    sched = postprocess(inst, plan)
+    tp = refine(inst, sched, stretch="auto", solver="profile")
+    tq = refine(inst, sched, stretch="auto", solver="profile+qp")
+    rep = verify(tq, inst)
+    assert rep.ok, rep.message()
+    assert rep.max_speed_ratio <= 1 + 1e-5 and rep.max_accel_ratio <= 1 + 1e-5
+    assert rep.min_distance >= tq.safety_distance == tp.safety_distance > 0
+    assert tq.stretch == tp.stretch
+    assert tq.stats["qp_fallbacks"] == 0
+    win, net = tq.windows, tq.windows.network
+    for j, (p, q) in enumerate(zip(tp.robots, tq.robots, strict=True)):
+        assert q.stats["solver"] == "profile+qp" and q.stats["qp_ok"]
+        # The knots (events with a window) keep their times; every event stays inside
+        # its window; the integral of |a|^2 does not grow.
+        ev = np.array(list(net.events(j)))
+        knot = (win.lo[ev] > 0) | np.isfinite(win.hi[ev])
+        et = np.asarray(q.event_times)
+        assert np.allclose(et[knot], np.asarray(p.event_times)[knot], atol=1e-9)
+        assert np.all(et >= win.lo[ev] - 1e-9) and np.all(et <= win.hi[ev] + 1e-9)
+        ea = float(np.sum(np.diff(p.t) * np.sum(p.a**2, axis=1)))
+        eb = float(np.sum(np.diff(q.t) * np.sum(q.a**2, axis=1)))
+        assert eb <= ea + 1e-9
+        assert q.stats["accel_after"] <= q.stats["accel_before"] + 1e-12
+        assert q.stats["accel_before"] == pytest.approx(ea, rel=1e-9, abs=1e-12)
+    assert tq.stats["accel_after"] < tq.stats["accel_before"]
+
+
+def test_polish_of_a_line_is_the_minimum_energy_motion() -> None:
+    # 4 m in 6 s from rest to rest, no window in between: the QP on the profile's grid
+    # keeps the ends and limits, is no worse than the profile, and no better than the
+    # continuous minimum of the integral of a^2 (linear acceleration).
+    path = line_path([0.0, 4.0], [0.0, 6.0], [True, True])
+    pr = P.solve(path, 1.0, np.array([0.0, 0.0]), np.array([0.0, np.inf]))
+    assert pr.ok and pr.pp is not None and pr.X is not None and pr.U is not None
+
+    r = Q.polish(pr.pp, pr.X, pr.U, _plain(np.array([0.0, 0.0]), np.array([0.0, np.inf])))
+    assert r.ok, r.status
+    assert r.after <= r.before * (1 + 1e-9)
+    s, v, t = r.X[0], r.X[1], r.X[2]
+    assert s[0] == 0.0 and s[-1] == 4.0 and v[0] == 0.0 and abs(v[-1]) <= 1e-9
+    assert np.all(v >= -1e-9) and np.all(v <= 1.0 + 1e-9)
+    assert np.all(np.abs(r.U[0]) <= 1.0 + 1e-9)
+    assert t[-1] == pytest.approx(6.0)
+    # Lower bound: the unconstrained minimum 12 d^2 / T^3 (cubic position, linear a).
+    assert r.after >= 12 * 16 / 6**3 - 1e-9
+
+
+def test_compress_drops_zero_length_intervals_only() -> None:
+
+    path = line_path([0.0, 2.0, 4.0], [0.0, 3.0, 6.0], [True, False, True])
+    pr = P.solve(path, 1.0, np.array([0.0, 3.0, 0.0]), np.array([0.0, 3.5, np.inf]))
+    assert pr.pp is not None and pr.X is not None and pr.U is not None
+    pp, X, U = Q.compress(pr.pp, pr.X, pr.U)
+    assert np.all(U[1] > 0) and int(np.sum(pr.U[1] > 0)) == pp.N
+    assert np.allclose(X[2, pp.knot_node], pr.X[2, pr.pp.knot_node])
+    assert Q.accel_energy(U) == pytest.approx(Q.accel_energy(pr.U))

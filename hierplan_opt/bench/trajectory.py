@@ -122,8 +122,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cache", metavar="DIR", help="keep the warehouse plan in DIR and reuse it")
     ap.add_argument(
         "--refine-solvers",
-        default="profile,ipopt",
-        help="solvers of the end-to-end runs, one row each (profile,ipopt)",
+        default="profile,profile+qp,ipopt",
+        help="solvers of the end-to-end runs, one row each (profile,profile+qp,ipopt)",
     )
     ap.add_argument("--solvers", default="profile,ipopt,fatrop", help="solvers compared per robot")
     ap.add_argument("--verify-dt", type=float, default=0.02, help="verification step (s)")
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     limit = time_limit(args.time_limit, args.quick, full=120.0, small=60.0)
     cases = [_formation(), _warehouse(k, args.w, args.cache, limit)]
     print(
-        f"{'case':<16} {'K':>4} {'planner':>8} {'solver':>7} {'post':>6} {'refine':>7} "
+        f"{'case':<16} {'K':>4} {'planner':>8} {'solver':>10} {'post':>6} {'refine':>7} "
         f"{'verify':>7} {'sched->ver':>10} {'target':>7} {'met':>4} {'stretch':>7} "
         f"{'T_sched':>8} {'T_traj':>8} {'guarant.':>8} {'min d':>7} {'gap':>7} {'ok':>3} "
         f"{'N max':>5}"
@@ -162,12 +162,20 @@ def main(argv: list[str] | None = None) -> int:
             met = e2e < target and rep.ok
             nmax = max((r.stats.get("intervals", 0) or 0) for r in traj.robots)
             print(
-                f"{name:<16} {inst.num_agents:>4} {planner:>8} {solver:>7} {t1 - t0:6.2f} "
+                f"{name:<16} {inst.num_agents:>4} {planner:>8} {solver:>10} {t1 - t0:6.2f} "
                 f"{t3 - t2:7.2f} {t4 - t3:7.2f} {e2e:10.2f} {target:7.1f} "
                 f"{'yes' if met else 'NO':>4} {traj.stretch:7.3f} {sched.makespan:8.2f} "
                 f"{traj.makespan:8.2f} {traj.safety_distance:8.4f} {rep.min_distance:7.4f} "
                 f"{rep.worst_gap:+7.4f} {'yes' if rep.ok else 'NO':>3} {nmax:>5}"
             )
+            if solver == "profile+qp":
+                qt = [r.stats["qp_time"] * 1e3 for r in traj.robots if "qp_time" in r.stats]
+                print(
+                    f"{'':<16} QP per robot: median {statistics.median(qt):.2f} ms, max "
+                    f"{max(qt):.2f} ms, sum {sum(qt) / 1e3:.2f} s; integral |a|^2 (sum over "
+                    f"robots) {traj.stats['accel_before']:.1f} -> {traj.stats['accel_after']:.1f}; "
+                    f"QP fallbacks {traj.stats['qp_fallbacks']}/{len(qt)}"
+                )
             results.append((name, solver, inst, traj, e2e, target, rep))
     print()
     print(
@@ -200,7 +208,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     print(
         "post = MAPF-POST earliest schedule; refine = windows + per-robot solves + stretch "
-        "search (one process; profile: no NLP, ipopt: IPOPT/MUMPS); met = sched->ver under "
+        "search (one process; profile: no NLP, profile+qp: the profile smoothed by a QP per "
+        "robot (HPIPM), ipopt: IPOPT/MUMPS); met = sched->ver under "
         "the target and verified; guarant. = reported safety distance (smallest "
         "r_i + r_j); min d = verified minimum distance (lower bound over continuous time); "
         "gap = smallest (distance - r_i - r_j) over all pairs; N max = largest grid; "

@@ -73,9 +73,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--solver",
-        choices=("auto", "ipopt", "fatrop", "profile"),
+        choices=("auto", "ipopt", "fatrop", "profile", "profile+qp"),
         default="auto",
-        help="NLP solver (auto: IPOPT), or profile: path mode without an NLP (fast)",
+        help="NLP solver (auto: IPOPT), or profile: path mode without an NLP (fast), "
+        "profile+qp: the profile smoothed by a QP",
     )
     p.add_argument(
         "--stretch",

@@ -49,6 +49,8 @@ MODES = ("path", "corridor")
 #: zero-width windows are fixed variables, which its interior point handles badly), so
 #: falling back costs more than it saves; ``hierplan bench trajectory`` prints both.
 AUTO_SOLVERS: tuple[str, ...] = ("ipopt",)
+#: Path-mode solvers without an NLP: the profile, and the profile polished by a QP.
+PROFILE_SOLVERS = ("profile", "profile+qp")
 #: Largest stretch factor tried before giving up.
 MAX_STRETCH = 256.0
 #: Relative precision of the stretch factor.
@@ -636,8 +638,10 @@ def _check_options(**kw: Any) -> None:
     if kw["mode"] not in MODES:
         raise OptionError(f"unknown mode {kw['mode']!r} (use {', '.join(MODES)})")
     solver = kw["solver"]
-    if solver not in (*SOLVERS, "profile", "auto"):
-        raise OptionError(f"unknown solver {solver!r} (use auto, profile, {', '.join(SOLVERS)})")
+    if solver not in (*SOLVERS, *PROFILE_SOLVERS, "auto"):
+        raise OptionError(
+            f"unknown solver {solver!r} (use auto, profile, profile+qp, {', '.join(SOLVERS)})"
+        )
     for name in ("accel_weight", "time_weight", "step_weight", "corridor"):
         v = kw[name]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
@@ -703,12 +707,15 @@ def refine(
         ``path``: on the planned polyline, the schedule's safety distance carries over;
         ``corridor``: corners cut within ``corridor`` metres (double integrator only),
         the guarantee drops by ``2 * corridor``.
-    solver : {"auto", "ipopt", "fatrop", "profile"}
+    solver : {"auto", "ipopt", "fatrop", "profile", "profile+qp"}
         ``auto``: :data:`AUTO_SOLVERS` (IPOPT with MUMPS). ``profile`` (path mode only,
         one process): no NLP; knots at the stretched schedule's times, delayed inside
         their windows where needed, speeds from a forward and a backward pass
         (:mod:`hierplan_opt.trajectory.profile`); 20-30x faster, its stretch factor an
-        upper bound of the smallest.
+        upper bound of the smallest. ``profile+qp``: the profile's motion, then per robot
+        a convex QP on its fixed time grid (CasADi ``conic`` with HPIPM) that minimises
+        the integral of ``|a|^2`` (:mod:`hierplan_opt.trajectory.polish`); knot times,
+        windows and stretch are the profile's.
     split : float
         Share of each precedence's slack given to the earlier event (:func:`decouple`).
     stretch : None, "auto" or float >= 1
@@ -799,10 +806,12 @@ def refine(
     }
     t0 = time.perf_counter()
     found_stretch = None
-    if solver == "profile":
+    if solver in PROFILE_SOLVERS:
         if mode != "path":
-            raise OptionError("solver 'profile' works in mode='path' only")
+            raise OptionError(f"solver {solver!r} works in mode='path' only")
         outs, windows, found_stretch = _solve_profiles(paths, windows, stretch, net)
+        if solver == "profile+qp":
+            outs = [o if o is None else _polish(o, windows) for o in outs]
     else:
         # Path mode: every robot once with a free stretch factor of its windows (the
         # smallest factor that makes it feasible, 1 for most robots); corridor mode: f = 1.
@@ -867,6 +876,10 @@ def refine(
         "iterations_sum": sum(o["iterations"] for o in solves),
         "ipopt_fallbacks": sum(1 for o in solves if o["solver"] != solvers[0]),
     }
+    if solver == "profile+qp":
+        stats["qp_fallbacks"] = sum(1 for o in solves if not o["qp_ok"])
+        stats["accel_before"] = sum(o["accel_before"] for o in solves)
+        stats["accel_after"] = sum(o["accel_after"] for o in solves)
     if found_stretch is not None:
         stats["stretch_needed"] = found_stretch
     return Trajectories(
@@ -965,6 +978,29 @@ def _solve_profiles(
         if o is not None and not _feasible(o["X"], o["U"], path_bounds(o["pp"], windows)):
             raise HierplanError(f"profile solver: the motion of {paths[j].name} fails its checks")
     return outs, windows, found_stretch
+
+
+def _polish(o: dict, windows: Windows) -> dict:
+    """``solver="profile+qp"``: the profile's motion smoothed by the QP of
+    :mod:`hierplan_opt.trajectory.polish` (the profile's when the QP fails)."""
+    from hierplan_opt.trajectory.polish import polish
+
+    t0 = time.perf_counter()
+    r = polish(o["pp"], o["X"], o["U"], windows)
+    return dict(
+        o,
+        X=r.X,
+        U=r.U,
+        pp=r.pp,
+        N=r.pp.N,
+        wall=o["wall"] + time.perf_counter() - t0,
+        solver="profile+qp",
+        status=r.status,
+        qp_ok=r.ok,
+        qp_time=r.wall,
+        accel_before=r.before,
+        accel_after=r.after,
+    )
 
 
 def _unstretched(path: RobotPath, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
@@ -1272,6 +1308,9 @@ def _robot_result(path: RobotPath, o: dict | None, net: EventNetwork, j: int) ->
             "intervals": o["N"],
             "tries": o["tries"],
         }
+        for key in ("qp_ok", "qp_time", "accel_before", "accel_after"):
+            if key in o:
+                stats[key] = o[key]
     for v in arr.values():
         v.setflags(write=False)
     return RobotTrajectory(
