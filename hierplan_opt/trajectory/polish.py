@@ -133,6 +133,25 @@ def polish(pp: PathProblem, X: np.ndarray, U: np.ndarray, windows: Windows) -> P
     Falls back to the input (``ok`` False, ``status`` saying why) when the grid is
     larger than :data:`SIZES` allows or the QP's answer fails the same checks as the
     input, or is not better.
+
+    Example
+    -------
+    A 4 m line whose middle knot (2 m) must be passed in [3, 3.5] s, from rest to rest
+    in 6 s (``v_max = a_max = 1``): the profile's motion, then the QP's.
+
+    >>> from types import SimpleNamespace
+    >>> from hierplan_opt.trajectory import profile
+    >>> from hierplan_opt.trajectory.refine import Limits, RobotPath
+    >>> z = np.zeros((3, 2)); one = np.ones(2)
+    >>> path = RobotPath("r", "double_integrator", Limits(1.0, 1.0, np.inf, np.inf),
+    ...     np.array([0.0, 2.0, 4.0]), np.arange(3), np.array([True, False, True]),
+    ...     np.array([0.0, 3.0, 6.0]), z, np.zeros(2, bool), np.array([[1.0, 0], [1, 0]]),
+    ...     np.zeros(2), one, one, one, 0.0, np.arange(3), np.array([0.0, 2.0, 4.0]))
+    >>> lo, hi = np.array([0.0, 3.0, 0.0]), np.array([0.0, 3.5, np.inf])
+    >>> pr = profile.solve(path, 1.0, lo, hi)
+    >>> r = polish(pr.pp, pr.X, pr.U, SimpleNamespace(lo=lo, hi=hi, stretch=1.0))
+    >>> r.ok, round(r.before, 4), round(r.after, 4), float(r.X[2][r.pp.knot_node[1]])
+    (True, 0.963, 0.963, 3.0)
     """
     import casadi as ca
 
