@@ -14,7 +14,7 @@ from hierplan_opt.cli import main
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance, Kinematics
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.core.progress import Progress, active, note, reporting, tick
+from hierplan_opt.core.progress import Progress, active, note, reporting, tick, watching_highs
 from hierplan_opt.experiments.data import movingai_files
 from hierplan_opt.io.movingai import load_movingai
 
@@ -143,3 +143,39 @@ def test_post_and_refine_report_their_steps_and_robots() -> None:
         traj = refine(inst, sched, stretch="auto")
     assert p is not None and p.unit == "robots"
     assert p.completed == p.total == traj.num_agents == 2
+
+
+def test_highs_solves_show_their_own_figures(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    from hierplan_opt.schedule import postprocess
+
+    monkeypatch.setattr(progress_module, "CALLBACK_INTERVAL", 0.0)
+    mp, scen = movingai_files(SCEN)
+    inst = load_movingai(mp, scen, 6)
+    # the time-expanded MIP (HiGHS through Pyomo): its incumbent and bound as it runs
+    with (
+        caplog.at_level("INFO", logger="hierplan_opt.progress"),
+        reporting(Progress("solve mip", enabled=True, interval=0.0)) as p,
+    ):
+        r = hp.solve(inst, "mip")
+    assert p is not None and r.status is hp.Status.OPTIMAL
+    lines = [rec.getMessage() for rec in caplog.records]
+    assert any("mip_nodes" in ln and f"mip_primal {r.cost:g}" in ln for ln in lines[:-1])
+    assert p.fields["mip_primal"] == p.fields["mip_dual"] == r.cost
+    assert p.fields["mip_gap"] == 0.0 and p.fields["lp_iter"] > 0  # the LP relaxation ran
+    # the MAPF-POST LP, both back ends: simplex iterations while it runs
+    plan = hp.solve(load_movingai(mp, scen, K), "cbs").plan
+    for backend in ("pyomo", "highs"):
+        with reporting(Progress("post lp", enabled=False)) as p:
+            postprocess(load_movingai(mp, scen, K), plan, "safety", method="lp",
+                        lp_backend=backend)  # fmt: skip
+        assert p is not None and p.fields["lp_iter"] > 0, backend
+
+    # without an active progress the HiGHS object is not even looked at
+    class Untouchable:
+        def __getattr__(self, name: str) -> None:
+            raise AssertionError(f"callback {name} used without a progress")
+
+    with watching_highs(Untouchable()):
+        pass

@@ -281,3 +281,72 @@ def tick(unit: str, done: int, total: int | None = None, **fields: Any) -> None:
         progress.unit = unit
         shown = {k: v for k, v in fields.items() if v is not None}
         progress.update(completed=done, total=total, **shown)
+
+
+#: Seconds between two updates a solver callback makes (HiGHS calls back every few
+#: simplex iterations or branch-and-bound nodes).
+CALLBACK_INTERVAL = 0.2
+
+
+@contextmanager
+def watching_highs(highs: Any) -> Generator[None]:
+    """Show a running HiGHS solve on the active progress, with HiGHS' own figures:
+    branch-and-bound nodes, primal and dual bounds and gap of a MIP (``mip_nodes``,
+    ``mip_primal``, ``mip_dual``, ``mip_gap``), simplex or IPM iterations and objective
+    of an LP (``lp_iter``, ``lp_obj``).
+
+    ``highs`` is a ``highspy.Highs``; its interrupt callbacks update the progress at
+    most every :data:`CALLBACK_INTERVAL` seconds, and at once for every better
+    incumbent (figures HiGHS has not got yet, infinite bounds, are left out). Without
+    an active progress nothing is subscribed (no cost).
+    """
+    progress = _ACTIVE.get()
+    if progress is None:
+        yield
+        return
+    last = [-math.inf]
+
+    def due() -> bool:
+        now = time.perf_counter()
+        if now - last[0] < CALLBACK_INTERVAL:
+            return False
+        last[0] = now
+        return True
+
+    def finite(**figures: float) -> dict[str, Any]:
+        return {k: float(v) for k, v in figures.items() if math.isfinite(v)}
+
+    def on_mip(e: Any, force: bool = False) -> None:
+        if force or due():
+            out = e.data_out
+            progress.update(
+                mip_nodes=max(0, int(out.mip_node_count)),
+                **finite(
+                    mip_primal=out.mip_primal_bound,
+                    mip_dual=out.mip_dual_bound,
+                    mip_gap=out.mip_gap,
+                ),
+            )
+
+    def on_solution(e: Any) -> None:  # a better incumbent: shown at once
+        on_mip(e, force=True)
+
+    def on_lp(e: Any) -> None:
+        if due():
+            out = e.data_out
+            iters = max(int(out.simplex_iteration_count), int(out.ipm_iteration_count))
+            progress.update(lp_iter=iters, **finite(lp_obj=out.objective_function_value))
+
+    subscribed = [
+        (highs.cbMipInterrupt, on_mip),
+        (highs.cbMipImprovingSolution, on_solution),
+        (highs.cbSimplexInterrupt, on_lp),
+        (highs.cbIpmInterrupt, on_lp),
+    ]
+    for event, fn in subscribed:
+        event.subscribe(fn)
+    try:
+        yield
+    finally:
+        for event, fn in subscribed:
+            event.unsubscribe(fn)

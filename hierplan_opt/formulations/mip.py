@@ -24,6 +24,7 @@ import logging
 import math
 import time
 from collections.abc import Sequence
+from functools import partial
 from typing import Any, cast
 
 import numpy as np
@@ -31,6 +32,7 @@ import numpy as np
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import watching_highs
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.formulations.horizon import Outcome, solve_with
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
@@ -178,6 +180,8 @@ class MipBackend:
         m = model_of(net, objective)
         stats: dict = {"model_time": time.perf_counter() - t0}
         opt = _highs(seed)
+        opt.set_instance(m)  # builds the highspy model now, for the progress callbacks
+        watch = partial(watching_highs, opt._solver_model)  # Pyomo keeps it private
 
         def budget() -> None:
             if time_limit is not None:
@@ -187,7 +191,8 @@ class MipBackend:
             # The LP relaxation first: if it is infeasible, so is the MIP.
             _set_domain(m, relaxed=True)
             budget()
-            res = opt.solve(m)
+            with watch():
+                res = opt.solve(m)
             stats["lp_time"] = time.perf_counter() - t0 - stats["model_time"]
             stats["lp_status"] = res.termination_condition.name
             if _status(res.termination_condition) is Status.INFEASIBLE:
@@ -209,7 +214,8 @@ class MipBackend:
                 setattr(opt.update_config, flag, False)
             opt.update_variables(list(m.x.values()))
         budget()
-        res = opt.solve(m)
+        with watch():
+            res = opt.solve(m)
         tc = res.termination_condition
         stats["highs_status"] = tc.name
         bound = res.best_objective_bound

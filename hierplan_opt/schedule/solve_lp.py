@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import HierplanError, OptionError
+from hierplan_opt.core.progress import watching_highs
 from hierplan_opt.schedule.stn import PIECE, STN
 
 log = logging.getLogger(__name__)
@@ -190,9 +191,11 @@ def _solve_pyomo(
     opt.config.stream_solver = False
     # appsi copies HiGHS's log to its logger at INFO; keep it for -v (DEBUG) only.
     opt.config.log_level = logging.DEBUG
+    opt.set_instance(m)  # builds the highspy model now, for the progress callbacks
 
     def run() -> None:
-        res = opt.solve(m, load_solutions=False)
+        with watching_highs(opt._solver_model):  # Pyomo keeps it private
+            res = opt.solve(m, load_solutions=False)
         if not pyo.check_optimal_termination(res):
             tc = res.solver.termination_condition
             raise LPError(f"the LP was not solved to optimality (HiGHS via Pyomo: {tc})")
@@ -326,7 +329,8 @@ def _solve_highs(
     stats: dict[str, Any] = {"lp_build_time": time.perf_counter() - t_build, "lp_rows": r0}
 
     def run() -> np.ndarray:
-        h.run()
+        with watching_highs(h):
+            h.run()
         status = h.getModelStatus()
         if status != highspy.HighsModelStatus.kOptimal:
             raise LPError(
