@@ -179,3 +179,43 @@ def test_highs_solves_show_their_own_figures(
 
     with watching_highs(Untouchable()):
         pass
+
+
+def test_refine_shows_ipopt_iterations_bisection_steps_and_profile_robots(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    from hierplan_opt.schedule import postprocess
+    from hierplan_opt.trajectory import model, refine
+
+    monkeypatch.setattr(progress_module, "CALLBACK_INTERVAL", 0.0)
+    # 4 m at v_max 1, a_max 1: 5 s against a schedule of 4 s (stretch 5/4)
+    inst = Instance.mapf(
+        Graph.grid(5, 1), [(0, 0)], [(4, 0)], kinematics=Kinematics(v_max=1.0, a_max=1.0)
+    )
+    sched = postprocess(inst, Plan.from_paths([list(range(5))]), acceleration=False)
+    # one IPOPT solve: a line per iteration, the last one IPOPT's own count
+    with (
+        caplog.at_level("INFO", logger="hierplan_opt.progress"),
+        reporting(Progress("refine", enabled=True, interval=0.0)) as p,
+    ):
+        tr = refine(inst, sched, stretch=1.3, solver="ipopt")
+    iterations = tr.robots[0].stats["iterations"]
+    assert p is not None and p.fields["nlp_iter"] == iterations > 2
+    shown = [
+        int(ln.split("nlp_iter ")[1].split(",")[0]) for ln in caplog.messages if "nlp_iter" in ln
+    ]
+    assert shown[: iterations + 1] == list(range(iterations + 1))
+    # the stretch search: its bisection steps around 5/4
+    with reporting(Progress("refine", enabled=False)) as p:
+        tr = refine(inst, sched, stretch="auto", solver="ipopt")
+    assert p is not None and p.unit == "stretch steps" and p.completed >= 1
+    assert p.fields["robot"] == "agent0" and abs(p.fields["stretch"] - 1.25) < 0.01
+    # the profile solver: per robot, with the fleet's factor
+    with reporting(Progress("refine", enabled=False)) as p:
+        tr = refine(inst, sched, stretch="auto", solver="profile")
+    assert p is not None and (p.unit, p.completed, p.total) == ("robots", 1, 1)
+    assert tr.stretch is not None and p.fields["stretch"] * sched.makespan >= 5.0 - 1e-6
+    # without a progress: the problem built without the callback
+    model.clear_cache()
+    refine(inst, sched, stretch=1.3, solver="ipopt")
+    assert model._CACHE and all(not key[-1] for key in model._CACHE)

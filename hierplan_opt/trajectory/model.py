@@ -25,6 +25,7 @@ fatrop detect the optimal-control structure.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from dataclasses import dataclass, field
@@ -32,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from hierplan_opt.core import progress as _progress
 from hierplan_opt.core.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -78,6 +80,7 @@ class OCP:
     nparam: int
     function: Any = field(repr=False)
     build_time: float = 0.0
+    watcher: Any = field(default=None, repr=False)  # IPOPT's iteration callback
 
     def pack(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
         N, nx, nu = self.N, self.nx, self.nu
@@ -119,6 +122,8 @@ class OCP:
         ubg: np.ndarray | float = 0.0,
     ) -> SolveResult:
         t0 = time.perf_counter()
+        if self.watcher is not None:
+            self.watcher.iterations = 0
         out = self.function(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg, p=p)
         wall = time.perf_counter() - t0
         st = self.function.stats()
@@ -147,6 +152,58 @@ class SolveResult:
 
 _CACHE: dict[tuple, OCP] = {}
 _LOCK = threading.Lock()
+
+
+def _watched(solver: str) -> bool:
+    """Whether a problem gets IPOPT's iteration callback: only while a progress is
+    active (a separate build, so solves without a progress pay nothing); fatrop does
+    not call it."""
+    return solver == "ipopt" and _progress.active() is not None
+
+
+def _nlpsol(name: str, solver: str, nlp: dict, options: dict, watched: bool) -> tuple[Any, Any]:
+    """``casadi.nlpsol``, with an iteration callback showing IPOPT's iteration and
+    objective on the active progress (``nlp_iter``, ``nlp_obj``) when ``watched``."""
+    import casadi as ca
+
+    if not watched:
+        return ca.nlpsol(name, solver, nlp, options), None
+    sizes = {"x": nlp["x"].numel(), "g": nlp["g"].numel(), "p": nlp["p"].numel(), "f": 1}
+
+    class Watcher(ca.Callback):
+        def __init__(self) -> None:
+            ca.Callback.__init__(self)
+            self.iterations = 0
+            self.last = -math.inf
+            self.construct(f"{name}_progress", {})
+
+        def get_n_in(self) -> int:
+            return ca.nlpsol_n_out()
+
+        def get_n_out(self) -> int:
+            return 1
+
+        def get_name_in(self, i: int) -> str:
+            return ca.nlpsol_out(i)
+
+        def get_name_out(self, i: int) -> str:
+            return "ret"
+
+        def get_sparsity_in(self, i: int) -> Any:
+            return ca.Sparsity.dense(sizes[ca.nlpsol_out(i).removeprefix("lam_")], 1)
+
+        def eval(self, arg: Any) -> list[int]:
+            self.iterations += 1
+            now = time.perf_counter()
+            progress = _progress.active()
+            if progress is not None and now - self.last >= _progress.CALLBACK_INTERVAL:
+                self.last = now
+                progress.update(nlp_iter=self.iterations - 1, nlp_obj=float(arg[1]))
+            return [0]
+
+    watcher = Watcher()
+    fn = ca.nlpsol(name, solver, nlp, {**options, "iteration_callback": watcher})
+    return fn, watcher
 
 
 def _options(solver: str, nx: int, N: int, ng_stage: int) -> dict[str, Any]:
@@ -207,7 +264,7 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     >>> ocp.nx, ocp.nu, ocp.N, ocp.ng_stage
     (4, 2, 8, 2)
     """
-    key = ("path", N, solver)
+    key = ("path", N, solver, _watched(solver))
     with _LOCK:
         if key in _CACHE:
             return _CACHE[key]
@@ -232,8 +289,9 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     # ---- objective: acceleration energy, arrival time, even steps, stretch --------------
     J = w[0] * ca.sum2(a * a * h) + w[1] * x_end[2] + w[2] * ca.sum2(h * h) + w[3] * x_end[3]
     nlp = {"x": z, "p": ca.vertcat(w, lo.T, hi.T), "f": J, "g": g}
-    fn = ca.nlpsol(f"path_{N}_{solver}", solver, nlp, _options(solver, 4, N, 2))
-    ocp = OCP("path", solver, N, 4, 2, 2, 4 + 2 * (N + 1), fn, time.perf_counter() - t0)
+    options = _options(solver, 4, N, 2)
+    fn, watcher = _nlpsol(f"path_{N}_{solver}", solver, nlp, options, key[-1])
+    ocp = OCP("path", solver, N, 4, 2, 2, 4 + 2 * (N + 1), fn, time.perf_counter() - t0, watcher)
     log.debug("built %s in %.3f s", fn.name(), ocp.build_time)
     with _LOCK:
         return _CACHE.setdefault(key, ocp)
@@ -265,7 +323,7 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     >>> corridor_ocp(8, 2, "ipopt").ng_stage
     6
     """
-    key = ("corridor", N, dim, solver)
+    key = ("corridor", N, dim, solver, _watched(solver))
     with _LOCK:
         if key in _CACHE:
             return _CACHE[key]
@@ -312,10 +370,11 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     J = w[0] * ca.sum2(ca.sum1(a * a) * h) + w[1] * x_end[2 * dim]
     nlp = {"x": z, "p": ca.vertcat(ca.vec(P), w), "f": J, "g": g}
     ng = len(CORRIDOR_ROWS)
-    fn = ca.nlpsol(f"corridor{dim}_{N}_{solver}", solver, nlp, _options(solver, nx, N, ng))
+    options = _options(solver, nx, N, ng)
+    fn, watcher = _nlpsol(f"corridor{dim}_{N}_{solver}", solver, nlp, options, key[-1])
     ocp = OCP(
         f"corridor{dim}", solver, N, nx, nu, ng, npar_stage * (N + 1) + 2, fn,
-        time.perf_counter() - t0,
+        time.perf_counter() - t0, watcher,
     )  # fmt: skip
     log.debug("built %s in %.3f s", fn.name(), ocp.build_time)
     with _LOCK:

@@ -911,6 +911,7 @@ def _solve_profiles(
     failed: list[tuple[int, int]] = []
     best = 1.0
     for j, path in enumerate(paths):
+        tick("robots", j, len(paths), stretch=best if stretch == "auto" else None)
         if path.num_pieces == 0:
             continue
         t0 = time.perf_counter()
@@ -946,6 +947,7 @@ def _solve_profiles(
             "tries": (),
             "N": pr.pp.N if pr.pp is not None else 0,
         }
+    tick("robots", len(paths), len(paths), stretch=best if stretch == "auto" else None)
     if failed:
         j, k = failed[0]
         path = paths[j]
@@ -1179,6 +1181,7 @@ def smallest_stretch(
     known_sols = list(known_sols) if known_sols is not None else [None] * n
     order = sorted(range(n), key=lambda i: -(known[i] or 0.0))
     best = 1.0
+    steps = 0  # bisection steps, shown on the active progress
     sols: list[tuple[float, dict | None]] = [(1.0, None)] * n
     for i in order:
         path, fk = paths[i], known[i]
@@ -1210,6 +1213,8 @@ def smallest_stretch(
             mid = max(hi / (1.0 + STRETCH_RTOL), lo) if probe else 0.5 * (lo + hi)
             first = False
             o_mid = _solve_at(path, windows, opts, mid)
+            steps += 1
+            tick("stretch steps", steps, robot=path.name, stretch=mid, feasible=_ok(o_mid))
             if _ok(o_mid):
                 hi, o, o_at = mid, o_mid, None
             else:
