@@ -24,7 +24,7 @@ from pebble_bruteforce import distances_from, reachability_classes, shortest_pla
 
 import hierplan_opt
 from hierplan_opt import Agent, Graph, Instance
-from hierplan_opt.core.feasibility import makespan_upper_bound, quick_infeasibility
+from hierplan_opt.core.feasibility import makespan_upper_bound, one_by_one, quick_infeasibility
 from hierplan_opt.core.pebble_motion import arrangement_key, arrangement_violation
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Status
@@ -222,6 +222,29 @@ def test_exact_on_every_graph_up_to_4_vertices_and_some_shapes() -> None:
         n = G.number_of_nodes()
         count += check_partition(G, range(max(1, n - 2), n + 1), rng)
     assert count > 10_000
+
+
+def test_one_by_one_only_says_yes_when_brute_force_agrees() -> None:
+    # The shortcut the exact test is skipped for must never accept an unsolvable
+    # placement; it should accept a fair share of the solvable ones.
+    rng = random.Random(3)
+    graphs = [G for G in nx.graph_atlas_g()[1:] if nx.is_connected(G) and G.number_of_nodes() <= 5]
+    graphs += [G for name, G in shapes() if G.number_of_nodes() <= 7]
+    said_yes = solvable = 0
+    for G in graphs:
+        g = as_graph(G)
+        for k in range(1, min(4, g.n) + 1):
+            comp = reachability_classes(g.adj, k)
+            confs = list(comp)
+            for a, b in (rng.sample(confs, 2) for _ in range(min(30, len(confs) // 2))):
+                yes = one_by_one(g.adj, list(a), list(b))
+                solvable += comp[a] == comp[b]
+                if yes:
+                    said_yes += 1
+                    assert comp[a] == comp[b], (sorted(G.edges()), a, b)
+                    inst = Instance.mapf(g, [str(v) for v in a], [str(v) for v in b])
+                    assert quick_infeasibility(inst) is None
+    assert said_yes > 200 and solvable > said_yes
 
 
 @pytest.mark.slow
