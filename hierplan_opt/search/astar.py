@@ -30,6 +30,8 @@ from hierplan_opt.search.reservations import Reservations
 
 #: Third heap key of a final-arrival entry (smaller than any ``-t``).
 TERMINAL = -(1 << 50)
+#: ``best`` value of an expanded state (below every conflict count).
+CLOSED = -1
 
 
 # This function and focal.focal_path are the two hot inner loops of the solvers: their
@@ -114,8 +116,9 @@ def space_time_astar(
     # Heap entries: (f, conflicts, -t or TERMINAL, seq, v, t, parent entry). A final
     # arrival sorts before every other entry with the same f and conflicts.
     open_heap: list[tuple] = [(h0, 0, 0, 0, start, 0, None)]
-    best: dict[int, int] = {start: 0}  # fewest conflicts seen per state key
-    closed: set[int] = set()
+    # Fewest conflicts seen per state key; CLOSED (below every count) once expanded, so
+    # one lookup serves both tests.
+    best: dict[int, int] = {start: 0}
     expanded = 0
     limit = node_limit if node_limit is not None else -1
     cnt = 0
@@ -132,9 +135,9 @@ def space_time_astar(
             path.reverse()
             return tuple(path), expanded
         key = (t if t < tcap else tcap) * n + v
-        if key in closed:
+        if best.get(key) == CLOSED:
             continue
-        closed.add(key)
+        best[key] = CLOSED
         expanded += 1
         if expanded == limit:
             return None, expanded
@@ -195,8 +198,6 @@ def space_time_astar(
                 cnt += 1
                 heappush(open_heap, (t1, c, TERMINAL, cnt, u, t1, entry))
             ku = keyt1 + u
-            if ku in closed:
-                continue
             old = best.get(ku)
             if old is not None and old <= c:
                 continue
