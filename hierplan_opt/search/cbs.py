@@ -223,7 +223,11 @@ class _CBS:
     def plan(
         self, a: int, cons: AgentConstraints, paths: list[tuple[int, ...]]
     ) -> tuple[int, ...] | None:
-        """Agent ``a``'s shortest path under ``cons``, fewest conflicts with ``paths``."""
+        """Agent ``a``'s shortest path under ``cons``, fewest conflicts with ``paths``.
+
+        Leaves ``a`` out of the shared table: the caller's next ``sync`` puts in the
+        path it keeps (the new one), so the old path is not re-added only to be dropped.
+        """
         res = None
         if self.k > 1:
             res = self._cat
@@ -238,8 +242,6 @@ class _CBS:
             res=res,
             dist_of=self.dist_of,
         )
-        if res is not None:
-            res.add(a, paths[a])  # restore: the table again holds every path
         st = self.stats
         st["low_level_calls"] += 1
         st["low_level_expanded"] += exp
