@@ -147,16 +147,20 @@ def space_time_astar(
         base = t1 * n
         keyt1 = (t1 if t1 < tcap else tcap) * n
         negt1 = -t1
-        lm_need = lms.get(t1) if lms else None
+        cands = succ[v]
+        if lms:
+            lm_need = lms.get(t1)
+            if lm_need is not None:  # a landmark at t1: the only move is onto it
+                cands = (lm_need,) if lm_need in cands else ()
         nl = nxt[t1] if t1 < n_lm else None
-        for u in succ[v]:
+        bv = (base + v) * n  # + u: the key of the move v -> u arriving at t1
+        mt = minf - t1
+        for u in cands:
             # The rule of constraints.Moves (which the MDDs use), written out: a call per
             # expansion made CBS about 25 % slower on `hierplan bench cbs`.
-            if lm_need is not None and u != lm_need:
-                continue
             if base + u in vc:
                 continue
-            if ec and u != v and ((base + v) * n + u) in ec:
+            if ec and u != v and bv + u in ec:
                 continue
             if ff and u in ff and t1 >= ff[u]:
                 continue
@@ -169,8 +173,8 @@ def space_time_astar(
                     continue
                 if hb - t1 > hu:
                     hu = hb - t1
-            if minf - t1 > hu:
-                hu = minf - t1
+            if mt > hu:
+                hu = mt
             fu = t1 + hu
             if fu > maxf:
                 continue
@@ -186,7 +190,7 @@ def space_time_astar(
                 # textbook table; measured on `hierplan bench cbs` it gives fewer
                 # high-level nodes but more low-level work (warehouse, 100 agents: 59 %
                 # more expansions), so the established tie-break is kept.
-                if u != v and ((base + v) * n + u) in et:
+                if u != v and bv + u in et:
                     c += 1
             # A move into the goal (not a wait there) may be the final arrival.
             if (
