@@ -82,31 +82,36 @@ def build_mdd(
         return MDD([{start: []}], 0, goal)
     moves = Moves(adj, goal, dist, cons, dist_of)
     fwd: list[dict[int, list[int]]] = [{start: []}]
-    for t in range(1, cost + 1):
+    for t in range(1, cost):
         cur: dict[int, list[int]] = {}
-        last = t == cost
+        slack = cost - t  # a move on must still arrive by ``cost``: h <= slack
         prev = fwd[t - 1]
-        for (v, kids), mv in zip(prev.items(), moves.layer(list(prev), t), strict=True):
+        for kids, mv in zip(prev.values(), moves.layer(list(prev), t), strict=True):
             for u, hu in mv:
-                if last and (u != goal or v == goal):
-                    continue
-                if t + hu > cost:
-                    continue
-                kids.append(u)
-                if u not in cur:
-                    cur[u] = []
+                if hu <= slack:
+                    kids.append(u)
+                    if u not in cur:
+                        cur[u] = []
         fwd.append(cur)
+    # The last level: only the final arrival (a move into the goal, not a wait there).
+    prev = fwd[cost - 1]
+    for (v, kids), mv in zip(prev.items(), moves.layer(list(prev), cost), strict=True):
+        if v != goal:
+            for u, hu in mv:
+                if u == goal and hu <= 0:
+                    kids.append(u)
     # Backward pass: keep only nodes that lead to the goal at level ``cost``.
     levels: list[dict[int, list[int]]] = [{} for _ in range(cost + 1)]
-    if goal in fwd[cost]:
+    if any(prev.values()):
         levels[cost][goal] = []
     for t in range(cost - 1, -1, -1):
         nxt = levels[t + 1]
         lv = levels[t]
         for v, kids in fwd[t].items():
-            keep = [u for u in kids if u in nxt]
-            if keep:
-                lv[v] = keep
+            if kids:
+                keep = [u for u in kids if u in nxt]
+                if keep:
+                    lv[v] = keep
     return MDD(levels, cost, goal)
 
 
