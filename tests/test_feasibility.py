@@ -24,8 +24,8 @@ from pebble_bruteforce import distances_from, reachability_classes, shortest_pla
 
 import hierplan_opt
 from hierplan_opt import Agent, Graph, Instance
-from hierplan_opt.core.feasibility import makespan_upper_bound, one_by_one, quick_infeasibility
-from hierplan_opt.core.pebble_motion import arrangement_key, arrangement_violation
+from hierplan_opt.core.feasibility import makespan_upper_bound, quick_infeasibility
+from hierplan_opt.core.pebble_motion import arrangement_key, arrangement_violation, one_by_one
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Status
 from hierplan_opt.core.validate import validate

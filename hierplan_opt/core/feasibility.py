@@ -13,13 +13,17 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Sequence
 
 import numpy as np
 
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.core.pebble_motion import PebbleStructure, Violation, arrangement_violation
+from hierplan_opt.core.pebble_motion import (
+    PebbleStructure,
+    Violation,
+    arrangement_violation,
+    one_by_one,
+)
 
 
 def quick_infeasibility(instance: Instance) -> str | None:
@@ -89,60 +93,6 @@ def quick_infeasibility(instance: Instance) -> str | None:
         return None
     why = _pebble_violation(instance)
     return None if why is None else _describe(instance, why)
-
-
-def one_by_one(adj: Sequence[Sequence[int]], starts: Sequence[int], goals: Sequence[int]) -> bool:
-    """Whether the agents can reach their goals one at a time: a cheap *sufficient* test.
-
-    True when no agent's goal is another agent's start (starts distinct, goals distinct)
-    and every moving agent has a route from its start to its goal whose inner vertices
-    are nobody's start or goal (an *endpoint*): a direct edge, or two neighbours in one
-    component of the graph without the endpoints. Then a plan exists: the agents move
-    in turn along their routes while every other agent waits at its start or already
-    stands on its goal -- all endpoints, so off the route, and the goal is free because
-    it is nobody else's start or goal (the well-formed instances of Cap et al. 2015).
-    O(vertices + edges): one labelling of the endpoint-free components. False says
-    nothing (the exact test decides).
-
-    Example
-    -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> g = Graph.grid(3, 2)
-    >>> one_by_one(g.adj, [0, 2], [3, 5])  # two columns, the middle one free
-    True
-    >>> one_by_one(Graph.grid(4, 1).adj, [0, 1], [3, 2])  # must pass in a corridor
-    False
-    """
-    k = len(starts)
-    start_set, goal_set = set(starts), set(goals)
-    if len(start_set) != k or len(goal_set) != k:
-        return False
-    moving = [(s, t) for s, t in zip(starts, goals, strict=True) if s != t]
-    if any(s in goal_set or t in start_set for s, t in moving):
-        return False
-    ends = start_set | goal_set
-    comp = [-1] * len(adj)
-    label = 0
-    for s, t in moving:
-        if t in adj[s]:
-            continue
-        # Label the endpoint-free components around s (lazily: most routes need one).
-        for x in adj[s]:
-            if x in ends or comp[x] >= 0:
-                continue
-            comp[x] = label
-            stack = [x]
-            while stack:
-                y = stack.pop()
-                for z in adj[y]:
-                    if comp[z] < 0 and z not in ends:
-                        comp[z] = label
-                        stack.append(z)
-            label += 1
-        near = {comp[x] for x in adj[s] if comp[x] >= 0}
-        if not any(comp[x] in near for x in adj[t]):
-            return False
-    return True
 
 
 def _colouring(instance: Instance) -> tuple[list[int], list[int], list[int], list[int]]:

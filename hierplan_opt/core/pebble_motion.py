@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import weakref
 from collections import Counter
-from collections.abc import Hashable, Sequence
+from collections.abc import Hashable, Iterable, Sequence
 from dataclasses import dataclass
 
 from hierplan_opt.core.graph import Graph
@@ -774,17 +774,69 @@ def arrangement_key(graph: Graph, positions: Sequence[int]) -> tuple:
     return tuple(key)
 
 
-def _component_labels(adj: Sequence[Sequence[int]]) -> list[int]:
+def one_by_one(adj: Sequence[Sequence[int]], starts: Sequence[int], goals: Sequence[int]) -> bool:
+    """Whether the agents can reach their goals one at a time: a cheap *sufficient* test.
+
+    True when no agent's goal is another agent's start (starts distinct, goals distinct)
+    and every moving agent has a route from its start to its goal whose inner vertices
+    are nobody's start or goal (an *endpoint*): a direct edge, or two neighbours in one
+    component of the graph without the endpoints. Then a plan exists: the agents move
+    in turn along their routes while every other agent waits at its start or already
+    stands on its goal -- all endpoints, so off the route, and the goal is free because
+    it is nobody else's start or goal (the well-formed instances of Cap et al. 2015).
+    O(vertices + edges): one labelling of the endpoint-free components. False says
+    nothing (the exact test decides).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(3, 2)
+    >>> one_by_one(g.adj, [0, 2], [3, 5])  # two columns, the middle one free
+    True
+    >>> one_by_one(Graph.grid(4, 1).adj, [0, 1], [3, 2])  # must pass in a corridor
+    False
+    """
+    k = len(starts)
+    start_set, goal_set = set(starts), set(goals)
+    if len(start_set) != k or len(goal_set) != k:
+        return False
+    moving = [(s, t) for s, t in zip(starts, goals, strict=True) if s != t]
+    if any(s in goal_set or t in start_set for s, t in moving):
+        return False
+    ends = start_set | goal_set
+    # The endpoint-free components next to the moving agents' starts.
+    comp = _component_labels(adj, (x for s, _ in moving for x in adj[s]), ends)
+    for s, t in moving:
+        if t in adj[s]:
+            continue
+        near = {comp[x] for x in adj[s] if comp[x] >= 0}
+        if not any(comp[x] in near for x in adj[t]):
+            return False
+    return True
+
+
+def _component_labels(
+    adj: Sequence[Sequence[int]], roots: Iterable[int] | None = None, blocked: Iterable[int] = ()
+) -> list[int]:
     """A component label per vertex of an undirected graph (scipy-free).
+
+    With ``blocked``: of the graph without those vertices; with ``roots``: only the
+    components of these vertices. Vertices left out keep the label -1.
 
     Example
     -------
     >>> _component_labels([[1], [0], [], [4], [3]])
     [0, 0, 1, 2, 2]
+    >>> _component_labels([[1], [0, 2], [1, 3], [2]], roots=[3], blocked=[1])
+    [-1, -1, 0, 0]
     """
-    labels = [-1] * len(adj)
+    n = len(adj)
+    labels = [-1] * n
+    out = list(blocked)
+    for v in out:
+        labels[v] = n  # not a component label: never entered, reset below
     c = 0
-    for s in range(len(adj)):
+    for s in range(n) if roots is None else roots:
         if labels[s] >= 0:
             continue
         labels[s] = c
@@ -796,6 +848,8 @@ def _component_labels(adj: Sequence[Sequence[int]]) -> list[int]:
                     labels[w] = c
                     stack.append(w)
         c += 1
+    for v in out:
+        labels[v] = -1
     return labels
 
 
