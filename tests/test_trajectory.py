@@ -441,6 +441,29 @@ def test_verifier_catches_broken_trajectories() -> None:
     # A claim the motion does not keep.
     rep = verify(replace(tr, safety_distance=5.0), inst)
     assert not rep.ok and "they must keep" in rep.problems[-1]
+    # A robot standing at its goal after it arrives is checked there as on the way:
+    # the same report when the rest is an explicit piece of motion up to the makespan.
+    H = 2 * tr.makespan
+    for r in (r0, fast):
+        z = np.zeros((1, r.p.shape[1]))
+        held = replace(
+            r,
+            t=np.append(r.t, H),
+            p=np.vstack([r.p, r.p[-1:]]),
+            v=np.vstack([r.v, z]),
+            a=np.vstack([r.a, z]),
+            theta=np.append(r.theta, r.theta[-1]),
+            omega=np.append(r.omega, 0.0),
+            alpha=np.append(r.alpha, 0.0),
+        )
+        reps = [verify(replace(tr, robots=(x, *tr.robots[1:])), inst) for x in (r, held)]
+        a_, b_ = (
+            (x.ok, x.num_problems, x.min_distance, x.min_time, x.worst_gap, x.max_speed_ratio)
+            for x in reps
+        )
+        assert a_ == pytest.approx(b_, abs=1e-12)
+        assert reps[0].max_accel_ratio == pytest.approx(reps[1].max_accel_ratio)
+        assert reps[0].max_path_error == pytest.approx(reps[1].max_path_error, abs=1e-12)
 
 
 def test_output_files(tmp_path) -> None:

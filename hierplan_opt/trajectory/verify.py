@@ -38,7 +38,7 @@ import numpy as np
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.schedule.geometry import segment_distance
-from hierplan_opt.trajectory.result import Trajectories
+from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories
 
 #: Default sampling step (seconds).
 DEFAULT_DT = 0.02
@@ -153,9 +153,14 @@ def verify(
                 lim["omega_max"] = float(k.omega_max) if k.omega_max else math.inf
         vmax[j] = lim["v_max"]
         amax[j] = float(np.linalg.norm(r.a, axis=1).max(initial=0.0)) if len(r.a) else 0.0
-        st = r.state(ts)
+        # After its last piece (and last event) a robot stands still: the samples from
+        # there on are copies of one sample, so the checks below run on the prefix up to
+        # two samples past that point (every distinct value) and the rest is filled in.
+        m = min(S, int(np.searchsorted(ts, _rest_time(r), side="left")) + 2)
+        st = r.state(ts[:m])
         P = st["p"]
-        positions[:, j] = P
+        positions[:m, j] = P
+        positions[m:, j] = P[-1]
         # ---- continuity of the pieces (bounds the finite-difference error) ---------------
         h = np.diff(r.t)
         if len(h):
@@ -220,10 +225,10 @@ def verify(
         for i in np.flatnonzero(off > allowed).tolist():
             bad(f"{net.where(int(ev[i]))}: the robot is {off[i]:.3g} m away when it passes it")
         path_err = max(path_err, float(np.max(off - corridor, initial=0.0)))
-        seg = np.clip(np.searchsorted(et, ts, side="right") - 1, 0, max(len(ev) - 2, 0))
+        seg = np.clip(np.searchsorted(et, ts[:m], side="right") - 1, 0, max(len(ev) - 2, 0))
         if len(ev) > 1:
             if corridor > 0:
-                dist = np.full(S, np.inf)
+                dist = np.full(m, np.inf)
                 for shift in (-1, 0, 1):
                     s2 = np.clip(seg + shift, 0, len(ev) - 2)
                     d = segment_distance(P, P, Pe[s2], Pe[s2 + 1])
@@ -330,3 +335,12 @@ def _required(traj: Trajectories, instance: Instance | None) -> np.ndarray:
     out = out.reshape(K, K).copy()
     np.fill_diagonal(out, 0.0)
     return out
+
+
+def _rest_time(r: RobotTrajectory) -> float:
+    """The time from which ``r`` stands still at its last position (its last piece and
+    its last event are over; :meth:`RobotTrajectory.state` holds the position)."""
+    last = float(r.t[-1]) if len(r.t) else 0.0
+    if len(r.event_times):
+        last = max(last, float(np.max(r.event_times)))
+    return last
