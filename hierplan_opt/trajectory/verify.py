@@ -37,7 +37,6 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.schedule.geometry import segment_distance
 from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories
 
 #: Default sampling step (seconds).
@@ -231,10 +230,10 @@ def verify(
                 dist = np.full(m, np.inf)
                 for shift in (-1, 0, 1):
                     s2 = np.clip(seg + shift, 0, len(ev) - 2)
-                    d = segment_distance(P, P, Pe[s2], Pe[s2 + 1])
+                    d = _point_segment(P, Pe[s2], Pe[s2 + 1])
                     dist = np.minimum(dist, d)
             else:
-                dist = segment_distance(P, P, Pe[seg], Pe[seg + 1])
+                dist = _point_segment(P, Pe[seg], Pe[seg + 1])
             err = float(dist.max()) - corridor
             path_err = max(path_err, err)
             if err > 1e-5:
@@ -344,3 +343,14 @@ def _rest_time(r: RobotTrajectory) -> float:
     if len(r.event_times):
         last = max(last, float(np.max(r.event_times)))
     return last
+
+
+def _point_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise distances of the points ``p`` from the segments ``ab`` (the closest
+    point of a segment is the clipped projection; a zero-length segment is its point)."""
+    u = b - a
+    d = p - a
+    uu = np.einsum("ij,ij->i", u, u)
+    s = np.clip(np.einsum("ij,ij->i", d, u) / np.where(uu > 0, uu, 1.0), 0.0, 1.0)
+    w = d - u * s[:, None]
+    return np.sqrt(np.einsum("ij,ij->i", w, w))
