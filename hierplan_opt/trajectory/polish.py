@@ -141,12 +141,8 @@ def polish(pp: PathProblem, X: np.ndarray, U: np.ndarray, windows: Windows) -> P
 
     >>> from types import SimpleNamespace
     >>> from hierplan_opt.trajectory import profile
-    >>> from hierplan_opt.trajectory.refine import Limits, RobotPath
-    >>> z = np.zeros((3, 2)); one = np.ones(2)
-    >>> path = RobotPath("r", "double_integrator", Limits(1.0, 1.0, np.inf, np.inf),
-    ...     np.array([0.0, 2.0, 4.0]), np.arange(3), np.array([True, False, True]),
-    ...     np.array([0.0, 3.0, 6.0]), z, np.zeros(2, bool), np.array([[1.0, 0], [1, 0]]),
-    ...     np.zeros(2), one, one, one, 0.0, np.arange(3), np.array([0.0, 2.0, 4.0]))
+    >>> from hierplan_opt.trajectory.refine import RobotPath
+    >>> path = RobotPath.straight([0.0, 2.0, 4.0], [0.0, 3.0, 6.0], [True, False, True])
     >>> lo, hi = np.array([0.0, 3.0, 0.0]), np.array([0.0, 3.5, np.inf])
     >>> pr = profile.solve(path, 1.0, lo, hi)
     >>> r = polish(pr.pp, pr.X, pr.U, SimpleNamespace(lo=lo, hi=hi, stretch=1.0))

@@ -224,12 +224,8 @@ def solve(
     A 4 m line whose middle knot (2 m) must be passed in [3, 3.5] s; the schedule says
     3 s there and 6 s at the end:
 
-    >>> from hierplan_opt.trajectory.refine import Limits, RobotPath
-    >>> z = np.zeros((3, 2)); one = np.ones(2)
-    >>> path = RobotPath("r", "double_integrator", Limits(1.0, 1.0, np.inf, np.inf),
-    ...     np.array([0.0, 2.0, 4.0]), np.arange(3), np.array([True, False, True]),
-    ...     np.array([0.0, 3.0, 6.0]), z, np.zeros(2, bool), np.array([[1.0, 0], [1, 0]]),
-    ...     np.zeros(2), one, one, one, 0.0, np.arange(3), np.array([0.0, 2.0, 4.0]))
+    >>> from hierplan_opt.trajectory.refine import RobotPath
+    >>> path = RobotPath.straight([0.0, 2.0, 4.0], [0.0, 3.0, 6.0], [True, False, True])
     >>> pr = solve(path, 1.0, np.array([0.0, 3.0, 0.0]), np.array([0.0, 3.5, np.inf]))
     >>> pr.ok, float(pr.X[2][pr.pp.knot_node[1]]), float(pr.X[2][-1])
     (True, 3.0, 6.0)

@@ -125,6 +125,49 @@ class RobotPath:
     def num_pieces(self) -> int:
         return len(self.knot_sigma) - 1
 
+    @classmethod
+    def straight(
+        cls,
+        sigma: Sequence[float],
+        t: Sequence[float],
+        stop: Sequence[bool],
+        v_max: float = 1.0,
+        a_max: float = 1.0,
+    ) -> RobotPath:
+        """An omni-directional robot on a straight line along x (for examples): knots at
+        ``sigma`` metres, scheduled at times ``t``, at rest where ``stop``.
+
+        Example
+        -------
+        >>> p = RobotPath.straight([0.0, 2.0, 4.0], [0.0, 3.0, 6.0], [True, False, True])
+        >>> p.num_pieces, p.knot_pos[:, 0].tolist()
+        (2, [0.0, 2.0, 4.0])
+        """
+        s = np.asarray(sigma, dtype=float)
+        m = len(s)
+        pos = np.zeros((m, 2))
+        pos[:, 0] = s
+        ones = np.ones(m - 1)
+        return cls(
+            "r",
+            "double_integrator",
+            Limits(v_max, a_max, np.inf, np.inf),
+            s,
+            np.arange(m),
+            np.asarray(stop, dtype=bool),
+            np.asarray(t, dtype=float),
+            pos,
+            np.zeros(m - 1, dtype=bool),
+            np.tile([1.0, 0.0], (m - 1, 1)),
+            np.zeros(m - 1),
+            ones,
+            v_max * ones,
+            a_max * ones,
+            0.0,
+            np.arange(m),
+            s.copy(),
+        )
+
 
 def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
