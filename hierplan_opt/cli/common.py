@@ -254,6 +254,17 @@ def positive_float(text: str) -> float:
     return value
 
 
+def fraction(text: str) -> float:
+    """argparse type: a number in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
+    return value
+
+
 def one_line_errors(p: argparse.ArgumentParser, command: str) -> None:
     """Make usage errors of a subcommand one line on stderr (exit code 2, no usage dump).
 

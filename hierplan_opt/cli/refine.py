@@ -13,6 +13,7 @@ from hierplan_opt.cli.common import (
     PLAN_INVALID,
     add_instance_arguments,
     add_progress_arguments,
+    fraction,
     positive_float,
     positive_int,
     progress_of,
@@ -34,16 +35,6 @@ def _stretch(text: str) -> float | str:
         ) from None
     if not math.isfinite(value) or value < 1:
         raise argparse.ArgumentTypeError(f"expected 'auto' or a number >= 1, got {text!r}")
-    return value
-
-
-def _fraction(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"expected a number in [0, 1], got {text!r}")
     return value
 
 
@@ -88,7 +79,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--a-max", type=positive_float, help="acceleration limit for robots without one")
     p.add_argument("--alpha-max", type=positive_float, help="turn acceleration limit of unicycles")
     p.add_argument(
-        "--split", type=_fraction, default=0.5, help="slack share of the earlier event (0.5)"
+        "--split", type=fraction, default=0.5, help="slack share of the earlier event (0.5)"
     )
     p.add_argument("--workers", type=positive_int, default=1, help="solve in N processes (1)")
     p.add_argument(

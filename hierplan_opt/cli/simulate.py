@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, positive_int
-from hierplan_opt.cli.refine import _fraction as fraction  # argparse type: a number in [0, 1]
+from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, fraction, positive_int
 
 HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
 
