@@ -490,9 +490,11 @@ class Graph:
             return False
         if self._small_bfs(len(todo)):
             for t in todo:
-                arr = np.array(_bfs(self.adj, t), dtype=np.int64)
+                dist = _bfs(self.adj, t)
+                arr = np.array(dist, dtype=np.int64)
                 arr.setflags(write=False)
                 self._dist_cache[t] = arr
+                self._dist_list_cache[t] = dist  # what dist_list would make of ``arr``
             return True
         from scipy.sparse.csgraph import shortest_path
 

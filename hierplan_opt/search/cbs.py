@@ -203,9 +203,10 @@ class _CBS:
             }
         )
         self.corridors = (corridors or Corridors(g)) if symmetry else None
-        self.rectangles = (rectangles or Rectangles(g)) if symmetry and rectangle else None
-        if self.rectangles is not None and not self.rectangles.enabled:
-            self.rectangles = None
+        # Built on first use (a few numpy passes over the graph; most small searches
+        # never reach a rectangle check).
+        self._want_rect = symmetry and rectangle
+        self._rect = rectangles
         self.init_paths = init_paths
         # One table of the node's paths, patched per child: the low level's
         # conflict-avoidance table (without the agent being replanned) and the index
@@ -219,6 +220,13 @@ class _CBS:
         self.pair_memo: dict[tuple[int, int, tuple[object, ...], tuple[object, ...]], int] = {}
         self.lower_bound = 0
         self.seq = 0
+
+    def rectangles(self) -> Rectangles | None:
+        """The graph's rectangle coordinates (made on the first call), None if not used."""
+        if self._rect is None and self._want_rect:
+            self._rect = Rectangles(self.graph)
+        r = self._rect
+        return r if r is not None and r.enabled else None
 
     # ------------------------------------------------------------------ low level
     def plan(
@@ -398,10 +406,9 @@ class _CBS:
             if res is not None:
                 self.stats["corridor_splits"] += 1
                 return res
-        if self.rectangles is not None and kind == VERTEX and rank <= 1:
-            res = rectangle_split(
-                self.rectangles, self.starts, self.goals, node.cons, node.paths, a, b, v, t
-            )
+        rects = self.rectangles() if kind == VERTEX and rank <= 1 else None
+        if rects is not None:
+            res = rectangle_split(rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t)
             if res is not None:
                 self.stats["rectangle_splits"] = self.stats.get("rectangle_splits", 0) + 1
                 return res
@@ -600,12 +607,12 @@ class _CBS:
             heuristic="none",
             disjoint=False,
             symmetry=self.symmetry,
-            rectangle=self.rectangles is not None,
+            rectangle=self.rectangles() is not None,
             node_limit=PAIR_NODE_LIMIT,
             sub=True,
             mdd_cache=self.mdd_cache,
             corridors=self.corridors,
-            rectangles=self.rectangles,
+            rectangles=self._rect,
             init_paths=[node.paths[a], node.paths[b]],
         )
         res = sub.search()
