@@ -694,3 +694,27 @@ def test_corridor_splits_match_brute_force_on_narrow_grids():
         splits += r.stats["corridor_splits"]
     assert checked >= 25
     assert splits >= 5
+
+
+def test_derived_constraint_skipped_where_the_vertex_is_out_of_reach() -> None:
+    # Agent 0 must be at (1, 0) at time 1: agent 1, five steps away, cannot be there
+    # then, so it keeps its constraint object (and its cached MDD); at time 6 it could.
+    from hierplan_opt.core.timer import Deadline
+    from hierplan_opt.search.constraints import POS_V, AgentConstraints
+
+    g = Graph.grid(6, 2)
+    inst = Instance.mapf(g, [(0, 0), (5, 1)], [(2, 0), (3, 1)])
+    g.precompute_distances(inst.goals)
+    roots = [AgentConstraints.root(g.n, x) for x in inst.goals]
+    search = cbs._CBS(
+        g, inst.starts, inst.goals, roots, Deadline(None), prioritize=True, bypass=True,
+        heuristic="wdg", disjoint=True, symmetry=True,
+    )  # fmt: skip
+    root = search.root()
+    assert root is not None
+    v = g.vertex((1, 0))
+    near = search.child(root, 0, [(POS_V, 0, v, -1, 1)])
+    far = search.child(root, 0, [(POS_V, 0, v, -1, 6)])
+    assert near is not None and far is not None
+    assert near.cons[1] is root.cons[1]
+    assert far.cons[1] is not root.cons[1] and far.cons[1].vertex == {6 * g.n + v}

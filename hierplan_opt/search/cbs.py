@@ -481,13 +481,27 @@ class _CBS:
             replan.append(agent)
         pos = [x for x in new if is_positive(x)]
         if pos:
+            starts = self.starts
+            # A vertex that agent y cannot reach by the constraint's time (BFS distance
+            # from its start) gives y a constraint no path of y can break: y keeps its
+            # constraint object, and with it its cached MDD and pair weights.
+            reach = [
+                (x, self.dist_of(x[3] if x[0] == POS_E else x[2]), x[4])
+                if x[0] != LEN_LE
+                else (x, None, 0)
+                for x in pos
+            ]
             for y in range(self.k):
                 if y == agent:
                     continue
+                s = starts[y]
+                rel = [x for x, d, t in reach if d is None or d[s] <= t]
+                if not rel:
+                    continue
                 old = cons[y]
-                cons[y] = add_derived(old, pos, n=n, goals=self.goals, goal=self.goals[y])
-                self._inherit_mdd(y, old, cons[y], pos, node.costs[y])
-                if any(violates_derived(x, paths[y], n, self.goals) for x in pos):
+                cons[y] = add_derived(old, rel, n=n, goals=self.goals, goal=self.goals[y])
+                self._inherit_mdd(y, old, cons[y], rel, node.costs[y])
+                if any(violates_derived(x, paths[y], n, self.goals) for x in rel):
                     replan.append(y)
         for y in replan:
             p = self.plan(y, cons[y], paths)
