@@ -718,3 +718,20 @@ def test_derived_constraint_skipped_where_the_vertex_is_out_of_reach() -> None:
     assert near is not None and far is not None
     assert near.cons[1] is root.cons[1]
     assert far.cons[1] is not root.cons[1] and far.cons[1].vertex == {6 * g.n + v}
+
+
+def test_restrict_leaves_the_cached_mdd_alone() -> None:
+    # restrict shares nothing it changes: the MDD it starts from (in the cache) stays.
+    from hierplan_opt.search.constraints import NEG_E, NEG_V, POS_V, AgentConstraints
+    from hierplan_opt.search.mdd import build_mdd, restrict
+
+    g = Graph.grid(4, 4)
+    s, t = g.vertex((0, 0)), g.vertex((3, 3))
+    m = build_mdd(g.adj, s, t, g.dist_list(t), AgentConstraints(), 6)
+    before = [{v: list(k) for v, k in lv.items()} for lv in m.levels]
+    v1, v2 = g.vertex((1, 0)), g.vertex((0, 1))
+    r = restrict(m, [(NEG_V, 0, v1, -1, 1), (NEG_E, 0, s, v2, 1)], [])
+    assert r is None  # both first moves gone: cost 6 is no longer possible
+    r = restrict(m, [(NEG_V, 0, v1, -1, 1)], [((POS_V, 1, g.vertex((1, 1)), -1, 2), 0)])
+    assert r is not None and list(r.levels[1]) == [v2] and g.vertex((1, 1)) not in r.levels[2]
+    assert [{v: list(k) for v, k in lv.items()} for lv in m.levels] == before

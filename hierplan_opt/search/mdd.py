@@ -135,26 +135,33 @@ def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]
     """
     cost = m.cost
     goal = m.goal
-    levels = [{v: list(k) for v, k in lv.items()} for lv in m.levels]
+    # The old MDD is shared (cached): nothing of it is changed. The constraints become
+    # vertices dropped per level, a vertex a level is reduced to, and cut moves; one
+    # backward pass then builds the new levels, one forward pass prunes them.
+    drop: list[set[int] | None] = [None] * (cost + 1)
+    only: list[int | None] = [None] * (cost + 1)  # -1: no vertex left
+    cut: set[tuple[int, int, int]] = set()  # (time of u, u, v)
 
     def neg_v(v: int, t: int) -> bool:
         if t > cost:
             return v != goal
         if t > 0:  # like the low level, time 0 (the start) is never constrained
-            levels[t].pop(v, None)
+            d = drop[t]
+            if d is None:
+                drop[t] = {v}
+            else:
+                d.add(v)
         return True
 
     def neg_e(u: int, v: int, t: int) -> None:
         if 1 <= t <= cost:
-            kids = levels[t - 1].get(u)
-            if kids is not None and v in kids:
-                kids.remove(v)
+            cut.add((t - 1, u, v))
 
     def pos_v(v: int, t: int) -> bool:
         if t > cost:
             return v == goal
-        lv = levels[t]
-        levels[t] = {v: lv[v]} if v in lv else {}
+        o = only[t]
+        only[t] = v if o is None or o == v else -1
         return True
 
     for kind, _, a, b, t in own:
@@ -172,9 +179,6 @@ def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]
             if t > cost:
                 return None
             ok = pos_v(a, t - 1) and pos_v(b, t)
-            kids = levels[t - 1].get(a)
-            if kids is not None:
-                levels[t - 1][a] = [x for x in kids if x == b]
         elif kind == LEN_GT:
             ok = cost > t
         elif kind == LEN_LE:
@@ -194,27 +198,39 @@ def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]
             if other_goal == goal:
                 return None
             for tt in range(t, cost + 1):
-                levels[tt].pop(other_goal, None)
+                neg_v(other_goal, tt)
         if not ok:
             return None
-    # Forward: keep what the start still reaches; backward: what still reaches the goal.
-    if not levels[0] or goal not in levels[cost]:
+    # Backward: the nodes that still reach the goal, with the moves that do.
+    old = m.levels
+    levels: list[dict[int, list[int]]] = [{} for _ in range(cost + 1)]
+    d, o = drop[cost], only[cost]
+    if goal in old[cost] and not (d is not None and goal in d) and o in (None, goal):
+        levels[cost][goal] = []
+    for t in range(cost - 1, -1, -1):
+        nxt = levels[t + 1]
+        if not nxt:
+            return None
+        lv = levels[t]
+        d = drop[t]
+        o = only[t]
+        for v, kids in old[t].items():
+            if (d is not None and v in d) or (o is not None and v != o):
+                continue
+            keep = [x for x in kids if x in nxt]
+            if cut and keep:
+                keep = [x for x in keep if (t, v, x) not in cut]
+            if keep:
+                lv[v] = keep
+    if not levels[0]:
         return None
+    # Forward: what the start still reaches (the kids of a kept node are all kept).
     for t in range(cost):
         nxt = levels[t + 1]
         reach: set[int] = set()
         for kids in levels[t].values():
-            kids[:] = [x for x in kids if x in nxt]
             reach.update(kids)
-        for v in [v for v in nxt if v not in reach]:
-            del nxt[v]
-    for t in range(cost - 1, -1, -1):
-        nxt = levels[t + 1]
-        lv = levels[t]
-        for v in [v for v, kids in lv.items() if not any(x in nxt for x in kids)]:
-            del lv[v]
-        for kids in lv.values():
-            kids[:] = [x for x in kids if x in nxt]
-    if not levels[0] or goal not in levels[cost]:
-        return None
+        if len(reach) < len(nxt):
+            for v in [v for v in nxt if v not in reach]:
+                del nxt[v]
     return MDD(levels, cost, goal)
