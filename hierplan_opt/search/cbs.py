@@ -207,6 +207,7 @@ class _CBS:
         # never reach a rectangle check).
         self._want_rect = symmetry and rectangle
         self._rect = rectangles
+        self._grid4: Rectangles | None = None
         self.init_paths = init_paths
         # One table of the node's paths, patched per child: the low level's
         # conflict-avoidance table (without the agent being replanned) and the index
@@ -220,6 +221,12 @@ class _CBS:
         self.pair_memo: dict[tuple[int, int, tuple[object, ...], tuple[object, ...]], int] = {}
         self.lower_bound = 0
         self.seq = 0
+
+    def _grid(self) -> Rectangles | None:
+        """The graph's coordinates if it is a 4-connected 2D grid (made on first call)."""
+        if self._grid4 is None:
+            self._grid4 = self._rect if self._rect is not None else Rectangles(self.graph)
+        return self._grid4 if self._grid4.enabled else None
 
     def rectangles(self) -> Rectangles | None:
         """The graph's rectangle coordinates (made on the first call), None if not used."""
@@ -482,20 +489,32 @@ class _CBS:
         pos = [x for x in new if is_positive(x)]
         if pos:
             starts = self.starts
-            # A vertex that agent y cannot reach by the constraint's time (BFS distance
-            # from its start) gives y a constraint no path of y can break: y keeps its
-            # constraint object, and with it its cached MDD and pair weights.
-            reach = [
-                (x, self.dist_of(x[3] if x[0] == POS_E else x[2]), x[4])
-                if x[0] != LEN_LE
-                else (x, None, 0)
-                for x in pos
-            ]
+            dists = self.dists
+            # A vertex that agent y cannot reach by the constraint's time gives y a
+            # constraint no path of y can break: y keeps its constraint object, and with
+            # it its cached MDD and pair weights. "Cannot reach" from lower bounds on the
+            # distance from y's start (no BFS): the grid distance on a 4-connected grid,
+            # and the triangle inequality on y's distances to its goal.
+            grid = self._grid()
+            sym = not self.graph.directed
+            # (constraint, its vertex or -1 for a length constraint, its time)
+            at = [(x, -1 if x[0] == LEN_LE else x[3] if x[0] == POS_E else x[2], x[4]) for x in pos]
             for y in range(self.k):
                 if y == agent:
                     continue
                 s = starts[y]
-                rel = [x for x, d, t in reach if d is None or d[s] <= t]
+                dy = dists[y]
+                rel = []
+                for x, v, t in at:
+                    if v >= 0:
+                        lb = dy[s] - dy[v]
+                        if sym and lb < 0:
+                            lb = -lb
+                        if lb <= t and grid is not None:
+                            lb = abs(grid.xs[s] - grid.xs[v]) + abs(grid.ys[s] - grid.ys[v])
+                        if lb > t:
+                            continue
+                    rel.append(x)
                 if not rel:
                     continue
                 old = cons[y]
