@@ -85,6 +85,8 @@ HEURISTICS = ("wdg", "dg", "cg", "none")
 PAIR_NODE_LIMIT = 16
 #: Cached MDDs before the cache is emptied (bounds memory on long runs).
 MDD_CACHE_SIZE = 50_000
+#: How far up the constraint sets' ancestry an MDD to restrict is looked for.
+MDD_ANCESTORS = 16
 
 
 class _Node:
@@ -269,13 +271,26 @@ class _CBS:
         m = self.mdd_cache.get(key)
         if m is not None and m.cost != node.costs[a]:
             m = None
-        if m is None and c.parent is not None:
-            pm = self.mdd_cache.get(c.parent.ver)
-            if pm is not None and pm.cost == node.costs[a]:
-                m = restrict(pm, c.delta, c.derived)
-                if m is not None:
-                    self.mdd_cache[key] = m
-                    self.stats["mdds_restricted"] = self.stats.get("mdds_restricted", 0) + 1
+        if m is None:
+            # The nearest ancestor constraint set with a cached MDD of this cost: its
+            # paths that obey the constraints added since are this MDD's paths.
+            own: list[Constraint] = []
+            derived: list[tuple[Constraint, int]] = []
+            p = c
+            for _ in range(MDD_ANCESTORS):
+                q = p.parent
+                if q is None:
+                    break
+                own = p.delta + own if own else p.delta
+                derived = p.derived + derived if derived else p.derived
+                pm = self.mdd_cache.get(q.ver)
+                if pm is not None and pm.cost == node.costs[a]:
+                    m = restrict(pm, own, derived)
+                    if m is not None:
+                        self.mdd_cache[key] = m
+                        self.stats["mdds_restricted"] = self.stats.get("mdds_restricted", 0) + 1
+                    break
+                p = q
         if m is None:
             m = build_mdd(
                 self.adj,
