@@ -39,23 +39,32 @@ def test_reference_refuses_unknown_instance() -> None:
         bench.main(["--reference", "--instance", "empty-8-8-even-1:3"])
 
 
-def test_anchor_output_is_read(tmp_path, capsys) -> None:
-    # A stand-in for the C++ binary: writes the statistics row CBSH2-RTC writes.
-    fake = tmp_path / "cbs"
-    fake.write_text(
-        "#!/bin/sh\n"
-        'while [ "$1" != "-o" ]; do shift; done\n'
-        "printf 'runtime,#high-level expanded,#high-level generated,#low-level expanded,"
-        'solution cost,preprocessing runtime\\n0.5,7,13,99,74,0.25\\n\' > "$2"\n'
-    )
-    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
+HEADER = "runtime,#high-level expanded,#high-level generated,#low-level expanded,solution cost"
+
+
+def _anchor_row(tmp_path, capsys, script: str) -> tuple[list[str], str]:
+    """Run the reference bench on empty-8-8 k16 beside a shell-script stand-in for the
+    C++ binary (``script`` ends by writing the statistics file ``$2``): row columns, output."""
     if os.name != "posix":  # pragma: no cover
         pytest.skip("shell script stand-in")
+    fake = tmp_path / "cbs"
+    fake.write_text("#!/bin/sh\n" + script)
+    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
     argv = ["--reference", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
     assert bench.main(argv) == 0
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if line.startswith("empty-8-8-even-1:16"))
-    cols = row.split()
+    return row.split(), out
+
+
+def test_anchor_output_is_read(tmp_path, capsys) -> None:
+    # Writes the statistics row CBSH2-RTC writes (0.5 s runtime + 0.25 s preprocessing).
+    cols, out = _anchor_row(
+        tmp_path,
+        capsys,
+        'while [ "$1" != "-o" ]; do shift; done\n'
+        f"printf '{HEADER},preprocessing runtime\\n0.5,7,13,99,74,0.25\\n' > \"$2\"\n",
+    )
     assert cols[4] == "0.750" and cols[8] == "7/13" and cols[10] == "99"
     assert cols[6].endswith("/1")  # 0.75 s: the C++ runs once
     assert "CBSH2-RTC 1/1;" in out
@@ -64,24 +73,15 @@ def test_anchor_output_is_read(tmp_path, capsys) -> None:
 def test_short_instances_are_repeated_median_reported(tmp_path, capsys, monkeypatch) -> None:
     # A stand-in that takes 10, 30 and 20 ms (its runs counted in a file): median 20 ms.
     count = tmp_path / "count"
-    fake = tmp_path / "cbs"
-    fake.write_text(
-        "#!/bin/sh\n"
+    monkeypatch.setattr(bench, "REPEAT_MAX", 3)
+    cols, out = _anchor_row(
+        tmp_path,
+        capsys,
         f"n=$(cat {count} 2>/dev/null || echo 0); n=$((n + 1)); echo $n > {count}\n"
         "case $n in 1) t=0.01;; 2) t=0.03;; *) t=0.02;; esac\n"
         'while [ "$1" != "-o" ]; do shift; done\n'
-        "printf 'runtime,#high-level expanded,#high-level generated,#low-level expanded,"
-        'solution cost\\n%s,7,13,99,74\\n\' $t > "$2"\n'
+        f"printf '{HEADER}\\n%s,7,13,99,74\\n' $t > \"$2\"\n",
     )
-    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
-    if os.name != "posix":  # pragma: no cover
-        pytest.skip("shell script stand-in")
-    monkeypatch.setattr(bench, "REPEAT_MAX", 3)
-    argv = ["--reference", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
-    assert bench.main(argv) == 0
-    out = capsys.readouterr().out
-    row = next(line for line in out.splitlines() if line.startswith("empty-8-8-even-1:16"))
-    cols = row.split()
     assert cols[4] == "0.020" and cols[6] == "3/3"
     assert count.read_text().strip() == "3"
     assert "median of the runs" in out
