@@ -23,8 +23,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from heapq import heappop, heappush
+from time import perf_counter
 
 from hierplan_opt.core.graph import UNREACHABLE
+from hierplan_opt.search import jit
 from hierplan_opt.search.constraints import AgentConstraints, Moves
 from hierplan_opt.search.reservations import Reservations
 
@@ -83,15 +85,11 @@ def space_time_astar(
     """
     if cons.infeasible or dist[start] >= UNREACHABLE:
         return None, 0
-    n = len(adj)
     if goal in cons.forbid_from:
         return None, 0
     minf = cons.min_finish
     maxf = cons.max_finish
     lms = cons.landmarks
-    vc = cons.vertex
-    ec = cons.edge
-    ff = cons.forbid_from
     moves = Moves(adj, goal, dist, cons, dist_of)
     nxt = moves.nxt
     n_lm = len(nxt)
@@ -104,15 +102,49 @@ def space_time_astar(
     if start == goal and minf <= 0 and all(v == goal for v in lms.values()):
         return (start,), 0
 
-    vt = res.vt if res is not None else None
-    et = res.et if res is not None else {}
-    park_t = res.park_t if res is not None else []
-
     h0 = dist[start]
     if minf > h0:
         h0 = minf
     if h0 > maxf:
         return None, 0
+    k = jit.kernel()
+    if k is not None:
+        return jit.run(
+            k, adj, start, goal, dist, cons, res, dist_of, node_limit, nxt=nxt, tcap=tcap, h0=h0
+        )
+    t0 = perf_counter()
+    try:
+        return _search(adj, start, goal, dist, cons, res, node_limit, succ, nxt, tcap, h0)
+    finally:
+        jit.note_python(perf_counter() - t0)
+
+
+def _search(
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    dist: Sequence[int],
+    cons: AgentConstraints,
+    res: Reservations | None,
+    node_limit: int | None,
+    succ: list[tuple[int, ...]],
+    nxt: list[tuple[int, int, Sequence[int], int]],
+    tcap: int,
+    h0: int,
+) -> tuple[tuple[int, ...] | None, int]:
+    """The pure-Python search loop of :func:`space_time_astar` (after its early exits)."""
+    n = len(adj)
+    minf = cons.min_finish
+    maxf = cons.max_finish
+    lms = cons.landmarks
+    vc = cons.vertex
+    ec = cons.edge
+    ff = cons.forbid_from
+    n_lm = len(nxt)
+    vt = res.vt if res is not None else None
+    et = res.et if res is not None else {}
+    park_t = res.park_t if res is not None else []
+
     # Heap entries: (f, conflicts, -t or TERMINAL, seq, v, t, parent entry). A final
     # arrival sorts before every other entry with the same f and conflicts.
     open_heap: list[tuple] = [(h0, 0, 0, 0, start, 0, None)]

@@ -12,8 +12,12 @@ at a time is ``t * N + v`` and a move ``u -> v`` arriving at ``t`` is ``(t * N +
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from hierplan_opt.search.conflicts import EDGE, TARGET, VERTEX, Conflict
+
+if TYPE_CHECKING:
+    from hierplan_opt.search.jit import CatMirror
 
 #: ``park_t`` of a vertex where nobody parks: later than any timestep.
 NEVER = 1 << 60
@@ -50,7 +54,7 @@ class Reservations:
     ({}, {}, {})
     """
 
-    __slots__ = ("n", "moves", "vt", "et", "parked", "park_t", "paths", "horizon")
+    __slots__ = ("n", "moves", "vt", "et", "parked", "park_t", "paths", "horizon", "mirror")
 
     def __init__(self, n: int, *, moves: bool = True) -> None:
         self.n = n
@@ -62,6 +66,9 @@ class Reservations:
         self.park_t: list[int] = [NEVER] * n
         self.paths: list[Path | None] = []
         self.horizon = 0
+        #: The compiled low level's dense copy (:class:`~hierplan_opt.search.jit.CatMirror`),
+        #: attached by its first call and kept in step here; None otherwise.
+        self.mirror: CatMirror | None = None
 
     # ------------------------------------------------------------------ updates
     def add(self, agent: int, path: Path) -> None:
@@ -78,6 +85,8 @@ class Reservations:
         if agent >= len(paths):
             paths.extend([None] * (agent + 1 - len(paths)))
         paths[agent] = path
+        if self.mirror is not None:
+            self.mirror.update(path, 1, last)
 
     def _keys(self, path: Path) -> tuple[list[int], list[int]]:
         """The vertex-time keys and (if kept) the move keys of ``path``."""
@@ -101,6 +110,8 @@ class Reservations:
         if p is not None and p[0] == agent:
             del self.parked[path[-1]]
             self.park_t[path[-1]] = NEVER
+        if self.mirror is not None:
+            self.mirror.update(path, -1, self.park_t[path[-1]])
 
     def sync(self, paths: Sequence[Path | None]) -> None:
         """Make the table hold exactly ``paths`` (agent ``i`` on ``paths[i]``).
@@ -110,6 +121,8 @@ class Reservations:
         """
         old = self.paths
         if len(old) != len(paths):
+            if self.mirror is not None:
+                self.mirror.detach()  # counts the old paths out; the next call re-attaches
             self.vt = {}
             self.et = {}
             for v in self.parked:

@@ -1,0 +1,286 @@
+"""Compiled (numba) space-time A*: the same search as :func:`.astar.space_time_astar`.
+
+Imported only through :mod:`hierplan_opt.search.jit`, never on the start-up path:
+importing this module imports numba and loads (or, the first time, compiles) the
+kernels. Every function here mirrors a Python loop of the package step by step so both
+give identical results (same path, same expansion count, same tie-breaking); the tests
+compare them call by call.
+
+Data layout (all ``int64`` unless said otherwise):
+
+- ``ptr, idx``: the successor lists of :func:`.constraints.successors` (neighbours then
+  the vertex itself) as CSR; a move ``v -> idx[j]`` is identified by its position ``j``.
+- ``vkeys, ekeys``: the agent's vertex / edge constraint keys, sorted.
+- ``ff``: ``forbid_from`` per vertex (:data:`NEVER` where absent).
+- ``lm_need[t]``: the landmark vertex at ``t`` (-1 if none); ``nxt_tl, nxt_hb, nxt_row``:
+  the next landmark's time, ``h`` bound and row of ``lmd`` (its distance table) per ``t``.
+- ``cat_vt``: agents per ``t * n + v`` (``int32``, ``cat_h`` timesteps); ``cat_et``:
+  agents per ``t * nnz + j`` (move ``j`` arriving at ``t``); ``park_t``: as
+  :attr:`.reservations.Reservations.park_t`.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: ``forbid_from`` / ``park_t`` value meaning "never".
+NEVER = 1 << 60
+#: Third heap key of a final arrival (see astar.TERMINAL).
+TERMINAL = -(1 << 50)
+_CLOSED = -1
+
+
+def _njit(f):
+    """``numba.njit`` with an on-disk cache when a cache directory is writable."""
+    try:
+        return numba.njit(cache=True, nogil=True)(f)
+    except RuntimeError:  # no writable cache location (numba raises at decoration)
+        return numba.njit(nogil=True)(f)
+
+
+@_njit
+def _contains(keys, x):
+    lo = 0
+    hi = keys.shape[0]
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if keys[mid] < x:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo < keys.shape[0] and keys[lo] == x
+
+
+@_njit
+def _less(pf, pc, pn, a, b):
+    # Heap order (f, conflicts, -t or TERMINAL, seq); seq is the pool index.
+    if pf[a] != pf[b]:
+        return pf[a] < pf[b]
+    if pc[a] != pc[b]:
+        return pc[a] < pc[b]
+    if pn[a] != pn[b]:
+        return pn[a] < pn[b]
+    return a < b
+
+
+@_njit
+def astar(
+    ptr,
+    idx,
+    dist,
+    start,
+    goal,
+    h0,
+    vkeys,
+    ekeys,
+    ff,
+    lm_need,
+    nxt_tl,
+    nxt_hb,
+    nxt_row,
+    lmd,
+    minf,
+    maxf,
+    tcap,
+    last_off_goal_lm,
+    use_cat,
+    cat_vt,
+    cat_et,
+    cat_h,
+    park_t,
+    node_limit,
+    best_val,
+    best_gen,
+    gen,
+    unreachable,
+):
+    """The loop of ``space_time_astar`` after its early exits: ``(expanded, path)``.
+
+    ``path`` is empty when no path exists (or ``node_limit`` was hit).
+    """
+    n = ptr.shape[0] - 1
+    nnz = idx.shape[0]
+    n_lm = lm_need.shape[0]
+    has_e = ekeys.shape[0] > 0
+    has_v = vkeys.shape[0] > 0
+    cap = 1024
+    pf = np.empty(cap, np.int64)
+    pc = np.empty(cap, np.int64)
+    pn = np.empty(cap, np.int64)
+    pv = np.empty(cap, np.int64)
+    pt = np.empty(cap, np.int64)
+    pp = np.empty(cap, np.int64)
+    heap = np.empty(cap, np.int64)
+    size = 0
+    cnt = 0
+    pf[0] = h0
+    pc[0] = 0
+    pn[0] = 0
+    pv[0] = start
+    pt[0] = 0
+    pp[0] = -1
+    heap[0] = 0
+    size = 1
+    best_val[start] = 0
+    best_gen[start] = gen
+    expanded = 0
+    empty = np.empty(0, np.int64)
+    while size > 0:
+        # pop
+        top = heap[0]
+        size -= 1
+        if size > 0:
+            last = heap[size]
+            i = 0
+            while True:
+                c1 = 2 * i + 1
+                if c1 >= size:
+                    break
+                c2 = c1 + 1
+                m = c1
+                if c2 < size and _less(pf, pc, pn, heap[c2], heap[c1]):
+                    m = c2
+                if _less(pf, pc, pn, heap[m], last):
+                    heap[i] = heap[m]
+                    i = m
+                else:
+                    break
+            heap[i] = last
+        v = pv[top]
+        t = pt[top]
+        conf = pc[top]
+        if pn[top] == TERMINAL:
+            length = 0
+            e = top
+            while e >= 0:
+                length += 1
+                e = pp[e]
+            path = np.empty(length, np.int64)
+            e = top
+            k = length - 1
+            while e >= 0:
+                path[k] = pv[e]
+                k -= 1
+                e = pp[e]
+            return expanded, path
+        key = (t if t < tcap else tcap) * n + v
+        if best_gen[key] == gen and best_val[key] == _CLOSED:
+            continue
+        best_gen[key] = gen
+        best_val[key] = _CLOSED
+        expanded += 1
+        if expanded == node_limit:
+            return expanded, empty
+        t1 = t + 1
+        if t1 > maxf:
+            continue
+        base = t1 * n
+        keyt1 = (t1 if t1 < tcap else tcap) * n
+        need = -1
+        nl = t1 < n_lm
+        if nl:
+            need = lm_need[t1]
+        bv = (base + v) * n
+        mt = minf - t1
+        in_cat = use_cat and t1 < cat_h
+        for j in range(ptr[v], ptr[v + 1]):
+            u = idx[j]
+            if need >= 0 and u != need:
+                continue
+            if has_v and _contains(vkeys, base + u):
+                continue
+            if has_e and u != v and _contains(ekeys, bv + u):
+                continue
+            if t1 >= ff[u]:
+                continue
+            hu = dist[u]
+            if hu >= unreachable:
+                continue
+            if nl:
+                row = nxt_row[t1]
+                if lmd[row, u] > nxt_tl[t1] - t1:
+                    continue
+                hb = nxt_hb[t1]
+                if hb - t1 > hu:
+                    hu = hb - t1
+            if mt > hu:
+                hu = mt
+            fu = t1 + hu
+            if fu > maxf:
+                continue
+            c = conf
+            if use_cat:
+                if in_cat:
+                    c += cat_vt[base + u]
+                    if u != v and cat_et[t1 * nnz + j] > 0:
+                        c += 1
+                if t1 > park_t[u]:
+                    c += 1
+            for final in range(2):
+                if final == 0:
+                    # A move into the goal (not a wait there) may be the final arrival.
+                    if not (u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm):
+                        continue
+                    f_new = t1
+                    n_new = TERMINAL
+                else:
+                    ku = keyt1 + u
+                    if best_gen[ku] == gen and best_val[ku] <= c:
+                        continue
+                    best_gen[ku] = gen
+                    best_val[ku] = c
+                    f_new = fu
+                    n_new = -t1
+                cnt += 1
+                if cnt >= cap:
+                    cap *= 2
+                    pf = _grow(pf, cap)
+                    pc = _grow(pc, cap)
+                    pn = _grow(pn, cap)
+                    pv = _grow(pv, cap)
+                    pt = _grow(pt, cap)
+                    pp = _grow(pp, cap)
+                    heap = _grow(heap, cap)
+                pf[cnt] = f_new
+                pc[cnt] = c
+                pn[cnt] = n_new
+                pv[cnt] = u
+                pt[cnt] = t1
+                pp[cnt] = top
+                # push
+                i = size
+                size += 1
+                while i > 0:
+                    par = (i - 1) >> 1
+                    if _less(pf, pc, pn, cnt, heap[par]):
+                        heap[i] = heap[par]
+                        i = par
+                    else:
+                        break
+                heap[i] = cnt
+    return expanded, empty
+
+
+@_njit
+def _grow(a: np.ndarray, cap: int) -> np.ndarray:
+    out = np.empty(cap, a.dtype)
+    out[: a.shape[0]] = a
+    return out
+
+
+@_njit
+def cat_apply(cat_vt, cat_et, ptr, idx, path, delta):
+    """Add ``delta`` (+1 / -1) to the vertex-time and move counts of ``path``."""
+    n = ptr.shape[0] - 1
+    nnz = idx.shape[0]
+    prev = path[0]
+    for t in range(path.shape[0]):
+        v = path[t]
+        cat_vt[t * n + v] += delta
+        if t > 0 and prev != v:
+            for j in range(ptr[prev], ptr[prev + 1]):
+                if idx[j] == v:
+                    cat_et[t * nnz + j] += delta
+                    break
+        prev = v

@@ -1,0 +1,445 @@
+"""Which low level runs: the pure-Python space-time A* or its compiled (numba) twin.
+
+Both give identical results (same path, same expansion count, same tie-breaking), so the
+choice only changes the speed. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
+
+``auto`` (default)
+    Python first. Once the Python low level has spent :data:`JIT_AFTER_S` seconds in this
+    process, a helper process compiles the kernel into numba's on-disk cache (about 6 s
+    the first time on a fresh checkout, about 1 s once cached; on the other core, so it
+    does not slow the search, which a compiling thread would through the GIL); when it
+    is done, the next call loads the kernel from the cache (a pause of about 0.6 s) and
+    runs it. A small solve never imports numba; a long one is never blocked by the
+    compiler. Should the helper outlive its parent, it finishes writing the cache.
+``python``
+    Never the kernel.
+``jit``
+    The kernel from the first call on (loaded synchronously; an error if numba is missing).
+
+The conflict-avoidance table reaches the kernel as a :class:`CatMirror`: dense count
+arrays that :class:`~hierplan_opt.search.reservations.Reservations` keeps up to date as
+paths are added and removed, so a call does not convert the table.
+
+Example
+-------
+>>> set_low_level("python")
+>>> kernel() is None
+True
+>>> set_low_level(None)  # back to HIERPLAN_LOW_LEVEL / auto
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import subprocess
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.graph import UNREACHABLE
+from hierplan_opt.search.constraints import AgentConstraints, successors
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from hierplan_opt.search.reservations import Reservations
+
+log = logging.getLogger(__name__)
+
+MODES = ("auto", "python", "jit")
+#: Seconds of Python low-level search (per process) after which ``auto`` loads the kernel.
+JIT_AFTER_S = 0.5
+#: ``forbid_from`` / ``park_t`` value meaning "never" (as reservations.NEVER).
+NEVER = 1 << 60
+
+_mode: str | None = None
+_kernel: ModuleType | None = None
+_loading = False
+_failed = False
+_proc: subprocess.Popen[bytes] | None = None
+_lock = threading.Lock()
+#: Seconds the Python low level has run in this process (see :func:`note_python`).
+python_seconds = 0.0
+
+
+def set_low_level(mode: str | None) -> None:
+    """Force ``"python"``, ``"jit"`` or ``"auto"``; None re-reads ``HIERPLAN_LOW_LEVEL``."""
+    global _mode
+    if mode is not None and mode not in MODES:
+        raise OptionError(f"low level {mode!r}: expected one of {', '.join(MODES)}")
+    _mode = mode
+
+
+def low_level() -> str:
+    """The mode in force (``HIERPLAN_LOW_LEVEL``, default ``auto``)."""
+    global _mode
+    if _mode is None:
+        m = os.environ.get("HIERPLAN_LOW_LEVEL", "auto").strip().lower() or "auto"
+        if m not in MODES:
+            raise OptionError(f"HIERPLAN_LOW_LEVEL={m!r}: expected one of {', '.join(MODES)}")
+        _mode = m
+    return _mode
+
+
+def note_python(seconds: float) -> None:
+    """Account Python low-level time; in ``auto`` mode start loading the kernel in time."""
+    global python_seconds, _proc, _failed
+    python_seconds += seconds
+    if _proc is not None:
+        code = _proc.poll()
+        if code is not None:
+            _proc = None
+            if code == 0:
+                _load_cached()
+            else:
+                _failed = True
+                log.info("compiling the low level failed (exit %s): staying with Python", code)
+        return
+    if (
+        python_seconds >= JIT_AFTER_S
+        and not _loading
+        and not _failed
+        and _kernel is None
+        and low_level() == "auto"
+    ):
+        _start_loading()
+
+
+def kernel() -> ModuleType | None:
+    """The loaded kernel module if the compiled low level should run now, else None."""
+    k = _kernel
+    m = _mode if _mode is not None else low_level()
+    if m == "python":
+        return None
+    if k is None and m == "jit":
+        k = load()
+    return k
+
+
+def load() -> ModuleType:
+    """Import numba and the kernels and run them once (compiles or reads the cache)."""
+    global _kernel, _failed
+    with _lock:
+        if _kernel is not None:
+            return _kernel
+        try:
+            from hierplan_opt.search import _astar_kernel as k
+
+            _warm_up(k)
+        except Exception:
+            _failed = True
+            raise
+        _kernel = k
+        return k
+
+
+def _start_loading() -> None:
+    """Compile (or find in the cache) the kernels in a helper process."""
+    global _loading, _proc, _failed
+    _loading = True
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(x for x in (root, env.get("PYTHONPATH")) if x)
+    try:
+        _proc = subprocess.Popen(
+            [sys.executable, "-c", "from hierplan_opt.search import jit; jit.load()"],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+    except OSError as e:
+        _failed = True
+        log.info("cannot start the compiler process (%s): staying with Python", e)
+
+
+def _load_cached() -> None:
+    """Load the kernels the helper process left in the cache (about 0.6 s, numba's
+    import included). In this thread: a loading thread would hold the GIL for about
+    half the time for several seconds, slowing the search more than the pause does."""
+    global _failed
+    try:
+        load()
+        log.debug("compiled low level ready")
+    except Exception as e:  # auto mode keeps the Python path
+        _failed = True
+        log.info("compiled low level unavailable (%s): staying with Python", e)
+
+
+def _warm_up(k: ModuleType) -> None:
+    """One tiny call of every kernel with the argument types real calls use."""
+    from hierplan_opt.core.graph import Graph
+    from hierplan_opt.search.reservations import Reservations
+
+    g = Graph.grid(3, 1)
+    res = Reservations(g.n)
+    res.add(0, (2, 1, 0))
+    root = AgentConstraints.root(g.n, 2)
+    run(k, g.adj, 0, 2, g.dist_list(2), root, res, None, None)
+
+
+# ---------------------------------------------------------------------- data
+class _Graph:
+    """The CSR successor lists of one ``adj`` (neighbours then the vertex: a wait)."""
+
+    __slots__ = ("adj", "ptr", "idx")
+
+    def __init__(self, adj: Sequence[Sequence[int]]) -> None:
+        import numpy as np
+
+        succ = successors(adj)
+        self.adj = adj
+        self.ptr = np.zeros(len(succ) + 1, np.int64)
+        np.cumsum([len(s) for s in succ], out=self.ptr[1:])
+        self.idx = np.fromiter((u for s in succ for u in s), np.int64, int(self.ptr[-1]))
+
+
+_GRAPHS: dict[int, _Graph] = {}
+_ARRAYS: dict[int, tuple[Sequence[int], Any]] = {}
+_CONS: dict[int, tuple[Any, ...]] = {}
+_work: list[Any] = []  # [best_val, best_gen, gen]
+
+
+def _graph(adj: Sequence[Sequence[int]]) -> _Graph:
+    g = _GRAPHS.get(id(adj))
+    if g is None or g.adj is not adj:
+        if len(_GRAPHS) > 16:
+            _GRAPHS.clear()
+        g = _GRAPHS[id(adj)] = _Graph(adj)
+    return g
+
+
+def _array(lst: Sequence[int]) -> np.ndarray:
+    """``lst`` (a cached distance list) as an int64 array, cached by identity."""
+    hit = _ARRAYS.get(id(lst))
+    if hit is not None and hit[0] is lst:
+        return hit[1]
+    import numpy as np
+
+    if len(_ARRAYS) > 4096:
+        _ARRAYS.clear()
+    arr = np.asarray(lst, np.int64)
+    _ARRAYS[id(lst)] = (lst, arr)
+    return arr
+
+
+def _cons_arrays(
+    cons: AgentConstraints, n: int, goal: int, nxt: list[tuple[int, int, Sequence[int], int]]
+) -> tuple[Any, ...]:
+    """The agent's constraints as kernel arrays, cached by ``cons.ver`` (immutable)."""
+    hit = _CONS.get(cons.ver)
+    if hit is not None and hit[0] == goal and hit[1] == n:
+        return hit[2:]
+    import numpy as np
+
+    vkeys = np.array(sorted(cons.vertex), np.int64)
+    ekeys = np.array(sorted(cons.edge), np.int64)
+    ff = np.full(n, NEVER, np.int64)
+    for v, t in cons.forbid_from.items():
+        ff[v] = t
+    lms = cons.landmarks
+    n_lm = len(nxt)
+    lm_need = np.full(n_lm, -1, np.int64)
+    nxt_tl = np.zeros(n_lm, np.int64)
+    nxt_hb = np.zeros(n_lm, np.int64)
+    nxt_row = np.zeros(n_lm, np.int64)
+    rows: dict[int, int] = {}
+    tables: list[np.ndarray] = []
+    for t, (tl, vl, dl, hb) in enumerate(nxt):
+        need = lms.get(t)
+        if need is not None:
+            lm_need[t] = need
+        nxt_tl[t] = tl
+        nxt_hb[t] = hb
+        r = rows.get(vl)
+        if r is None:
+            r = rows[vl] = len(tables)
+            tables.append(_array(dl))
+        nxt_row[t] = r
+    lmd = np.stack(tables) if tables else np.zeros((0, n), np.int64)
+    off = max((t for t, v in lms.items() if v != goal), default=-1)
+    out = (vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off)
+    if len(_CONS) > 8192:
+        _CONS.clear()
+    _CONS[cons.ver] = (goal, n, *out)
+    return out
+
+
+def _workspace(size: int) -> tuple[Any, Any, int]:
+    import numpy as np
+
+    if not _work or _work[0].shape[0] < size:
+        cap = max(size, 2 * _work[0].shape[0] if _work else 1 << 16)
+        _work[:] = [np.zeros(cap, np.int64), np.zeros(cap, np.int64), 0]
+    _work[2] += 1
+    return _work[0], _work[1], _work[2]
+
+
+class CatMirror:
+    """Dense counts of one :class:`Reservations` at a time, for the kernel.
+
+    ``vt[t * n + v]`` agents at ``v`` at ``t`` and ``et[t * nnz + j]`` agents making move
+    ``j`` (CSR position) arriving at ``t``, for ``t < h``; ``park_t`` as the table's.
+    Zeroing such arrays per table would cost more than the searches (the WDG pair
+    searches make a table each), so a few buffers (:data:`MIRRORS`) are shared: the
+    table that needs one takes the least recently used, whose previous owner's paths are
+    counted out (its ``mirror`` then no longer points here). While ``owner`` is a table,
+    the counts equal its paths: :class:`Reservations` calls :meth:`update` on every
+    change.
+    """
+
+    __slots__ = ("graph", "k", "n", "h", "vt", "et", "park_t", "owner")
+
+    def __init__(self, k: ModuleType, graph: _Graph) -> None:
+        import numpy as np
+
+        self.graph = graph
+        self.k = k
+        self.n = len(graph.ptr) - 1
+        self.h = 0
+        self.vt = np.zeros(0, np.int16)
+        self.et = np.zeros(0, np.int16)
+        self.park_t = np.full(self.n, NEVER, np.int64)
+        self.owner: Reservations | None = None
+
+    def _grow(self, need: int) -> None:
+        import numpy as np
+
+        h = max(need, 2 * self.h, 64)
+        vt = np.zeros(h * self.n, np.int16)
+        vt[: self.vt.shape[0]] = self.vt
+        et = np.zeros(h * self.graph.idx.shape[0], np.int16)
+        et[: self.et.shape[0]] = self.et
+        self.vt, self.et, self.h = vt, et, h
+
+    def _count(self, path: Sequence[int], delta: int) -> None:
+        import numpy as np
+
+        if len(path) > self.h:
+            self._grow(len(path))
+        g = self.graph
+        self.k.cat_apply(self.vt, self.et, g.ptr, g.idx, np.asarray(path, np.int64), delta)
+
+    def attach(self, res: Reservations) -> None:
+        """Count out the previous owner's paths and count in ``res``'s."""
+        self.detach()
+        if res.horizon + 1 > self.h:
+            self._grow(res.horizon + 1)
+        for p in res.paths:
+            if p is not None:
+                self._count(p, 1)
+                self.park_t[p[-1]] = res.park_t[p[-1]]
+        self.owner = res
+        res.mirror = self
+
+    def detach(self) -> None:
+        """Count the owner's paths out (the arrays become all zero / NEVER again)."""
+        old = self.owner
+        if old is None:
+            return
+        for p in old.paths:
+            if p is not None:
+                self._count(p, -1)
+                self.park_t[p[-1]] = NEVER
+        old.mirror = None
+        self.owner = None
+
+    def update(self, path: Sequence[int], delta: int, park: int) -> None:
+        """``path`` was reserved (``delta`` 1) or released (-1); ``park`` is the new
+        ``park_t`` of its last vertex."""
+        self._count(path, delta)
+        self.park_t[path[-1]] = park
+
+
+#: How many :class:`CatMirror` buffers are shared (the main search's, pair searches').
+MIRRORS = 3
+_mirrors: list[CatMirror] = []  # most recently used last
+
+
+def _mirror(k: ModuleType, g: _Graph, res: Reservations) -> CatMirror:
+    m = res.mirror
+    if m is not None and m.owner is res and m.graph is g:
+        if _mirrors[-1] is not m:
+            _mirrors.remove(m)
+            _mirrors.append(m)
+        return m
+    if _mirrors and _mirrors[0].graph is not g:
+        for old in _mirrors:
+            old.detach()
+        _mirrors.clear()
+    m = CatMirror(k, g) if len(_mirrors) < MIRRORS else _mirrors.pop(0)
+    _mirrors.append(m)
+    m.attach(res)
+    return m
+
+
+def run(
+    k: ModuleType,
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    dist: Sequence[int],
+    cons: AgentConstraints,
+    res: Reservations | None,
+    dist_of: Callable[[int], Sequence[int]] | None,
+    node_limit: int | None,
+    *,
+    nxt: list[tuple[int, int, Sequence[int], int]] | None = None,
+    tcap: int | None = None,
+    h0: int | None = None,
+) -> tuple[tuple[int, ...] | None, int]:
+    """The search of ``space_time_astar`` (after its early exits) in the kernel ``k``."""
+    import numpy as np
+
+    g = _graph(adj)
+    n = len(adj)
+    if nxt is None or tcap is None or h0 is None:  # a direct call (the warm-up)
+        from hierplan_opt.search.constraints import Moves
+
+        nxt = Moves(adj, goal, dist, cons, dist_of).nxt
+        tcap = max(cons.tmax, cons.min_finish, len(nxt)) + 1
+        h0 = max(dist[start], cons.min_finish)
+    vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off = _cons_arrays(cons, n, goal, nxt)
+    best_val, best_gen, gen = _workspace((tcap + 1) * n)
+    if res is not None:
+        m = _mirror(k, g, res)
+        vt, et, cat_h, park_t = m.vt, m.et, m.h, m.park_t
+    else:
+        vt = et = np.zeros(0, np.int16)
+        cat_h = 0
+        park_t = ff
+    expanded, path = k.astar(
+        g.ptr,
+        g.idx,
+        _array(dist),
+        start,
+        goal,
+        h0,
+        vkeys,
+        ekeys,
+        ff,
+        lm_need,
+        nxt_tl,
+        nxt_hb,
+        nxt_row,
+        lmd,
+        cons.min_finish,
+        cons.max_finish,
+        tcap,
+        off,
+        res is not None,
+        vt,
+        et,
+        cat_h,
+        park_t,
+        node_limit if node_limit is not None else -1,
+        best_val,
+        best_gen,
+        gen,
+        UNREACHABLE,
+    )
+    return (tuple(path.tolist()) if path.shape[0] else None), int(expanded)

@@ -1,0 +1,237 @@
+"""The compiled low level (numba) against the pure-Python one: identical on every call."""
+
+from __future__ import annotations
+
+import random
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.search import astar, jit
+from hierplan_opt.search.constraints import (
+    LEN_GT,
+    LEN_LE,
+    NEG_E,
+    NEG_RANGE,
+    NEG_V,
+    POS_E,
+    POS_V,
+    AgentConstraints,
+    add_derived,
+)
+from hierplan_opt.search.reservations import Reservations
+
+
+@pytest.fixture
+def both():
+    """Run ``space_time_astar`` once per low level; restore the mode afterwards."""
+
+    def call(*args, **kw):
+        out = []
+        for mode in ("python", "jit"):
+            jit.set_low_level(mode)
+            out.append(astar.space_time_astar(*args, **kw))
+        return out
+
+    yield call
+    jit.set_low_level(None)
+
+
+def walk(g: Graph, rng: random.Random, free: list[int], steps: int) -> tuple[int, ...]:
+    p = [rng.choice(free)]
+    for _ in range(steps):
+        p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
+    return tuple(p)
+
+
+def random_cons(g: Graph, rng: random.Random, free: list[int], goal: int) -> AgentConstraints:
+    goals = [goal, rng.choice([v for v in free if v != goal])]
+    c = AgentConstraints.root(g.n, goal, max_finish=rng.choice([1 << 40, 1 << 40, 14, 9]))
+    for _ in range(rng.randint(0, 8)):
+        kind = rng.choice(["v", "v", "e", "pos_v", "pos_e", "gt", "le", "range", "dpos", "dlen"])
+        v = rng.choice(free)
+        nb = rng.choice([*g.adj[v], v])
+        t = rng.randint(1, 10)
+        if kind == "v":
+            c = c.add((NEG_V, 0, v, -1, t), n=g.n, goal=goal)
+        elif kind == "e":
+            c = c.add((NEG_E, 0, v, nb, t), n=g.n, goal=goal)
+        elif kind == "pos_v" and rng.random() < 0.5:
+            c = c.add((POS_V, 0, v, -1, t), n=g.n, goal=goal)
+        elif kind == "pos_e" and rng.random() < 0.5:
+            c = c.add((POS_E, 0, v, nb, t), n=g.n, goal=goal)
+        elif kind == "gt":
+            c = c.add((LEN_GT, 0, -1, -1, t), n=g.n, goal=goal)
+        elif kind == "le":
+            c = c.add((LEN_LE, 0, -1, -1, t + 6), n=g.n, goal=goal)
+        elif kind == "range":
+            c = c.add((NEG_RANGE, 0, v, t, t + 2), n=g.n, goal=goal)
+        elif kind == "dpos":
+            c = add_derived(c, [(POS_E, 1, v, nb, t)], n=g.n, goals=goals, goal=goal)
+        elif kind == "dlen":
+            c = add_derived(c, [(LEN_LE, 1, -1, -1, t)], n=g.n, goals=goals, goal=goal)
+    return c
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_random_calls_identical(both, seed):
+    # Random constraints of every kind, a random conflict-avoidance table (tie-breaking),
+    # sometimes a node limit: the path and the expansion count agree exactly.
+    rng = random.Random(seed)
+    w, h = rng.choice([(5, 4), (6, 6), (8, 3)])
+    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
+    g = Graph.grid(w, h, obstacles=obst)
+    free = [v for v in range(g.n) if g.passable[v]]
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    for a in range(rng.randint(0, 5)):
+        res.add(a, walk(g, rng, free, rng.randint(0, 12)))
+    for _ in range(8):
+        s, t = rng.sample(free, 2)
+        c = random_cons(g, rng, free, t)
+        limit = rng.choice([None, None, None, 5, 20])
+        py, jt = both(
+            g.adj, s, t, g.dist_list(t), c, res=res, dist_of=g.dist_list, node_limit=limit
+        )
+        assert py == jt, (seed, c.landmarks, c.forbid_from, c.min_finish, c.max_finish)
+        py, jt = both(g.adj, s, t, g.dist_list(t), c, dist_of=g.dist_list)
+        assert py == jt
+        # Patch the table between calls as CBS does: the mirror follows.
+        a = rng.randrange(6)
+        res.remove(a)
+        if rng.random() < 0.7:
+            res.add(a, walk(g, rng, free, rng.randint(0, 14)))
+
+
+def dense(res: Reservations, graph: jit._Graph, h: int) -> tuple[np.ndarray, np.ndarray]:
+    n = res.n
+    nnz = graph.idx.shape[0]
+    vt = np.zeros(h * n, np.int64)
+    et = np.zeros(h * nnz, np.int64)
+    for p in res.paths:
+        if p is None:
+            continue
+        for t, v in enumerate(p):
+            vt[t * n + v] += 1
+            if t and p[t - 1] != v:
+                u = p[t - 1]
+                row = graph.idx[graph.ptr[u] : graph.ptr[u + 1]].tolist()
+                et[t * nnz + graph.ptr[u] + row.index(v)] += 1
+    return vt, et
+
+
+def test_mirrors_follow_their_tables():
+    # More tables than shared buffers, patched in turn (as CBS and its pair searches do):
+    # whenever a table owns a buffer, the counts equal its paths.
+    k = jit.load()
+    rng = random.Random(7)
+    g = Graph.grid(6, 5, obstacles=[(2, 2), (3, 2)])
+    free = [v for v in range(g.n) if g.passable[v]]
+    gr = jit._graph(g.adj)
+    tables = [Reservations(g.n) for _ in range(jit.MIRRORS + 2)]
+    for _ in range(200):
+        res = rng.choice(tables)
+        m = jit._mirror(k, gr, res)
+        assert res.mirror is m and m.owner is res
+        op = rng.random()
+        if op < 0.1:
+            res.sync([walk(g, rng, free, rng.randint(0, 9)) for _ in range(rng.randint(1, 4))])
+        else:
+            a = rng.randrange(4)
+            res.remove(a)
+            if op < 0.8:
+                res.add(a, walk(g, rng, free, rng.randint(0, 80)))
+        if res.mirror is None:  # sync with another agent count detaches
+            m = jit._mirror(k, gr, res)
+        vt, et = dense(res, gr, m.h)
+        assert np.array_equal(m.vt, vt) and np.array_equal(m.et, et)
+        assert m.park_t.tolist() == res.park_t
+        others = [b for b in jit._mirrors if b is not m]
+        assert all(b.owner is None or b.owner.mirror is b for b in others)
+
+
+INSTANCES = ["empty-8-8-even-1:16", "random-32-32-20-random-1:20", "room-32-32-4-even-1:20"]
+
+
+def test_cbs_identical_call_by_call(monkeypatch):
+    # CBS end to end under the kernel, every low-level call re-run in Python: the same
+    # results call by call (incl. the pair searches of WDG and the disjoint splits'
+    # landmarks / forbid_from), so the node counts agree too.
+    import hierplan_opt
+    from hierplan_opt.bench import scenario
+
+    seen = {"calls": 0, "landmarks": 0, "edge": 0, "forbid_from": 0, "cat": 0}
+    run = jit.run
+
+    def checked(k, adj, start, goal, dist, cons, res, dist_of, node_limit, **kw):
+        got = run(k, adj, start, goal, dist, cons, res, dist_of, node_limit, **kw)
+        if kw:
+            moves = astar.Moves(adj, goal, dist, cons, dist_of)
+            want = astar._search(adj, start, goal, dist, cons, res, node_limit, moves.succ, **kw)
+            assert got == want
+            seen["calls"] += 1
+            seen["landmarks"] += bool(cons.landmarks)
+            seen["edge"] += bool(cons.edge)
+            seen["forbid_from"] += bool(cons.forbid_from)
+            seen["cat"] += res is not None
+        return got
+
+    stats = {}
+    try:
+        for mode in ("python", "jit"):
+            jit.set_low_level(mode)
+            monkeypatch.setattr(jit, "run", checked)
+            for spec in INSTANCES:
+                r = hierplan_opt.solve(scenario(spec)[1], "cbs", time_limit=60)
+                keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
+                stats.setdefault(spec, []).append((r.cost, *(r.stats[x] for x in keys)))
+    finally:
+        jit.set_low_level(None)
+    for spec, (py, jt) in stats.items():
+        assert py == jt, spec
+    assert seen["calls"] > 100 and seen["cat"] > 50
+    assert min(seen["landmarks"], seen["edge"], seen["forbid_from"]) > 0, seen
+
+
+def test_auto_switches_after_python_time(monkeypatch):
+    # ``auto`` starts the compiler process once the Python low level has run JIT_AFTER_S
+    # seconds, loads the kernel when it is done; the calls switch when it is ready.
+    monkeypatch.setattr(jit, "_proc", None)
+    monkeypatch.setattr(jit, "_kernel", None)
+    monkeypatch.setattr(jit, "_loading", False)
+    monkeypatch.setattr(jit, "_failed", False)
+    monkeypatch.setattr(jit, "python_seconds", 0.0)
+    jit.set_low_level("auto")
+    try:
+        assert jit.kernel() is None
+        jit.note_python(jit.JIT_AFTER_S)
+        proc = jit._proc
+        assert proc is not None and jit.kernel() is None
+        assert proc.wait(300) == 0
+        jit.note_python(0.0)
+        assert jit.kernel() is not None
+    finally:
+        jit.set_low_level(None)
+
+
+def test_small_solve_does_not_import_numba():
+    code = (
+        "import sys, hierplan_opt\n"
+        "from hierplan_opt.bench import scenario\n"
+        "r = hierplan_opt.solve(scenario('random-32-32-20-random-1:10')[1], 'cbs')\n"
+        "assert r.plan is not None\n"
+        "assert 'numba' not in sys.modules, 'numba imported'\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+
+
+def test_bad_mode():
+    from hierplan_opt.core.errors import OptionError
+
+    with pytest.raises(OptionError, match="low level"):
+        jit.set_low_level("fast")
