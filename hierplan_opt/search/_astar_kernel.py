@@ -90,9 +90,6 @@ def astar(
     cat_h,
     park_t,
     node_limit,
-    best_val,
-    best_gen,
-    gen,
     unreachable,
 ):
     """The loop of ``space_time_astar`` after its early exits: ``(expanded, path)``.
@@ -122,8 +119,13 @@ def astar(
     pp[0] = -1
     heap[0] = 0
     size = 1
-    best_val[start] = 0
-    best_gen[start] = gen
+    # ``best``: state key -> fewest conflicts seen (_CLOSED once expanded), an
+    # open-addressing table (a dense one over every (t, v) touches too many pages).
+    bcap = 1024
+    bkeys = np.full(bcap, -1, np.int64)
+    bvals = np.empty(bcap, np.int64)
+    bsize = 0
+    bsize, bkeys, bvals = _put(bkeys, bvals, bsize, start, 0)
     expanded = 0
     empty = np.empty(0, np.int64)
     while size > 0:
@@ -165,10 +167,9 @@ def astar(
                 e = pp[e]
             return expanded, path
         key = (t if t < tcap else tcap) * n + v
-        if best_gen[key] == gen and best_val[key] == _CLOSED:
+        if _get(bkeys, bvals, key) == _CLOSED:
             continue
-        best_gen[key] = gen
-        best_val[key] = _CLOSED
+        bsize, bkeys, bvals = _put(bkeys, bvals, bsize, key, _CLOSED)
         expanded += 1
         if expanded == node_limit:
             return expanded, empty
@@ -226,10 +227,9 @@ def astar(
                     n_new = TERMINAL
                 else:
                     ku = keyt1 + u
-                    if best_gen[ku] == gen and best_val[ku] <= c:
+                    if _get(bkeys, bvals, ku) <= c:
                         continue
-                    best_gen[ku] = gen
-                    best_val[ku] = c
+                    bsize, bkeys, bvals = _put(bkeys, bvals, bsize, ku, c)
                     f_new = fu
                     n_new = -t1
                 cnt += 1
@@ -260,6 +260,46 @@ def astar(
                         break
                 heap[i] = cnt
     return expanded, empty
+
+
+#: ``_get`` of an absent key: above every conflict count.
+_ABSENT = 1 << 62
+
+
+@_njit
+def _slot(bkeys, key):
+    mask = bkeys.shape[0] - 1
+    i = ((key * 0x5851F42D4C957F2D) >> 17) & mask
+    while bkeys[i] != -1 and bkeys[i] != key:
+        i = (i + 1) & mask
+    return i
+
+
+@_njit
+def _get(bkeys, bvals, key):
+    i = _slot(bkeys, key)
+    return bvals[i] if bkeys[i] == key else _ABSENT
+
+
+@_njit
+def _put(bkeys, bvals, bsize, key, val):
+    i = _slot(bkeys, key)
+    if bkeys[i] == key:
+        bvals[i] = val
+        return bsize, bkeys, bvals
+    bkeys[i] = key
+    bvals[i] = val
+    bsize += 1
+    if 2 * bsize > bkeys.shape[0]:  # rehash into twice the room
+        nk = np.full(2 * bkeys.shape[0], -1, np.int64)
+        nv = np.empty(2 * bkeys.shape[0], np.int64)
+        for j in range(bkeys.shape[0]):
+            if bkeys[j] != -1:
+                m = _slot(nk, bkeys[j])
+                nk[m] = bkeys[j]
+                nv[m] = bvals[j]
+        return bsize, nk, nv
+    return bsize, bkeys, bvals
 
 
 @_njit

@@ -201,7 +201,6 @@ class _Graph:
 _GRAPHS: dict[int, _Graph] = {}
 _ARRAYS: dict[int, tuple[Sequence[int], Any]] = {}
 _CONS: dict[int, tuple[Any, ...]] = {}
-_work: list[Any] = []  # [best_val, best_gen, gen]
 
 
 def _graph(adj: Sequence[Sequence[int]]) -> _Graph:
@@ -267,16 +266,6 @@ def _cons_arrays(
         _CONS.clear()
     _CONS[cons.ver] = (goal, n, *out)
     return out
-
-
-def _workspace(size: int) -> tuple[Any, Any, int]:
-    import numpy as np
-
-    if not _work or _work[0].shape[0] < size:
-        cap = max(size, 2 * _work[0].shape[0] if _work else 1 << 16)
-        _work[:] = [np.zeros(cap, np.int64), np.zeros(cap, np.int64), 0]
-    _work[2] += 1
-    return _work[0], _work[1], _work[2]
 
 
 class CatMirror:
@@ -404,7 +393,6 @@ def run(
         tcap = max(cons.tmax, cons.min_finish, len(nxt)) + 1
         h0 = max(dist[start], cons.min_finish)
     vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off = _cons_arrays(cons, n, goal, nxt)
-    best_val, best_gen, gen = _workspace((tcap + 1) * n)
     if res is not None:
         m = _mirror(k, g, res)
         vt, et, cat_h, park_t = m.vt, m.et, m.h, m.park_t
@@ -437,9 +425,6 @@ def run(
         cat_h,
         park_t,
         node_limit if node_limit is not None else -1,
-        best_val,
-        best_gen,
-        gen,
         UNREACHABLE,
     )
     return (tuple(path.tolist()) if path.shape[0] else None), int(expanded)
