@@ -1,4 +1,4 @@
-"""The compiled low level (numba) against the pure-Python one: identical on every call."""
+"""The compiled low level and MDDs (numba) against the pure-Python ones: identical."""
 
 from __future__ import annotations
 
@@ -107,6 +107,41 @@ def test_random_calls_identical(both, seed):
             res.add(a, walk(g, rng, free, rng.randint(0, 14)))
 
 
+def ordered(levels: list[dict[int, list[int]]]) -> list[list[tuple[int, list[int]]]]:
+    """The levels with their insertion orders (consumers iterate them)."""
+    return [list(lv.items()) for lv in levels]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_random_mdds_identical(seed):
+    # build_mdd from the kernel: the same levels, children and orders for random
+    # constraints (landmarks, forbid_from, finish bounds) and costs, also above optimal.
+    from hierplan_opt.search.mdd import build_mdd
+
+    rng = random.Random(1000 + seed)
+    w, h = rng.choice([(5, 4), (6, 6), (8, 3)])
+    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
+    g = Graph.grid(w, h, obstacles=obst)
+    free = [v for v in range(g.n) if g.passable[v]]
+    if len(free) < 3:
+        return
+    try:
+        for _ in range(8):
+            s, t = rng.sample(free, 2)
+            c = random_cons(g, rng, free, t)
+            jit.set_low_level("python")
+            p, _ = astar.space_time_astar(g.adj, s, t, g.dist_list(t), c, dist_of=g.dist_list)
+            cost = len(p) - 1 + rng.choice([0, 0, 1, 2]) if p is not None else rng.randint(0, 9)
+            out = []
+            for mode in ("python", "jit"):
+                jit.set_low_level(mode)
+                m = build_mdd(g.adj, s, t, g.dist_list(t), c, cost, g.dist_list)
+                out.append(ordered(m.levels))
+            assert out[0] == out[1], (seed, cost)
+    finally:
+        jit.set_low_level(None)
+
+
 def dense(res: Reservations, graph: jit._Graph, h: int) -> tuple[np.ndarray, np.ndarray]:
     n = res.n
     nnz = graph.idx.shape[0]
@@ -164,7 +199,7 @@ def test_cbs_identical_call_by_call(monkeypatch):
     import hierplan_opt
     from hierplan_opt.bench import scenario
 
-    seen = {"calls": 0, "landmarks": 0, "edge": 0, "forbid_from": 0, "cat": 0}
+    seen = {"mdds": 0, "calls": 0, "landmarks": 0, "edge": 0, "forbid_from": 0, "cat": 0}
     run = jit.run
 
     def checked(k, adj, start, goal, dist, cons, res, dist_of, node_limit, **kw):
@@ -180,11 +215,25 @@ def test_cbs_identical_call_by_call(monkeypatch):
             seen["cat"] += res is not None
         return got
 
+    from hierplan_opt.search import mdd
+
+    build = jit.build_mdd
+
+    def checked_mdd(k, adj, start, goal, dist, cons, cost, dist_of):
+        got = build(k, adj, start, goal, dist, cons, cost, dist_of)
+        jit.set_low_level("python")
+        want = mdd.build_mdd(adj, start, goal, dist, cons, cost, dist_of).levels
+        jit.set_low_level("jit")
+        assert ordered(got) == ordered(want)
+        seen["mdds"] += 1
+        return got
+
     stats = {}
     try:
         for mode in ("python", "jit"):
             jit.set_low_level(mode)
             monkeypatch.setattr(jit, "run", checked)
+            monkeypatch.setattr(jit, "build_mdd", checked_mdd)
             for spec in INSTANCES:
                 r = hierplan_opt.solve(scenario(spec)[1], "cbs", time_limit=60)
                 keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
@@ -193,7 +242,7 @@ def test_cbs_identical_call_by_call(monkeypatch):
         jit.set_low_level(None)
     for spec, (py, jt) in stats.items():
         assert py == jt, spec
-    assert seen["calls"] > 100 and seen["cat"] > 50
+    assert seen["calls"] > 100 and seen["cat"] > 50 and seen["mdds"] > 100
     assert min(seen["landmarks"], seen["edge"], seen["forbid_from"]) > 0, seen
 
 

@@ -324,3 +324,136 @@ def cat_apply(cat_vt, cat_et, ptr, idx, path, delta):
                     cat_et[t * nnz + j] += delta
                     break
         prev = v
+
+
+@_njit
+def mdd(
+    ptr,
+    idx,
+    dist,
+    start,
+    goal,
+    cost,
+    vkeys,
+    ekeys,
+    ff,
+    lm_need,
+    nxt_tl,
+    nxt_hb,
+    nxt_row,
+    lmd,
+    minf,
+    unreachable,
+):
+    """The two passes of ``mdd.build_mdd`` (``cost >= 1``), same orders.
+
+    Returns ``(ov, ks, ke, kids, lo, hi, last)``: the kept nodes of level ``t`` are
+    ``ov[lo[t]:hi[t]]`` (discovery order), node ``i``'s children ``kids[ks[i]:ke[i]]``;
+    ``last`` whether level ``cost`` holds the goal.
+    """
+    n = ptr.shape[0] - 1
+    n_lm = lm_need.shape[0]
+    has_e = ekeys.shape[0] > 0
+    has_v = vkeys.shape[0] > 0
+    cap = 1024
+    fv = np.empty(cap, np.int64)  # forward nodes, level by level
+    fks = np.empty(cap, np.int64)  # their children: fkid[fks[i]:fke[i]]
+    fke = np.empty(cap, np.int64)
+    kcap = 4096
+    fkid = np.empty(kcap, np.int64)
+    nk = 0
+    lvl = np.empty(cost + 2, np.int64)  # level t is fv[lvl[t]:lvl[t + 1]]
+    mark = np.full(n, -1, np.int64)
+    fv[0] = start
+    lvl[0] = 0
+    lvl[1] = 1
+    nf = 1
+    for t in range(1, cost + 1):
+        slack = cost - t
+        base = t * n
+        need = -1
+        nl = t < n_lm
+        if nl:
+            need = lm_need[t]
+        for i in range(lvl[t - 1], lvl[t]):
+            v = fv[i]
+            fks[i] = nk
+            if t == cost and v == goal:
+                fke[i] = nk
+                continue
+            bv = (base + v) * n
+            for j in range(ptr[v], ptr[v + 1]):
+                u = idx[j]
+                if t == cost and u != goal:
+                    continue
+                if need >= 0 and u != need:
+                    continue
+                if has_v and _contains(vkeys, base + u):
+                    continue
+                if has_e and u != v and _contains(ekeys, bv + u):
+                    continue
+                if t >= ff[u]:
+                    continue
+                hu = dist[u]
+                if hu >= unreachable:
+                    continue
+                if nl:
+                    if lmd[nxt_row[t], u] > nxt_tl[t] - t:
+                        continue
+                    hb = nxt_hb[t]
+                    if hb - t > hu:
+                        hu = hb - t
+                if minf - t > hu:
+                    hu = minf - t
+                if hu > slack:
+                    continue
+                if nk >= kcap:
+                    kcap *= 2
+                    fkid = _grow(fkid, kcap)
+                fkid[nk] = u
+                nk += 1
+                if t < cost and mark[u] != t:
+                    mark[u] = t
+                    if nf >= cap:
+                        cap *= 2
+                        fv = _grow(fv, cap)
+                        fks = _grow(fks, cap)
+                        fke = _grow(fke, cap)
+                    fv[nf] = u
+                    nf += 1
+            fke[i] = nk
+        lvl[t + 1] = nf
+    # Backward: keep the nodes with a child kept at the next level.
+    last = False
+    for i in range(lvl[cost - 1], lvl[cost]):
+        if fke[i] > fks[i]:
+            last = True
+    alive = np.full(n, -1, np.int64)  # alive[u] == t: u kept at level t
+    if last:
+        alive[goal] = cost
+    ov = np.empty(nf, np.int64)
+    ks = np.empty(nf, np.int64)
+    ke = np.empty(nf, np.int64)
+    kids = np.empty(nk, np.int64)
+    lo = np.zeros(cost + 1, np.int64)
+    hi = np.zeros(cost + 1, np.int64)
+    no = 0
+    nkid = 0
+    for t in range(cost - 1, -1, -1):
+        lo[t] = no
+        for i in range(lvl[t], lvl[t + 1]):
+            s = nkid
+            for x in range(fks[i], fke[i]):
+                u = fkid[x]
+                if alive[u] == t + 1:
+                    kids[nkid] = u
+                    nkid += 1
+            if nkid > s:
+                ov[no] = fv[i]
+                ks[no] = s
+                ke[no] = nkid
+                no += 1
+        hi[t] = no
+        for i in range(lo[t], hi[t]):
+            alive[ov[i]] = t
+    return ov, ks, ke, kids, lo, hi, last

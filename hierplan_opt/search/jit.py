@@ -428,3 +428,51 @@ def run(
         UNREACHABLE,
     )
     return (tuple(path.tolist()) if path.shape[0] else None), int(expanded)
+
+
+def build_mdd(
+    k: ModuleType,
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    dist: Sequence[int],
+    cons: AgentConstraints,
+    cost: int,
+    dist_of: Callable[[int], Sequence[int]] | None,
+) -> list[dict[int, list[int]]]:
+    """The levels of ``mdd.build_mdd`` (``cost >= 1``) from the kernel ``k``."""
+    from hierplan_opt.search.constraints import Moves
+
+    g = _graph(adj)
+    nxt = Moves(adj, goal, dist, cons, dist_of).nxt
+    vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, _ = _cons_arrays(
+        cons, len(adj), goal, nxt
+    )
+    ov, ks, ke, kids, lo, hi, last = k.mdd(
+        g.ptr,
+        g.idx,
+        _array(dist),
+        start,
+        goal,
+        cost,
+        vkeys,
+        ekeys,
+        ff,
+        lm_need,
+        nxt_tl,
+        nxt_hb,
+        nxt_row,
+        lmd,
+        cons.min_finish,
+        UNREACHABLE,
+    )
+    vl = ov.tolist()
+    ksl = ks.tolist()
+    kel = ke.tolist()
+    kl = kids.tolist()
+    levels = [
+        {vl[i]: kl[ksl[i] : kel[i]] for i in range(a, b)}
+        for a, b in zip(lo.tolist(), hi.tolist(), strict=True)
+    ]
+    levels[cost] = {goal: []} if last else {}
+    return levels

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+from hierplan_opt.search import jit
 from hierplan_opt.search.constraints import (
     LEN_GT,
     LEN_LE,
@@ -80,6 +81,9 @@ def build_mdd(
     """
     if cost == 0:
         return MDD([{start: []}], 0, goal)
+    k = jit.kernel()  # the compiled twin of the two passes below (see search.jit)
+    if k is not None:
+        return MDD(jit.build_mdd(k, adj, start, goal, dist, cons, cost, dist_of), cost, goal)
     moves = Moves(adj, goal, dist, cons, dist_of)
     fwd: list[dict[int, list[int]]] = [{start: []}]
     for t in range(1, cost):
