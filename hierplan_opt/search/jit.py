@@ -467,11 +467,10 @@ def build_mdd(
         UNREACHABLE,
     )
     vl = ov.tolist()
-    ksl = ks.tolist()
-    kel = ke.tolist()
     kl = kids.tolist()
+    kid_lists = [kl[a:b] for a, b in zip(ks.tolist(), ke.tolist(), strict=True)]
     levels = [
-        {vl[i]: kl[ksl[i] : kel[i]] for i in range(a, b)}
+        dict(zip(vl[a:b], kid_lists[a:b], strict=True))
         for a, b in zip(lo.tolist(), hi.tolist(), strict=True)
     ]
     levels[cost] = {goal: []} if last else {}
