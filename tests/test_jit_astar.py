@@ -250,6 +250,7 @@ def test_auto_switches_after_python_time(monkeypatch):
     # ``auto`` starts the compiler process once the Python low level has run JIT_AFTER_S
     # seconds, loads the kernel when it is done; the calls switch when it is ready.
     monkeypatch.setattr(jit, "_proc", None)
+    monkeypatch.setattr(jit, "_cached", False)
     monkeypatch.setattr(jit, "_kernel", None)
     monkeypatch.setattr(jit, "_loading", False)
     monkeypatch.setattr(jit, "_failed", False)

@@ -50,6 +50,7 @@ from hierplan_opt.core.progress import tick
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
+from hierplan_opt.search import jit
 from hierplan_opt.search.astar import space_time_astar
 from hierplan_opt.search.conflicts import EDGE, TARGET, VERTEX, Conflict, find_conflicts
 from hierplan_opt.search.constraints import (

@@ -4,13 +4,14 @@ Both give identical results (same path, same expansion count, same tie-breaking)
 choice only changes the speed. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
 
 ``auto`` (default)
-    Python first. Once the Python low level has spent :data:`JIT_AFTER_S` seconds in this
-    process, a helper process compiles the kernel into numba's on-disk cache (about 6 s
-    the first time on a fresh checkout, about 1 s once cached; on the other core, so it
-    does not slow the search, which a compiling thread would through the GIL); when it
-    is done, the next call loads the kernel from the cache (a pause of about 0.6 s) and
-    runs it. A small solve never imports numba; a long one is never blocked by the
-    compiler. Should the helper outlive its parent, it finishes writing the cache.
+    Python first. Once the Python low level has spent :data:`JIT_AFTER_S` seconds in one
+    solve (:func:`new_solve` starts the count), a helper process compiles the kernels
+    into numba's on-disk cache (about 6 s the first time on a fresh checkout, about 1 s
+    once cached; on the other core, so it does not slow the search, which a compiling
+    thread would through the GIL); when it is done, the next call loads the kernels from
+    the cache (a pause of about 0.6 s) and runs them. A small solve never imports numba;
+    a long one is never blocked by the compiler. Should the helper outlive its parent,
+    it finishes writing the cache.
 ``python``
     Never the kernel.
 ``jit``
@@ -60,6 +61,7 @@ _mode: str | None = None
 _kernel: ModuleType | None = None
 _loading = False
 _failed = False
+_cached = False  # the compiler process is done: the kernels are in the cache
 _proc: subprocess.Popen[bytes] | None = None
 _lock = threading.Lock()
 #: Seconds the Python low level has run in this process (see :func:`note_python`).
@@ -85,27 +87,36 @@ def low_level() -> str:
     return _mode
 
 
+def new_solve() -> None:
+    """A solver starts: ``auto`` counts Python low-level time from zero again."""
+    global python_seconds
+    python_seconds = 0.0
+
+
 def note_python(seconds: float) -> None:
-    """Account Python low-level time; in ``auto`` mode start loading the kernel in time."""
-    global python_seconds, _proc, _failed
+    """Account Python low-level time; in ``auto`` mode start loading the kernel in time.
+
+    Only a solve that has itself spent :data:`JIT_AFTER_S` seconds there starts the
+    compiler process or pays the pause of loading the kernel, so a small solve never
+    does, also in a process where a large one ran before.
+    """
+    global python_seconds, _proc, _failed, _cached
     python_seconds += seconds
+    if python_seconds < JIT_AFTER_S or _failed or _kernel is not None:
+        return
     if _proc is not None:
         code = _proc.poll()
-        if code is not None:
-            _proc = None
-            if code == 0:
-                _load_cached()
-            else:
-                _failed = True
-                log.info("compiling the low level failed (exit %s): staying with Python", code)
-        return
-    if (
-        python_seconds >= JIT_AFTER_S
-        and not _loading
-        and not _failed
-        and _kernel is None
-        and low_level() == "auto"
-    ):
+        if code is None:
+            return
+        _proc = None
+        if code != 0:
+            _failed = True
+            log.info("compiling the low level failed (exit %s): staying with Python", code)
+            return
+        _cached = True
+    if _cached:
+        _load_cached()
+    elif not _loading and low_level() == "auto":
         _start_loading()
 
 
