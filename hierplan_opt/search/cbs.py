@@ -216,6 +216,8 @@ class _CBS:
         # conflict-avoidance table (without the agent being replanned) and the index
         # the new paths' conflicts are found with (one table: each is patched once).
         self._occ = self._cat = Reservations(g.n)
+        if not sub:
+            jit.new_solve()  # the compiled low level is loaded only for a long solve
         # MDDs keyed by the constraint object's version (unique per agent and set);
         # shared with the two-agent sub-searches of WDG.
         self.mdd_cache: dict[int, MDD] = mdd_cache if mdd_cache is not None else {}
