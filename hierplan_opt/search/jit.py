@@ -148,6 +148,17 @@ def load() -> ModuleType:
         return k
 
 
+def compile_to_cache() -> None:
+    """The helper process: load (compile) the kernels; exit 3 if they cannot be cached.
+
+    Loading uncached kernels in the solving process would compile them again there (a
+    pause of seconds), so ``auto`` then stays with Python.
+    """
+    k = load()
+    if type(k.astar._cache).__name__ == "NullCache":  # no writable cache location
+        raise SystemExit(3)
+
+
 def _start_loading() -> None:
     """Compile (or find in the cache) the kernels in a helper process."""
     global _loading, _proc, _failed
@@ -157,7 +168,7 @@ def _start_loading() -> None:
     env["PYTHONPATH"] = os.pathsep.join(x for x in (root, env.get("PYTHONPATH")) if x)
     try:
         _proc = subprocess.Popen(
-            [sys.executable, "-c", "from hierplan_opt.search import jit; jit.load()"],
+            [sys.executable, "-c", "from hierplan_opt.search import jit; jit.compile_to_cache()"],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
