@@ -53,6 +53,37 @@ def _contains(keys, x):
 
 
 @_njit
+def _move_h(
+    u, v, t, n, need, vkeys, ekeys, ff, dist, nl, lmd, nxt_row, nxt_tl, nxt_hb, minf, unreachable
+):
+    """``h`` of the move ``v -> u`` arriving at ``t``, -1 if it is not allowed.
+
+    The rule of ``constraints.Moves`` (shared by the A* and the MDD kernels).
+    """
+    if need >= 0 and u != need:
+        return -1
+    base = t * n
+    if vkeys.shape[0] > 0 and _contains(vkeys, base + u):
+        return -1
+    if ekeys.shape[0] > 0 and u != v and _contains(ekeys, (base + v) * n + u):
+        return -1
+    if t >= ff[u]:
+        return -1
+    hu = dist[u]
+    if hu >= unreachable:
+        return -1
+    if nl:
+        if lmd[nxt_row[t], u] > nxt_tl[t] - t:
+            return -1
+        hb = nxt_hb[t]
+        if hb - t > hu:
+            hu = hb - t
+    if minf - t > hu:
+        hu = minf - t
+    return hu
+
+
+@_njit
 def _less(pf, pc, pn, a, b):
     # Heap order (f, conflicts, -t or TERMINAL, seq); seq is the pool index.
     if pf[a] != pf[b]:
@@ -99,8 +130,6 @@ def astar(
     n = ptr.shape[0] - 1
     nnz = idx.shape[0]
     n_lm = lm_need.shape[0]
-    has_e = ekeys.shape[0] > 0
-    has_v = vkeys.shape[0] > 0
     cap = 1024
     pf = np.empty(cap, np.int64)
     pc = np.empty(cap, np.int64)
@@ -182,31 +211,15 @@ def astar(
         nl = t1 < n_lm
         if nl:
             need = lm_need[t1]
-        bv = (base + v) * n
-        mt = minf - t1
         in_cat = use_cat and t1 < cat_h
         for j in range(ptr[v], ptr[v + 1]):
             u = idx[j]
-            if need >= 0 and u != need:
+            hu = _move_h(
+                u, v, t1, n, need, vkeys, ekeys, ff, dist, nl, lmd, nxt_row, nxt_tl, nxt_hb,
+                minf, unreachable,
+            )  # fmt: skip
+            if hu < 0:
                 continue
-            if has_v and _contains(vkeys, base + u):
-                continue
-            if has_e and u != v and _contains(ekeys, bv + u):
-                continue
-            if t1 >= ff[u]:
-                continue
-            hu = dist[u]
-            if hu >= unreachable:
-                continue
-            if nl:
-                row = nxt_row[t1]
-                if lmd[row, u] > nxt_tl[t1] - t1:
-                    continue
-                hb = nxt_hb[t1]
-                if hb - t1 > hu:
-                    hu = hb - t1
-            if mt > hu:
-                hu = mt
             fu = t1 + hu
             if fu > maxf:
                 continue
@@ -353,8 +366,6 @@ def mdd(
     """
     n = ptr.shape[0] - 1
     n_lm = lm_need.shape[0]
-    has_e = ekeys.shape[0] > 0
-    has_v = vkeys.shape[0] > 0
     cap = 1024
     fv = np.empty(cap, np.int64)  # forward nodes, level by level
     fks = np.empty(cap, np.int64)  # their children: fkid[fks[i]:fke[i]]
@@ -370,7 +381,6 @@ def mdd(
     nf = 1
     for t in range(1, cost + 1):
         slack = cost - t
-        base = t * n
         need = -1
         nl = t < n_lm
         if nl:
@@ -381,31 +391,15 @@ def mdd(
             if t == cost and v == goal:
                 fke[i] = nk
                 continue
-            bv = (base + v) * n
             for j in range(ptr[v], ptr[v + 1]):
                 u = idx[j]
                 if t == cost and u != goal:
                     continue
-                if need >= 0 and u != need:
-                    continue
-                if has_v and _contains(vkeys, base + u):
-                    continue
-                if has_e and u != v and _contains(ekeys, bv + u):
-                    continue
-                if t >= ff[u]:
-                    continue
-                hu = dist[u]
-                if hu >= unreachable:
-                    continue
-                if nl:
-                    if lmd[nxt_row[t], u] > nxt_tl[t] - t:
-                        continue
-                    hb = nxt_hb[t]
-                    if hb - t > hu:
-                        hu = hb - t
-                if minf - t > hu:
-                    hu = minf - t
-                if hu > slack:
+                hu = _move_h(
+                    u, v, t, n, need, vkeys, ekeys, ff, dist, nl, lmd, nxt_row, nxt_tl,
+                    nxt_hb, minf, unreachable,
+                )  # fmt: skip
+                if hu < 0 or hu > slack:
                     continue
                 if nk >= kcap:
                     kcap *= 2
