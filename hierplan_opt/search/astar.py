@@ -108,7 +108,7 @@ def space_time_astar(
     if h0 > maxf:
         return None, 0
     k = jit.kernel()
-    if k is not None:
+    if k is not None and (res is None or res.moves):  # the kernel counts moves too
         return jit.run(
             k, adj, start, goal, dist, cons, res, dist_of, node_limit, nxt=nxt, tcap=tcap, h0=h0
         )
