@@ -241,7 +241,7 @@ def _array(lst: Sequence[int]) -> np.ndarray:
         return hit[1]
     import numpy as np
 
-    if len(_ARRAYS) > 4096:
+    if len(_ARRAYS) > 1024:
         _ARRAYS.clear()
     arr = np.asarray(lst, np.int64)
     _ARRAYS[id(lst)] = (lst, arr)
@@ -251,43 +251,79 @@ def _array(lst: Sequence[int]) -> np.ndarray:
 def _cons_arrays(
     cons: AgentConstraints, n: int, goal: int, nxt: list[tuple[int, int, Sequence[int], int]]
 ) -> tuple[Any, ...]:
-    """The agent's constraints as kernel arrays, cached by ``cons.ver`` (immutable)."""
-    hit = _CONS.get(cons.ver)
-    if hit is not None and hit[0] == goal and hit[1] == n:
-        return hit[2:]
+    """The agent's constraints as kernel arrays.
+
+    The small ones (constraint keys, landmark tables per timestep) are cached by
+    ``cons.ver`` (the object is immutable); the ones of ``n`` entries (``forbid_from``
+    per vertex, distance rows of the landmarks) are made per call, so the cache stays
+    small on large maps.
+    """
     import numpy as np
 
-    vkeys = np.array(sorted(cons.vertex), np.int64)
-    ekeys = np.array(sorted(cons.edge), np.int64)
-    ff = np.full(n, NEVER, np.int64)
-    for v, t in cons.forbid_from.items():
-        ff[v] = t
-    lms = cons.landmarks
-    n_lm = len(nxt)
-    lm_need = np.full(n_lm, -1, np.int64)
-    nxt_tl = np.zeros(n_lm, np.int64)
-    nxt_hb = np.zeros(n_lm, np.int64)
-    nxt_row = np.zeros(n_lm, np.int64)
-    rows: dict[int, int] = {}
-    tables: list[np.ndarray] = []
-    for t, (tl, vl, dl, hb) in enumerate(nxt):
-        need = lms.get(t)
-        if need is not None:
-            lm_need[t] = need
-        nxt_tl[t] = tl
-        nxt_hb[t] = hb
-        r = rows.get(vl)
-        if r is None:
-            r = rows[vl] = len(tables)
-            tables.append(_array(dl))
-        nxt_row[t] = r
-    lmd = np.stack(tables) if tables else np.zeros((0, n), np.int64)
-    off = max((t for t, v in lms.items() if v != goal), default=-1)
-    out = (vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off)
-    if len(_CONS) > 8192:
-        _CONS.clear()
-    _CONS[cons.ver] = (goal, n, *out)
-    return out
+    hit = _CONS.get(cons.ver)
+    if hit is None or hit[0] != goal or hit[1] != n:
+        lms = cons.landmarks
+        n_lm = len(nxt)
+        lm_need = np.full(n_lm, -1, np.int64)
+        nxt_tl = np.zeros(n_lm, np.int64)
+        nxt_hb = np.zeros(n_lm, np.int64)
+        nxt_row = np.zeros(n_lm, np.int64)
+        rows: dict[int, int] = {}
+        tables: list[Sequence[int]] = []
+        for t, (tl, vl, dl, hb) in enumerate(nxt):
+            need = lms.get(t)
+            if need is not None:
+                lm_need[t] = need
+            nxt_tl[t] = tl
+            nxt_hb[t] = hb
+            r = rows.get(vl)
+            if r is None:
+                r = rows[vl] = len(tables)
+                tables.append(dl)
+            nxt_row[t] = r
+        hit = (
+            goal,
+            n,
+            np.array(sorted(cons.vertex), np.int64),
+            np.array(sorted(cons.edge), np.int64),
+            lm_need,
+            nxt_tl,
+            nxt_hb,
+            nxt_row,
+            tables,
+            max((t for t, v in lms.items() if v != goal), default=-1),
+        )
+        if len(_CONS) > 4096:
+            _CONS.clear()
+        _CONS[cons.ver] = hit
+    _, _, vkeys, ekeys, lm_need, nxt_tl, nxt_hb, nxt_row, tables, off = hit
+    if cons.forbid_from:
+        ff = np.full(n, NEVER, np.int64)
+        for v, t in cons.forbid_from.items():
+            ff[v] = t
+    else:
+        ff = _never(n)
+    if tables:
+        lmd = np.stack([_array(dl) for dl in tables])
+    else:
+        lmd = _NO_ROWS.get(n)
+        if lmd is None:
+            lmd = _NO_ROWS[n] = np.zeros((0, n), np.int64)
+    return vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off
+
+
+_NEVER: dict[int, Any] = {}
+_NO_ROWS: dict[int, Any] = {}
+
+
+def _never(n: int) -> np.ndarray:
+    """A shared read-only array of ``n`` times NEVER (no ``forbid_from``)."""
+    a = _NEVER.get(n)
+    if a is None:
+        import numpy as np
+
+        a = _NEVER[n] = np.full(n, NEVER, np.int64)
+    return a
 
 
 class CatMirror:
