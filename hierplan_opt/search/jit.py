@@ -52,7 +52,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 MODES = ("auto", "python", "jit")
-#: Seconds of Python low-level search (per process) after which ``auto`` loads the kernel.
+#: Seconds of Python low-level search in one solve after which ``auto`` loads the kernel.
 JIT_AFTER_S = 0.5
 #: ``forbid_from`` / ``park_t`` value meaning "never" (as reservations.NEVER).
 NEVER = 1 << 60
@@ -64,7 +64,7 @@ _failed = False
 _cached = False  # the compiler process is done: the kernels are in the cache
 _proc: subprocess.Popen[bytes] | None = None
 _lock = threading.Lock()
-#: Seconds the Python low level has run in this process (see :func:`note_python`).
+#: Seconds the Python low level has run in the current solve (see :func:`new_solve`).
 python_seconds = 0.0
 
 
@@ -202,6 +202,7 @@ def _warm_up(k: ModuleType) -> None:
     res.add(0, (2, 1, 0))
     root = AgentConstraints.root(g.n, 2)
     run(k, g.adj, 0, 2, g.dist_list(2), root, res, None, None)
+    build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
 
 
 # ---------------------------------------------------------------------- data
