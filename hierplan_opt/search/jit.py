@@ -313,6 +313,29 @@ def _cons_arrays(
     return vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off
 
 
+def _search_args(
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    dist: Sequence[int],
+    cons: AgentConstraints,
+    nxt: list[tuple[int, int, Sequence[int], int]],
+    sixth: int,
+) -> tuple[_Graph, tuple[Any, ...], int]:
+    """The graph, the arguments the A* and MDD kernels share, and the last off-goal landmark.
+
+    The shared arguments: the CSR successor lists, the distances, ``start``, ``goal``,
+    ``sixth`` (the A*'s ``h0``, the MDD's cost), the constraint arrays of
+    :func:`_cons_arrays` and ``min_finish``.
+    """
+    g = _graph(adj)
+    vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off = _cons_arrays(
+        cons, len(adj), goal, nxt
+    )
+    args = (g.ptr, g.idx, _array(dist), start, goal, sixth, vkeys, ekeys, ff, lm_need)
+    return g, (*args, nxt_tl, nxt_hb, nxt_row, lmd, cons.min_finish), off
+
+
 _NEVER: dict[int, Any] = {}
 _NO_ROWS: dict[int, Any] = {}
 
@@ -443,38 +466,22 @@ def run(
     """The search of ``space_time_astar`` (after its early exits) in the kernel ``k``."""
     import numpy as np
 
-    g = _graph(adj)
-    n = len(adj)
     if nxt is None or tcap is None or h0 is None:  # a direct call (the warm-up)
         from hierplan_opt.search.constraints import Moves
 
         nxt = Moves(adj, goal, dist, cons, dist_of).nxt
         tcap = max(cons.tmax, cons.min_finish, len(nxt)) + 1
         h0 = max(dist[start], cons.min_finish)
-    vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, off = _cons_arrays(cons, n, goal, nxt)
+    g, args, off = _search_args(adj, start, goal, dist, cons, nxt, h0)
     if res is not None:
         m = _mirror(k, g, res)
         vt, et, cat_h, park_t = m.vt, m.et, m.h, m.park_t
     else:
         vt = et = np.zeros(0, np.int16)
         cat_h = 0
-        park_t = ff
+        park_t = args[8]  # unread without a table (an int64 array of n entries: forbid_from)
     expanded, path = k.astar(
-        g.ptr,
-        g.idx,
-        _array(dist),
-        start,
-        goal,
-        h0,
-        vkeys,
-        ekeys,
-        ff,
-        lm_need,
-        nxt_tl,
-        nxt_hb,
-        nxt_row,
-        lmd,
-        cons.min_finish,
+        *args,
         cons.max_finish,
         tcap,
         off,
@@ -502,29 +509,9 @@ def build_mdd(
     """The levels of ``mdd.build_mdd`` (``cost >= 1``) from the kernel ``k``."""
     from hierplan_opt.search.constraints import Moves
 
-    g = _graph(adj)
     nxt = Moves(adj, goal, dist, cons, dist_of).nxt
-    vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, _ = _cons_arrays(
-        cons, len(adj), goal, nxt
-    )
-    ov, ks, ke, kids, lo, hi, last = k.mdd(
-        g.ptr,
-        g.idx,
-        _array(dist),
-        start,
-        goal,
-        cost,
-        vkeys,
-        ekeys,
-        ff,
-        lm_need,
-        nxt_tl,
-        nxt_hb,
-        nxt_row,
-        lmd,
-        cons.min_finish,
-        UNREACHABLE,
-    )
+    _, args, _ = _search_args(adj, start, goal, dist, cons, nxt, cost)
+    ov, ks, ke, kids, lo, hi, last = k.mdd(*args, UNREACHABLE)
     vl = ov.tolist()
     kl = kids.tolist()
     kid_lists = [kl[a:b] for a, b in zip(ks.tolist(), ke.tolist(), strict=True)]
