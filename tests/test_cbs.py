@@ -720,6 +720,27 @@ def test_derived_constraint_skipped_where_the_vertex_is_out_of_reach() -> None:
     assert far.cons[1] is not root.cons[1] and far.cons[1].vertex == {6 * g.n + v}
 
 
+def test_rectangle_option_holds_also_with_grid_coordinates_at_hand() -> None:
+    # The reach test of positive constraints builds the grid coordinates, and the pair
+    # sub-searches are handed them: rectangle reasoning still runs only if asked for.
+    from hierplan_opt.core.timer import Deadline
+    from hierplan_opt.search.constraints import AgentConstraints
+    from hierplan_opt.search.symmetry import Rectangles
+
+    g = Graph.grid(4, 4)
+    inst = Instance.mapf(g, [(0, 0), (3, 3)], [(3, 0), (0, 3)])
+    g.precompute_distances(inst.goals)
+    roots = [AgentConstraints.root(g.n, x) for x in inst.goals]
+    grid = Rectangles(g)
+    for rectangle in (False, True):
+        search = cbs._CBS(
+            g, inst.starts, inst.goals, roots, Deadline(None), prioritize=True, bypass=True,
+            heuristic="wdg", disjoint=True, symmetry=True, rectangle=rectangle, rectangles=grid,
+        )  # fmt: skip
+        assert search._grid() is grid
+        assert search.rectangles() is (grid if rectangle else None)
+
+
 def test_restrict_leaves_the_cached_mdd_alone() -> None:
     # restrict shares nothing it changes: the MDD it starts from (in the cache) stays.
     from hierplan_opt.search.constraints import NEG_E, NEG_V, POS_V, AgentConstraints

@@ -206,11 +206,11 @@ class _CBS:
             }
         )
         self.corridors = (corridors or Corridors(g)) if symmetry else None
-        # Built on first use (a few numpy passes over the graph; most small searches
-        # never reach a rectangle check).
+        # The grid coordinates (rectangle reasoning, and the reach test of positive
+        # constraints in ``child``): built on first use, a few numpy passes over the graph
+        # that most small searches never need.
         self._want_rect = symmetry and rectangle
         self._rect = rectangles
-        self._grid4: Rectangles | None = None
         self.init_paths = init_paths
         # One table of the node's paths, patched per child: the low level's
         # conflict-avoidance table (without the agent being replanned) and the index
@@ -229,16 +229,13 @@ class _CBS:
 
     def _grid(self) -> Rectangles | None:
         """The graph's coordinates if it is a 4-connected 2D grid (made on first call)."""
-        if self._grid4 is None:
-            self._grid4 = self._rect if self._rect is not None else Rectangles(self.graph)
-        return self._grid4 if self._grid4.enabled else None
+        if self._rect is None:
+            self._rect = Rectangles(self.graph)
+        return self._rect if self._rect.enabled else None
 
     def rectangles(self) -> Rectangles | None:
-        """The graph's rectangle coordinates (made on the first call), None if not used."""
-        if self._rect is None and self._want_rect:
-            self._rect = Rectangles(self.graph)
-        r = self._rect
-        return r if r is not None and r.enabled else None
+        """The grid coordinates for rectangle reasoning, None if it is not used."""
+        return self._grid() if self._want_rect else None
 
     # ------------------------------------------------------------------ low level
     def plan(
