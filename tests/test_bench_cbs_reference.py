@@ -85,3 +85,18 @@ def test_short_instances_are_repeated_median_reported(tmp_path, capsys, monkeypa
     assert cols[4] == "0.020" and cols[6] == "3/3"
     assert count.read_text().strip() == "3"
     assert "median of the runs" in out
+
+
+def test_unsolved_side_runs_once(tmp_path, capsys) -> None:
+    # A stand-in that gives up at once (cost -1, 1 ms): no repeats, no ratio.
+    count = tmp_path / "count"
+    cols, out = _anchor_row(
+        tmp_path,
+        capsys,
+        f"n=$(cat {count} 2>/dev/null || echo 0); echo $((n + 1)) > {count}\n"
+        'while [ "$1" != "-o" ]; do shift; done\n'
+        f"printf '{HEADER}\\n0.001,7,13,99,-1\\n' > \"$2\"\n",
+    )
+    assert count.read_text().strip() == "1"
+    assert cols[4] == "inf" and cols[5] == "-" and cols[6].endswith("/1")
+    assert "CBSH2-RTC 0/1;" in out

@@ -191,6 +191,17 @@ def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
     }
 
 
+def _again(times: list[float]) -> bool:
+    """Whether a side with these run times (CPU s) runs the instance once more.
+
+    Example
+    -------
+    >>> _again([0.01, 0.02]), _again([0.6]), _again([0.001] * REPEAT_MAX)
+    (True, False, False)
+    """
+    return len(times) < REPEAT_MAX and sum(times) < REPEAT_BUDGET
+
+
 def geomean(xs: list[float]) -> float:
     """Geometric mean (nan for an empty list).
 
@@ -231,10 +242,11 @@ def reference(
         ours: list[float] = []
         cpps: list[dict[str, Any]] = []
         r = inst = None
-        while True:
-            more_ours = len(ours) < REPEAT_MAX and sum(ours) < REPEAT_BUDGET
-            more_cpp = anchor is not None and len(cpps) < REPEAT_MAX
-            more_cpp = more_cpp and sum(c["time"] for c in cpps) < REPEAT_BUDGET
+        while True:  # interleaved; a side stops once unsolved (the limit is then its time)
+            more_ours = r is None or (r.plan is not None and _again(ours))
+            more_cpp = anchor is not None and (
+                not cpps or (cpps[-1]["solved"] and _again([c["time"] for c in cpps]))
+            )
             if not (more_ours or more_cpp):
                 break
             if more_ours:
@@ -242,12 +254,8 @@ def reference(
                 c0 = time.process_time()
                 r = registry.run("cbs", inst, time_limit=tl)
                 ours.append(time.process_time() - c0)
-                if r.plan is None:
-                    break  # unsolved: one run (the limit is the time)
             if more_cpp and anchor is not None:
                 cpps.append(run_anchor(anchor, name, tl))
-                if not cpps[-1]["solved"]:
-                    more_cpp = False
         assert r is not None and inst is not None
         cpu = statistics.median(ours)
         ok = r.plan is not None
@@ -259,8 +267,6 @@ def reference(
             status = "solved" if ok else r.status.value[:9]
         ours_solved += ok
         if anchor:
-            while not cpps:  # ours unsolved at once: the C++ still runs (once)
-                cpps.append(run_anchor(anchor, name, tl))
             cpp = {**cpps[-1], "time": statistics.median(c["time"] for c in cpps)}
             cpp["solved"] = all(c["solved"] for c in cpps)
         else:
