@@ -40,6 +40,14 @@ def both():
     jit.set_low_level(None)
 
 
+def random_grid(rng: random.Random) -> tuple[Graph, list[int]]:
+    """A small grid with random obstacles, and its free vertices."""
+    w, h = rng.choice([(5, 4), (6, 6), (8, 3)])
+    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
+    g = Graph.grid(w, h, obstacles=obst)
+    return g, [v for v in range(g.n) if g.passable[v]]
+
+
 def walk(g: Graph, rng: random.Random, free: list[int], steps: int) -> tuple[int, ...]:
     p = [rng.choice(free)]
     for _ in range(steps):
@@ -81,10 +89,7 @@ def test_random_calls_identical(both, seed):
     # Random constraints of every kind, a random conflict-avoidance table (tie-breaking),
     # sometimes a node limit: the path and the expansion count agree exactly.
     rng = random.Random(seed)
-    w, h = rng.choice([(5, 4), (6, 6), (8, 3)])
-    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
-    g = Graph.grid(w, h, obstacles=obst)
-    free = [v for v in range(g.n) if g.passable[v]]
+    g, free = random_grid(rng)
     if len(free) < 3:
         return
     res = Reservations(g.n)
@@ -119,10 +124,7 @@ def test_random_mdds_identical(seed):
     from hierplan_opt.search.mdd import build_mdd
 
     rng = random.Random(1000 + seed)
-    w, h = rng.choice([(5, 4), (6, 6), (8, 3)])
-    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
-    g = Graph.grid(w, h, obstacles=obst)
-    free = [v for v in range(g.n) if g.passable[v]]
+    g, free = random_grid(rng)
     if len(free) < 3:
         return
     try:
