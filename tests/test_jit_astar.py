@@ -112,6 +112,48 @@ def test_random_calls_identical(both, seed):
             res.add(a, walk(g, rng, free, rng.randint(0, 14)))
 
 
+@pytest.mark.parametrize("seed", range(30))
+def test_head_on_tables_identical(both, seed):
+    # Tables holding the agent's own shortest path walked backwards (shifted in time):
+    # many head-on swaps to count, which random walks rarely give.
+    rng = random.Random(500 + seed)
+    g, free = random_grid(rng)
+    if len(free) < 3:
+        return
+    jit.set_low_level("python")
+    for _ in range(6):
+        s, t = rng.sample(free, 2)
+        p, _ = astar.space_time_astar(g.adj, s, t, g.dist_list(t), AgentConstraints.root(g.n, t))
+        if p is None:
+            continue
+        res = Reservations(g.n)
+        back = tuple(reversed(p))
+        res.add(0, back[rng.randint(0, 1) :])
+        res.add(1, walk(g, rng, free, rng.randint(0, 12)))
+        c = random_cons(g, rng, free, t) if rng.random() < 0.5 else AgentConstraints.root(g.n, t)
+        py, jt = both(g.adj, s, t, g.dist_list(t), c, res=res, dist_of=g.dist_list)
+        assert py == jt, seed
+
+
+@pytest.mark.parametrize("mode", ["python", "jit"])
+@pytest.mark.parametrize(("other", "want"), [((1, 0, 0), (0, 2, 3)), ((2, 0, 0), (0, 1, 3))])
+def test_swap_avoided_among_equal_paths(mode, other, want):
+    # 2x2 grid, 0 -> 3 has two shortest paths; the other agent comes head-on along one
+    # (1 -> 0 or 2 -> 0 at t = 1: a swap, no vertex conflict): the search takes the other.
+    g = Graph.grid(2, 2)
+    res = Reservations(g.n)
+    res.add(0, other)
+    jit.set_low_level(mode)
+    try:
+        path, _ = astar.space_time_astar(
+            g.adj, 0, 3, g.dist_list(3), AgentConstraints.root(g.n, 3), res=res
+        )
+    finally:
+        jit.set_low_level(None)
+    assert path == want
+    assert res.conflicts_of(1, path) == []
+
+
 def ordered(levels: list[dict[int, list[int]]]) -> list[list[tuple[int, list[int]]]]:
     """The levels with their insertion orders (consumers iterate them)."""
     return [list(lv.items()) for lv in levels]
@@ -154,10 +196,10 @@ def dense(res: Reservations, graph: jit._Graph, h: int) -> tuple[np.ndarray, np.
             continue
         for t, v in enumerate(p):
             vt[t * n + v] += 1
-            if t and p[t - 1] != v:
+            if t and p[t - 1] != v:  # counted at the reverse move v -> u (a swap's slot)
                 u = p[t - 1]
-                row = graph.idx[graph.ptr[u] : graph.ptr[u + 1]].tolist()
-                et[t * nnz + graph.ptr[u] + row.index(v)] += 1
+                row = graph.idx[graph.ptr[v] : graph.ptr[v + 1]].tolist()
+                et[t * nnz + graph.ptr[v] + row.index(u)] += 1
     return vt, et
 
 

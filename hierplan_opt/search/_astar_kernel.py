@@ -14,8 +14,10 @@ Data layout (all ``int64`` unless said otherwise):
 - ``ff``: ``forbid_from`` per vertex (:data:`NEVER` where absent).
 - ``lm_need[t]``: the landmark vertex at ``t`` (-1 if none); ``nxt_tl, nxt_hb, nxt_row``:
   the next landmark's time, ``h`` bound and row of ``lmd`` (its distance table) per ``t``.
-- ``cat_vt``: agents per ``t * n + v`` (``int32``, ``cat_h`` timesteps); ``cat_et``:
-  agents per ``t * nnz + j`` (move ``j`` arriving at ``t``); ``park_t``: as
+- ``cat_vt``: agents per ``t * n + v`` (``int16``, ``cat_h`` timesteps); ``cat_et``:
+  agents per ``t * nnz + j`` making the *reverse* of move ``j`` (``v -> u`` is move ``j``:
+  the agents moving ``u -> v``) arriving at ``t``, so that the A* reads the swaps of
+  the move it tries at that move's own position; ``park_t``: as
   :attr:`.reservations.Reservations.park_t`.
 """
 
@@ -227,7 +229,7 @@ def astar(
             if use_cat:
                 if in_cat:
                     c += cat_vt[base + u]
-                    if u != v and cat_et[t1 * nnz + j] > 0:
+                    if u != v and cat_et[t1 * nnz + j] > 0:  # a swap: someone moves u -> v
                         c += 1
                 if t1 > park_t[u]:
                     c += 1
@@ -324,7 +326,11 @@ def _grow(a: np.ndarray, cap: int) -> np.ndarray:
 
 @_njit
 def cat_apply(cat_vt, cat_et, ptr, idx, path, delta):
-    """Add ``delta`` (+1 / -1) to the vertex-time and move counts of ``path``."""
+    """Add ``delta`` (+1 / -1) to the vertex-time and move counts of ``path``.
+
+    A move ``prev -> v`` is counted at the position of the reverse move ``v -> prev``
+    (see the module doc); without that arc nobody can meet it head-on.
+    """
     n = ptr.shape[0] - 1
     nnz = idx.shape[0]
     prev = path[0]
@@ -332,8 +338,8 @@ def cat_apply(cat_vt, cat_et, ptr, idx, path, delta):
         v = path[t]
         cat_vt[t * n + v] += delta
         if t > 0 and prev != v:
-            for j in range(ptr[prev], ptr[prev + 1]):
-                if idx[j] == v:
+            for j in range(ptr[v], ptr[v + 1]):
+                if idx[j] == prev:
                     cat_et[t * nnz + j] += delta
                     break
         prev = v

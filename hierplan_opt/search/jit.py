@@ -353,8 +353,9 @@ def _never(n: int) -> np.ndarray:
 class CatMirror:
     """Dense counts of one :class:`Reservations` at a time, for the kernel.
 
-    ``vt[t * n + v]`` agents at ``v`` at ``t`` and ``et[t * nnz + j]`` agents making move
-    ``j`` (CSR position) arriving at ``t``, for ``t < h``; ``park_t`` as the table's.
+    ``vt[t * n + v]`` agents at ``v`` at ``t`` and ``et[t * nnz + j]`` agents making the
+    reverse of move ``j`` (CSR position) arriving at ``t`` (those a move ``j`` would meet
+    head-on), for ``t < h``; ``park_t`` as the table's.
     Zeroing such arrays per table would cost more than the searches (the WDG pair
     searches make a table each), so a few buffers (:data:`MIRRORS`) are shared: the
     table that needs one takes the least recently used, whose previous owner's paths are
