@@ -221,7 +221,7 @@ def _search(
                 # conflict; the same move v -> u is already a vertex conflict at u).
                 # Measured against counting that same move (the earlier rule) on the 28
                 # reference instances either solver solves: root plans with fewer
-                # conflicts on 19, never more (maze-32-32-2 k5 conflict-free); CT nodes
+                # conflicts on 20, never more (maze-32-32-2 k5 conflict-free); CT nodes
                 # -18 % on room-32-32-4 k30 (to f = 782; now solved in 60 s), -23 % on
                 # warehouse k100, mixed on the small ones; more low-level expansions on
                 # some (warehouse k100 +31 %), less CPU there.
