@@ -151,7 +151,7 @@ def test_swap_avoided_among_equal_paths(mode, other, want):
     finally:
         jit.set_low_level(None)
     assert path == want
-    assert res.conflicts_of(1, path) == []
+    assert res.conflicts_of(1, want) == []
 
 
 def ordered(levels: list[dict[int, list[int]]]) -> list[list[tuple[int, list[int]]]]:
