@@ -74,6 +74,7 @@ from hierplan_opt.search.symmetry import (
     Corridors,
     Rectangles,
     corridor_split,
+    corridor_target_split,
     pseudo_corridor_split,
     rectangle_split,
     travel_time,
@@ -202,6 +203,7 @@ class _CBS:
                 "conflicts_non": 0,
                 "target_splits": 0,
                 "corridor_splits": 0,
+                "corridor_target_splits": 0,
                 "rectangle_splits": 0,
             }
         )
@@ -402,17 +404,31 @@ class _CBS:
             return cache[c]
         res = None
         t, kind, a, b, u, v = c
-        if self.corridors is not None and kind != TARGET:
+        if self.corridors is not None:
             cons = node.cons
 
             def travel(x: int, target: int, blocked: tuple[int, int] | None, upper: int) -> int:
                 return self.travel(x, cons[x], target, blocked, upper)
 
-            res = corridor_split(
-                self.corridors, travel, self.starts, node.paths, a, b,
-                (v,) if kind == VERTEX else (u, v),
-            )  # fmt: skip
-            if res is None and rank == 0 and self.corridors.enabled and self._head_on(node, c):
+            verts = (u, v) if kind == EDGE else (v,)
+            # A goal in the corridor first (corridor-target), as CBSH2-RTC does; a
+            # TARGET conflict's parked agent is ``a``.
+            for m, o in ((a, b),) if kind == TARGET else ((a, b), (b, a)):
+                res = corridor_target_split(
+                    self.corridors, travel, self.starts, self.goals, node.paths, m, o, verts,
+                    t if kind == TARGET else -1,
+                )  # fmt: skip
+                if res is not None:
+                    break
+            if res is None and kind != TARGET:
+                res = corridor_split(self.corridors, travel, self.starts, node.paths, a, b, verts)
+            if (
+                res is None
+                and kind != TARGET
+                and rank == 0
+                and self.corridors.enabled
+                and self._head_on(node, c)
+            ):
                 res = pseudo_corridor_split(travel, node.paths, a, b, u, v, t)
         cache[c] = res
         return res
@@ -421,12 +437,17 @@ class _CBS:
         """The children's new constraints: ``[(agent, [constraints]), ...]``."""
         t, kind, a, b, u, v = c
         if kind == TARGET and self.symmetry:
+            res = self.corridor(node, c, rank)
+            if res is not None:
+                self.stats["corridor_target_splits"] += 1
+                return res
             self.stats["target_splits"] += 1
             return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
         if self.corridors is not None and kind != TARGET:
             res = self.corridor(node, c, rank)
             if res is not None:
-                self.stats["corridor_splits"] += 1
+                key = "corridor_target_splits" if res[0][1][0][0] == LEN_GT else "corridor_splits"
+                self.stats[key] += 1
                 return res
         rects = self.rectangles() if kind == VERTEX and rank <= 1 else None
         if rects is not None:
@@ -493,14 +514,20 @@ class _CBS:
         )
 
     def child(self, node: _Node, agent: int, new: list[Constraint]) -> _Node | None:
+        """The child of ``node`` with constraints ``new`` (``agent``'s, and possibly others':
+        each constraint names its agent), its changed paths replanned; None if one fails."""
         n = self.n
         cons = list(node.cons)
-        cons[agent] = cons[agent].add_many(new, n=n, goal=self.goals[agent])
         paths = list(node.paths)
         costs = list(node.costs)
         replan: list[int] = []
-        if not cons[agent].allows_path(paths[agent], n):
-            replan.append(agent)
+        own: dict[int, list[Constraint]] = {}
+        for x in new:
+            own.setdefault(x[1], []).append(x)
+        for y, ys in own.items():
+            cons[y] = cons[y].add_many(ys, n=n, goal=self.goals[y])
+            if not cons[y].allows_path(paths[y], n):
+                replan.append(y)
         pos = [x for x in new if is_positive(x)]
         if pos:
             starts = self.starts
@@ -515,12 +542,12 @@ class _CBS:
             # (constraint, its vertex or -1 for a length constraint, its time)
             at = [(x, -1 if x[0] == LEN_LE else x[3] if x[0] == POS_E else x[2], x[4]) for x in pos]
             for y in range(self.k):
-                if y == agent:
-                    continue
                 s = starts[y]
                 dy = dists[y]
                 rel = []
                 for x, v, t in at:
+                    if x[1] == y:
+                        continue
                     if v >= 0:
                         lb = dy[s] - dy[v]
                         if sym and lb < 0:
@@ -535,7 +562,9 @@ class _CBS:
                 old = cons[y]
                 cons[y] = add_derived(old, rel, n=n, goals=self.goals, goal=self.goals[y])
                 self._inherit_mdd(y, old, cons[y], rel, node.costs[y])
-                if any(violates_derived(x, paths[y], n, self.goals) for x in rel):
+                if y not in replan and any(
+                    violates_derived(x, paths[y], n, self.goals) for x in rel
+                ):
                     replan.append(y)
         for y in replan:
             p = self.plan(y, cons[y], paths)

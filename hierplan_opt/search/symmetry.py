@@ -32,6 +32,49 @@ lower bound is sound). The lemma only needs "a first arrival at the exit before
 ``B_x`` comes through the corridor", so it also holds for a single edge ``(p, q)``
 (``k = 0``): a *pseudo-corridor*, used for a head-on meeting of two agents whose
 every optimal path makes the meeting moves (:func:`pseudo_corridor_split`).
+
+Starts inside the chain. Number the line ``e_L = 0, c_1 = 1, .., c_k = k, e_R = k + 1``
+and let ``p_x`` be ``x``'s start position if it lies in the chain, else 0 (``p_y``: else
+``k + 1``). If ``p_x < p_y`` the lemma still holds: before its first visit to ``e_R`` at
+``tau_x < B_x``, ``x`` stays in the chain since its start or its last visit to ``e_L``,
+so it moves from a position ``<= p_x`` to ``k + 1``, while ``y`` moves from ``>= p_y``
+to 0; if the two time intervals overlap, the order of the agents on the line flips
+inside the overlap (a vertex or swap conflict), so one agent ends its interval before
+the other starts it, and that one starts at an end (``y`` at ``e_R`` at a time
+``> tau_x``), which gives ``tau_y >= tau_x + k + 2`` as before (:func:`corridor_split`).
+
+Corridor-target reasoning (after Li et al., AIJ 2021; proved here in this form). Let
+agent ``m``'s goal ``g`` be a chain vertex at position ``j``, ``X`` one end of the
+chain, ``Y`` the other, ``D = |pos(X) - j|``, ``n_X`` and ``n_Y`` the neighbours of
+``g`` towards ``X`` and ``Y``, and let agent ``o`` not start strictly between ``g`` and
+``X``. Take a conflict-free pair of paths (under the node's constraints) in which ``o``
+is at ``X`` at a time in ``[1, B_o(X) - 1]``, ``B_o(X)`` the earliest arrival at ``X``
+with the chain edge into ``X`` blocked, and ``m`` is parked at ``g`` from time ``f``.
+Then ``o``'s first arrival at ``X``, at ``tau' < B_o(X)``, comes through the chain, so
+``o`` was last at ``g`` at some ``tau_g < tau'`` and stayed strictly between ``g`` and
+``X`` in between; ``o``'s first visit to ``g``, at ``tau_1 <= tau_g``, used no vertex
+between ``g`` and ``X`` (they are reached only through ``g`` or ``X``). As ``m`` is
+parked, ``f > tau_g``; let ``f_0 <= f`` be ``m``'s first time at ``g`` after ``tau_g``.
+At ``f_0 - 1`` ``m`` is at ``n_Y`` or at ``n_X``.
+
+* From ``n_Y``: ``f_0 >= T_m(n_Y) + 1`` and ``f_0 >= tau_1 + 1 >= B_o(g) + 1``, with
+  ``B_o(g)`` the earliest arrival at ``g`` with the edge ``g - n_X`` blocked.
+* From ``n_X``: let ``s`` be ``m``'s last time before ``f_0`` outside the open segment
+  ``(g, X)``. If ``s < tau_g`` (or there is none), ``m`` is inside the segment at
+  ``tau_g`` (ahead of ``o``) and behind ``o`` at ``min(f_0, tau')``: the order flips, a
+  conflict. So ``s >= tau_g`` and ``m`` is at ``X`` at ``s`` (it is not at ``g`` during
+  ``(tau_g, f_0)``). If ``s <= tau'``, ``m`` is ahead of ``o`` at ``s`` and behind it at
+  ``min(f_0, tau')``: a conflict again. So ``s >= tau' + 1`` with ``tau' >= T_o(X)`` and
+  ``tau' >= tau_1 + D``, ``s >= T_m(X)``, and ``f_0 >= s + D``.
+
+(``T`` are earliest arrivals under the node's constraints, :func:`travel_time`.) So
+``f >= l1 + 1`` with ``l1 + 1 = min(max(max(T_o(X), B_o(g) + D) + 1, T_m(X)) + D,
+max(B_o(g), T_m(n_Y)) + 1)``, and every conflict-free solution of the node (and of its
+descendants, whose constraints only add) has ``m`` finishing after ``l1``, or ``m``
+finishing by ``l1`` and ``o`` away from ``X`` at all times in ``[1, l2]`` for any
+``l2 < B_o(X)``: the two children of :func:`corridor_target_split` (the second also
+keeps every other agent off ``g`` from ``l1`` on, as in target reasoning) exclude no
+conflict-free solution.
 """
 
 from __future__ import annotations
@@ -43,7 +86,14 @@ from heapq import heappop, heappush
 import numpy as np
 
 from hierplan_opt.core.graph import UNREACHABLE, Graph
-from hierplan_opt.search.constraints import NEG_RANGE, NEG_V, AgentConstraints, Constraint
+from hierplan_opt.search.constraints import (
+    LEN_GT,
+    LEN_LE,
+    NEG_RANGE,
+    NEG_V,
+    AgentConstraints,
+    Constraint,
+)
 
 
 class Corridors:
@@ -250,18 +300,20 @@ def corridor_split(
 
     ``vertices`` are the conflict's vertices (one for a vertex conflict, two for a swap).
     Used only when both current paths break their range (both children replan).
+    A start inside the chain is allowed when the agent heading for ``e_R`` starts
+    nearer ``e_L`` than the other (see the module docstring).
     """
     for v in vertices:
         cor = corridors.corridor(v)
         if cor is None:
             continue
         chain, el, er = cor
-        inside = set(chain)
-        if starts[a] in inside or starts[b] in inside:
-            return None
+        pos = _positions(chain)
         length = len(chain) + 1
         for x, y in ((a, b), (b, a)):
-            # x crosses towards e_R, y towards e_L.
+            # x crosses towards e_R, y towards e_L; x must start on e_L's side of y.
+            if pos.get(starts[x], 0) >= pos.get(starts[y], length):
+                continue
             if _first_visit(paths[x], er) is None or _first_visit(paths[y], el) is None:
                 continue
             tx, ty = corridor_ranges(travel, (x, er, chain[-1]), (y, el, chain[0]), length)
@@ -271,6 +323,77 @@ def corridor_split(
                 continue
             return [(x, [(NEG_RANGE, x, er, 1, tx)]), (y, [(NEG_RANGE, y, el, 1, ty)])]
         return None
+    return None
+
+
+def _positions(chain: tuple[int, ...]) -> dict[int, int]:
+    """Position of each chain vertex on the line ``e_L = 0, c_1 = 1, .., e_R = k + 1``."""
+    return {c: i + 1 for i, c in enumerate(chain)}
+
+
+def corridor_target_split(
+    corridors: Corridors,
+    travel: Travel,
+    starts: list[int],
+    goals: list[int],
+    paths: list[tuple[int, ...]],
+    m: int,
+    o: int,
+    vertices: tuple[int, ...],
+    above: int = -1,
+) -> list[tuple[int, list[Constraint]]] | None:
+    """Corridor-target children when ``m``'s goal lies in the corridor ``o`` passes, or None.
+
+    Child 1: ``m`` finally arrives after ``l1``; child 2: ``m`` finishes by ``l1``
+    (with the usual consequence for the others: off its goal from ``l1`` on) and ``o``
+    is not at the exit ``X`` at any time in ``[1, l2]``. The bounds and the proof are
+    in the module docstring. Used only when both current paths break their child's
+    constraints (both children replan), and only if ``l1 > above`` (a TARGET conflict
+    at time ``t`` passes ``above=t``: with ``l1 <= t`` the target split is as good).
+    """
+    g = goals[m]
+    for v in vertices:
+        cor = corridors.corridor(v)
+        if cor is None or g not in cor[0]:
+            continue
+        chain, el, er = cor
+        pos = _positions(chain)
+        k1 = len(chain) + 1
+        line = (el, *chain, er)
+        j = pos[g]
+        so = pos.get(starts[o], -1)
+        path_m, path_o = paths[m], paths[o]
+        f_cur = len(path_m) - 1
+        for xi in (k1, 0):
+            step = 1 if xi > j else -1
+            x, d = line[xi], abs(xi - j)
+            if min(j, xi) < so < max(j, xi):
+                continue  # o starts between g and X: it need not pass g
+            b_ox = travel(o, x, (line[xi - step], x), UNREACHABLE)
+            if b_ox <= 1 or not _visits_by(path_o, x, b_ox - 1):
+                continue
+            # Lower bounds: o's first arrival at g (X side of g unused before it), o's
+            # arrival at X, m's at X and at g's neighbour on the far side.
+            b_og = travel(o, g, (g, line[j + step]), UNREACHABLE)
+            t_my = travel(m, line[j - step], None, UNREACHABLE)
+            via_y = max(b_og, t_my) + 1
+            if via_y - 1 <= max(above, f_cur - 1):
+                continue
+            t_ox = travel(o, x, None, UNREACHABLE)
+            t_mx = travel(m, x, None, UNREACHABLE)
+            via_x = max(max(t_ox, b_og + d) + 1, t_mx) + d
+            l1 = min(via_x, via_y) - 1
+            if l1 >= UNREACHABLE or l1 <= above or f_cur > l1:
+                continue
+            # Any end of the range is sound; a finite one keeps the constraint small (o
+            # is off g from l1 on, so it arrives through the corridor soon after).
+            l2 = min(b_ox - 1, l1 + d + k1)
+            if not _visits_by(path_o, x, l2):
+                continue
+            return [
+                (m, [(LEN_GT, m, -1, -1, l1)]),
+                (m, [(LEN_LE, m, -1, -1, l1), (NEG_RANGE, o, x, 1, l2)]),
+            ]
     return None
 
 
