@@ -756,3 +756,216 @@ def test_restrict_leaves_the_cached_mdd_alone() -> None:
     r = restrict(m, [(NEG_V, 0, v1, -1, 1)], [((POS_V, 1, g.vertex((1, 1)), -1, 2), 0)])
     assert r is not None and list(r.levels[1]) == [v2] and g.vertex((1, 1)) not in r.levels[2]
     assert [{v: list(k) for v, k in lv.items()} for lv in m.levels] == before
+
+
+# ---------------------------------------------------------------- corridor-target
+def _chain_map() -> Graph:
+    """Chain (1, 1)-(2, 1)-(3, 1) between the junctions (0, 1) and (4, 1), no bypass."""
+    return Graph.grid(5, 3, obstacles=[(1, 0), (2, 0), (3, 0), (1, 2), (2, 2), (3, 2)])
+
+
+def _target_pair_exists(g, starts, cons, goal_m, l1, x, l2, horizon) -> bool:
+    """Whether two conflict-free path prefixes over ``[0, horizon]`` obeying ``cons``
+    (vertex constraints) exist with agent 0 at ``goal_m`` at all times in ``[l1,
+    horizon]`` and agent 1 at ``x`` at some time in ``[1, l2]``."""
+    n = g.n
+    layer = {(starts[0], starts[1], False)}
+    for t in range(1, horizon + 1):
+        nxt = set()
+        for p1, p2, hit in layer:
+            for q1 in (p1, *g.adj[p1]):
+                if t * n + q1 in cons[0].vertex or (t >= l1 and q1 != goal_m):
+                    continue
+                for q2 in (p2, *g.adj[p2]):
+                    if t * n + q2 in cons[1].vertex or q1 == q2 or (q1 == p2 and q2 == p1):
+                        continue
+                    nxt.add((q1, q2, hit or (q2 == x and t <= l2)))
+        layer = nxt
+    return any(hit for _, _, hit in layer)
+
+
+def test_corridor_target_bounds_are_complete_against_joint_search():
+    """Corridor-target lemma: with m parked at its goal (inside a chain) by l1, no
+    conflict-free pair has o at the exit X in [1, l2], under vertex constraints, for
+    starts anywhere (o not strictly between the goal and X)."""
+    import random
+
+    from hierplan_opt.search.constraints import NEG_V, AgentConstraints
+    from hierplan_opt.search.symmetry import Corridors, corridor_target_bounds, travel_time
+
+    rng = random.Random(7)
+    found = bogus_caught = 0
+    for _ in range(300):
+        w, h = rng.choice([(5, 4), (5, 5), (6, 4), (5, 3)])
+        cells = [(x, y) for y in range(h) for x in range(w)]
+        obs = rng.sample(cells, rng.choice([3, 4, 5, 6]))
+        g = Graph.grid(w, h, obstacles=obs)
+        free = [g.vertex(c) for c in cells if c not in obs]
+        corr = Corridors(g)
+        inner = [v for v in free if corr.corridor(v) is not None]
+        if not inner:
+            continue
+        goal = rng.choice(inner)
+        chain, el, er = corr.corridor(goal)  # type: ignore[misc]
+        line = (el, *chain, er)
+        j = chain.index(goal) + 1
+        s = rng.sample(free, 2)
+        cons = []
+        for i in range(2):
+            c = AgentConstraints.root(g.n, s[i])
+            for _ in range(rng.choice([0, 0, 1, 3])):
+                c = c.add((NEG_V, i, rng.choice(free), -1, rng.randint(1, 6)), n=g.n, goal=s[i])
+            cons.append(c)
+
+        def travel(a, target, blocked, upper, g=g, s=s, cons=cons):
+            return travel_time(g.adj, s[a], target, g.dist_list(target), cons[a], blocked, upper)
+
+        for xi in (0, len(line) - 1):
+            so = line.index(s[1]) if s[1] in chain else -1
+            if min(j, xi) < so < max(j, xi):
+                continue
+            l1, b_ox = corridor_target_bounds(travel, line, j, xi, 0, 1)
+            l2 = min(b_ox - 1, l1 + 6)
+            if l2 < 1 or l1 > 14:
+                continue
+            found += 1
+            horizon = max(l1, l2) + 1
+            assert not _target_pair_exists(g, s, cons, goal, l1, line[xi], l2, horizon), (
+                obs, s, goal, xi, l1, l2,
+            )  # fmt: skip
+            bogus_caught += _target_pair_exists(g, s, cons, goal, l1 + 3, line[xi], l2, horizon + 3)
+    assert found >= 60
+    assert bogus_caught >= 5
+
+
+def _split_at_root(inst: Instance):
+    from hierplan_opt.core.timer import Deadline
+    from hierplan_opt.search.constraints import AgentConstraints
+
+    g = inst.graph
+    g.precompute_distances(inst.goals)
+    roots = [AgentConstraints.root(g.n, x) for x in inst.goals]
+    search = cbs._CBS(
+        g, inst.starts, inst.goals, roots, Deadline(None), prioritize=True, bypass=True,
+        heuristic="wdg", disjoint=True, symmetry=True,
+    )  # fmt: skip
+    root = search.root()
+    assert root is not None
+    c, rank = search.choose(root)
+    return search, root, search.split(root, c, rank)
+
+
+def test_corridor_target_split_goal_inside() -> None:
+    # m (agent 0) parks at (2, 1) inside the chain; o (agent 1) must cross it first.
+    from hierplan_opt.search.constraints import LEN_GT, LEN_LE, NEG_RANGE
+
+    g = _chain_map()
+    inst = Instance.mapf(g, [(4, 0), (0, 0)], [(2, 1), (4, 2)])
+    search, root, kids = _split_at_root(inst)
+    assert search.stats["corridor_target_splits"] == 1
+    (m1, c1), (m2, c2) = kids
+    assert m1 == m2 == 0
+    assert [x[0] for x in c1] == [LEN_GT] and [x[0] for x in c2] == [LEN_LE, NEG_RANGE]
+    assert c1[0][4] == c2[0][4] == 4  # l1: m cannot be parked by 4 if o crosses
+    assert c2[1][1:4] == (1, g.vertex((4, 1)), 1)
+    kid = search.child(root, 0, c2)  # o replans: off (4, 1) until time 11
+    assert kid is not None and kid.paths[0] == root.paths[0]
+    assert g.vertex((4, 1)) not in kid.paths[1][1:11]
+    expected = brute_force(inst, "soc")
+    for options in ({}, {"symmetry": False}):
+        r = check(inst, **options)
+        assert r.status == Status.OPTIMAL and r.cost == expected == 14
+
+
+def test_corridor_split_start_inside() -> None:
+    # x starts inside the chain heading right, y comes from the right end heading left.
+    g = _chain_map()
+    inst = Instance.mapf(g, [(1, 1), (4, 0)], [(4, 2), (0, 2)])
+    search, _, kids = _split_at_root(inst)
+    assert search.stats["corridor_splits"] == 1
+    # Range constraints at the chain's two ends (not a pseudo-corridor over one edge).
+    assert sorted((a, g.location(cs[0][2])) for a, cs in kids) == [(0, (4, 1)), (1, (0, 1))]
+    assert {cs[0][0] for _, cs in kids} == {6}  # NEG_RANGE
+    expected = brute_force(inst, "soc")
+    for options in ({}, {"symmetry": False}):
+        r = check(inst, **options)
+        assert r.status == Status.OPTIMAL and r.cost == expected
+
+
+def test_corridor_target_start_and_goal_inside() -> None:
+    # m starts and ends inside the chain and must step out to let o through; o's start
+    # is inside too (on the far side of m's goal).
+    g = _chain_map()
+    for starts, goals in (
+        ([(3, 1), (0, 0)], [(1, 1), (4, 2)]),
+        ([(2, 1), (1, 1)], [(3, 1), (4, 2)]),
+        ([(1, 1), (3, 1)], [(2, 1), (0, 2)]),
+    ):
+        inst = Instance.mapf(g, starts, goals)
+        for objective in ("soc", "makespan"):
+            expected = brute_force(inst, objective)
+            for options in ({}, {"symmetry": False}):
+                r = check(inst, objective, **options)
+                assert r.status == Status.OPTIMAL and r.cost == expected, (starts, goals)
+
+
+def _narrow_instances(rng, count):
+    """Small grids with obstacles; goals (often) and starts (half the time) on chains."""
+    from hierplan_opt.search.symmetry import Corridors
+
+    out = []
+    while len(out) < count:
+        w, h = rng.choice([(5, 4), (6, 3), (5, 5), (6, 4)])
+        cells = [(x, y) for y in range(h) for x in range(w)]
+        obs = rng.sample(cells, rng.choice([3, 4, 5, 6]))
+        g = Graph.grid(w, h, obstacles=obs)
+        free = [c for c in cells if c not in obs]
+        corr = Corridors(g)
+        inner = [c for c in free if corr.corridor(g.vertex(c)) is not None]
+        if not inner:
+            continue
+        k = rng.choice([2, 3, 3])
+        goals = rng.sample(free, k)
+        starts = rng.sample(free, k)
+        if rng.random() < 0.8:
+            goals[0] = rng.choice(inner)
+        if rng.random() < 0.5:
+            starts[1] = rng.choice(inner)
+        if len(set(goals)) == k and len(set(starts)) == k:
+            out.append(Instance.mapf(g, starts, goals))
+    return out
+
+
+def _corridor_target_cross_check(seed: int, count: int) -> tuple[int, int]:
+    import random
+
+    rng = random.Random(seed)
+    checked = splits = 0
+    for i, inst in enumerate(_narrow_instances(rng, count)):
+        objective = "soc" if i % 4 else "makespan"
+        expected = brute_force(inst, objective)
+        if expected is None:
+            continue
+        r = check(inst, objective)
+        if objective == "makespan" and r.status == Status.TIME_LIMIT:
+            continue  # the makespan loop can be slow on tiny awkward maps (either way)
+        assert r.status == Status.OPTIMAL and r.cost == expected, (inst.starts, inst.goals)
+        off = check(inst, objective, symmetry=False)
+        assert off.status != Status.OPTIMAL or off.cost == expected
+        checked += 1
+        splits += r.stats["corridor_target_splits"]
+    return checked, splits
+
+
+def test_corridor_target_matches_brute_force_on_narrow_grids():
+    """Corridor-target splits (goals and starts inside chains) never change the optimum."""
+    checked, splits = _corridor_target_cross_check(13, 40)
+    assert checked >= 25
+    assert splits >= 1
+
+
+@pytest.mark.slow
+def test_corridor_target_matches_brute_force_on_narrow_grids_long():
+    checked, splits = _corridor_target_cross_check(12, 600)
+    assert checked >= 350
+    assert splits >= 30

@@ -331,6 +331,52 @@ def _positions(chain: tuple[int, ...]) -> dict[int, int]:
     return {c: i + 1 for i, c in enumerate(chain)}
 
 
+def corridor_target_bounds(
+    travel: Travel,
+    line: tuple[int, ...],
+    j: int,
+    xi: int,
+    m: int,
+    o: int,
+    above: int = -1,
+) -> tuple[int, int]:
+    """``(l1, B_o(X))`` of corridor-target reasoning, or ``(-1, B_o(X))`` if ``l1 <= above``.
+
+    ``line`` is ``(e_L, c_1, .., c_k, e_R)``; ``m``'s goal is ``line[j]`` (``1 <= j <=
+    k``) and ``X = line[xi]`` (``xi`` is 0 or ``k + 1``). Every conflict-free pair of paths
+    in which ``o`` is at ``X`` at a time in ``[1, B_o(X) - 1]`` and ``m`` is parked at its
+    goal from time ``f`` has ``f > l1`` (module docstring; ``o`` must not start strictly
+    between ``line[j]`` and ``X``).
+
+    Example
+    -------
+    >>> g = Graph.grid(5, 3, obstacles=[(1, 0), (2, 0), (3, 0), (1, 2), (2, 2), (3, 2)])
+    >>> line = (g.vertex((0, 1)), *(g.vertex((x, 1)) for x in (1, 2, 3)), g.vertex((4, 1)))
+    >>> s = [g.vertex((4, 0)), g.vertex((0, 0))]  # m = 0 (goal (2, 1)), o = 1 heads right
+    >>> def travel(a, target, blocked, upper):
+    ...     return travel_time(g.adj, s[a], target, g.dist_list(target), AgentConstraints(),
+    ...                        blocked, upper)
+    >>> corridor_target_bounds(travel, line, 2, 4, 0, 1)  # no bypass: B_o(X) unreachable
+    (4, 1073741824)
+    """
+    g = line[j]
+    step = 1 if xi > j else -1
+    x, d = line[xi], abs(xi - j)
+    b_ox = travel(o, x, (line[xi - step], x), UNREACHABLE)
+    # Lower bounds: o's first arrival at g (X side of g unused before it), o's arrival
+    # at X, m's at X and at g's neighbour on the far side.
+    b_og = travel(o, g, (g, line[j + step]), UNREACHABLE)
+    t_my = travel(m, line[j - step], None, UNREACHABLE)
+    via_y = max(b_og, t_my) + 1
+    if via_y - 1 <= above:
+        return -1, b_ox
+    t_ox = travel(o, x, None, UNREACHABLE)
+    t_mx = travel(m, x, None, UNREACHABLE)
+    via_x = max(max(t_ox, b_og + d) + 1, t_mx) + d
+    l1 = min(via_x, via_y) - 1
+    return (l1 if l1 > above else -1), b_ox
+
+
 def corridor_target_split(
     corridors: Corridors,
     travel: Travel,
@@ -346,10 +392,10 @@ def corridor_target_split(
 
     Child 1: ``m`` finally arrives after ``l1``; child 2: ``m`` finishes by ``l1``
     (with the usual consequence for the others: off its goal from ``l1`` on) and ``o``
-    is not at the exit ``X`` at any time in ``[1, l2]``. The bounds and the proof are
-    in the module docstring. Used only when both current paths break their child's
-    constraints (both children replan), and only if ``l1 > above`` (a TARGET conflict
-    at time ``t`` passes ``above=t``: with ``l1 <= t`` the target split is as good).
+    is not at the exit ``X`` at any time in ``[1, l2]`` (:func:`corridor_target_bounds`).
+    Used only when both current paths break their child's constraints (both children
+    replan), and only if ``l1 > above`` (a TARGET conflict at time ``t`` passes
+    ``above=t``: with ``l1 <= t`` the target split is as good).
     """
     g = goals[m]
     for v in vertices:
@@ -357,33 +403,20 @@ def corridor_target_split(
         if cor is None or g not in cor[0]:
             continue
         chain, el, er = cor
-        pos = _positions(chain)
         k1 = len(chain) + 1
         line = (el, *chain, er)
-        j = pos[g]
-        so = pos.get(starts[o], -1)
+        j = chain.index(g) + 1
+        so = chain.index(starts[o]) + 1 if starts[o] in chain else -1
         path_m, path_o = paths[m], paths[o]
         f_cur = len(path_m) - 1
         for xi in (k1, 0):
-            step = 1 if xi > j else -1
             x, d = line[xi], abs(xi - j)
             if min(j, xi) < so < max(j, xi):
                 continue  # o starts between g and X: it need not pass g
-            b_ox = travel(o, x, (line[xi - step], x), UNREACHABLE)
-            if b_ox <= 1 or not _visits_by(path_o, x, b_ox - 1):
-                continue
-            # Lower bounds: o's first arrival at g (X side of g unused before it), o's
-            # arrival at X, m's at X and at g's neighbour on the far side.
-            b_og = travel(o, g, (g, line[j + step]), UNREACHABLE)
-            t_my = travel(m, line[j - step], None, UNREACHABLE)
-            via_y = max(b_og, t_my) + 1
-            if via_y - 1 <= max(above, f_cur - 1):
-                continue
-            t_ox = travel(o, x, None, UNREACHABLE)
-            t_mx = travel(m, x, None, UNREACHABLE)
-            via_x = max(max(t_ox, b_og + d) + 1, t_mx) + d
-            l1 = min(via_x, via_y) - 1
-            if l1 >= UNREACHABLE or l1 <= above or f_cur > l1:
+            if not _visits_by(path_o, x, len(path_o)):
+                continue  # o never at X: child 2 would not change its path
+            l1, b_ox = corridor_target_bounds(travel, line, j, xi, m, o, max(above, f_cur - 1))
+            if l1 < 0 or l1 >= UNREACHABLE or b_ox <= 1:
                 continue
             # Any end of the range is sound; a finite one keeps the constraint small (o
             # is off g from l1 on, so it arrives through the corridor soon after).
