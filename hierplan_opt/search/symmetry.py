@@ -340,13 +340,14 @@ def corridor_target_bounds(
     o: int,
     above: int = -1,
 ) -> tuple[int, int]:
-    """``(l1, B_o(X))`` of corridor-target reasoning, or ``(-1, B_o(X))`` if ``l1 <= above``.
+    """``(l1, B)`` of corridor-target reasoning, or ``(-1, 0)`` if ``l1 <= above``.
 
     ``line`` is ``(e_L, c_1, .., c_k, e_R)``; ``m``'s goal is ``line[j]`` (``1 <= j <=
     k``) and ``X = line[xi]`` (``xi`` is 0 or ``k + 1``). Every conflict-free pair of paths
-    in which ``o`` is at ``X`` at a time in ``[1, B_o(X) - 1]`` and ``m`` is parked at its
+    in which ``o`` is at ``X`` at a time in ``[1, B - 1]`` and ``m`` is parked at its
     goal from time ``f`` has ``f > l1`` (module docstring; ``o`` must not start strictly
-    between ``line[j]`` and ``X``).
+    between ``line[j]`` and ``X``). ``B`` is ``B_o(X)`` or, if that is larger, at least
+    ``l1 + D + k + 2`` (the ranges used end there).
 
     Example
     -------
@@ -356,25 +357,30 @@ def corridor_target_bounds(
     >>> def travel(a, target, blocked, upper):
     ...     return travel_time(g.adj, s[a], target, g.dist_list(target), AgentConstraints(),
     ...                        blocked, upper)
-    >>> corridor_target_bounds(travel, line, 2, 4, 0, 1)  # no bypass: B_o(X) unreachable
-    (4, 1073741824)
+    >>> corridor_target_bounds(travel, line, 2, 4, 0, 1)  # no bypass: B capped at 4 + 2 + 5
+    (4, 11)
     """
     g = line[j]
     step = 1 if xi > j else -1
     x, d = line[xi], abs(xi - j)
-    b_ox = travel(o, x, (line[xi - step], x), UNREACHABLE)
-    # Lower bounds: o's first arrival at g (X side of g unused before it), o's arrival
-    # at X, m's at X and at g's neighbour on the far side.
-    b_og = travel(o, g, (g, line[j + step]), UNREACHABLE)
-    t_my = travel(m, line[j - step], None, UNREACHABLE)
+    # Lower bounds: o's first arrival at g (X side of g unused before it), m's arrival at
+    # g's neighbour on the far side, o's and m's at X. Cheapest decision first: each
+    # search is bounded by the value above which it no longer changes the result.
+    t_my = travel(m, line[j - step], None, above + 1)
+    b_og = travel(o, g, (g, line[j + step]), UNREACHABLE if t_my > above else above + 1)
+    if max(b_og, t_my) <= above:
+        return -1, 0
+    if t_my > above:
+        t_my = travel(m, line[j - step], None, UNREACHABLE)
     via_y = max(b_og, t_my) + 1
-    if via_y - 1 <= above:
-        return -1, b_ox
-    t_ox = travel(o, x, None, UNREACHABLE)
-    t_mx = travel(m, x, None, UNREACHABLE)
+    t_ox = travel(o, x, None, max(via_y - d - 1, 0))
+    t_mx = travel(m, x, None, max(via_y - d, 0))
     via_x = max(max(t_ox, b_og + d) + 1, t_mx) + d
     l1 = min(via_x, via_y) - 1
-    return (l1 if l1 > above else -1), b_ox
+    if l1 <= above or l1 >= UNREACHABLE:
+        return -1, 0
+    # Only ranges up to l1 + d + k + 1 are used (see corridor_target_split).
+    return l1, travel(o, x, (line[xi - step], x), l1 + d + len(line))
 
 
 def corridor_target_split(
@@ -416,7 +422,7 @@ def corridor_target_split(
             if not _visits_by(path_o, x, len(path_o)):
                 continue  # o never at X: child 2 would not change its path
             l1, b_ox = corridor_target_bounds(travel, line, j, xi, m, o, max(above, f_cur - 1))
-            if l1 < 0 or l1 >= UNREACHABLE or b_ox <= 1:
+            if l1 < 0 or b_ox <= 1:
                 continue
             # Any end of the range is sound; a finite one keeps the constraint small (o
             # is off g from l1 on, so it arrives through the corridor soon after).
