@@ -23,7 +23,10 @@ Options (all on by default, each switchable off; none changes the optimal cost):
   corridor reasoning -- two agents meeting head-on in a chain of degree-2 vertices, or
   over one edge that all their optimal paths use (a pseudo-corridor), get range
   constraints at the corridor's exits with bounds from travel times under the node's
-  constraints; such conflicts are split first within their class (Li et al. 2021);
+  constraints; corridor-target reasoning -- a goal inside such a chain that another
+  agent passes: a length constraint on the goal's agent and a range constraint on the
+  other (tried before target reasoning); such conflicts are split first within their
+  class (Li et al. 2021);
   and, with ``rectangle`` (also on by default, 4-connected 2D grids only), rectangle
   reasoning -- a cardinal or semi-cardinal vertex conflict of two agents crossing a
   rectangle is split with two barrier constraints (Li et al., AAAI 2019).
