@@ -339,8 +339,10 @@ def corridor_target_bounds(
     m: int,
     o: int,
     above: int = -1,
+    arrival: int = 0,
 ) -> tuple[int, int]:
-    """``(l1, B)`` of corridor-target reasoning, or ``(-1, 0)`` if ``l1 <= above``.
+    """``(l1, B)`` of corridor-target reasoning, or ``(-1, 0)`` if ``l1 <= above`` or
+    ``B <= arrival`` (``o``'s current first arrival at ``X``: no range would cover it).
 
     ``line`` is ``(e_L, c_1, .., c_k, e_R)``; ``m``'s goal is ``line[j]`` (``1 <= j <=
     k``) and ``X = line[xi]`` (``xi`` is 0 or ``k + 1``). Every conflict-free pair of paths
@@ -363,6 +365,9 @@ def corridor_target_bounds(
     g = line[j]
     step = 1 if xi > j else -1
     x, d = line[xi], abs(xi - j)
+    blocked_x = (line[xi - step], x)
+    if travel(o, x, blocked_x, arrival + 1) <= arrival:
+        return -1, 0  # e.g. a room corner: the way round is as fast
     # Lower bounds: o's first arrival at g (X side of g unused before it), m's arrival at
     # g's neighbour on the far side, o's and m's at X. Cheapest decision first: each
     # search is bounded by the value above which it no longer changes the result.
@@ -380,7 +385,18 @@ def corridor_target_bounds(
     if l1 <= above or l1 >= UNREACHABLE:
         return -1, 0
     # Only ranges up to l1 + d + k + 1 are used (see corridor_target_split).
-    return l1, travel(o, x, (line[xi - step], x), l1 + d + len(line))
+    return l1, travel(o, x, blocked_x, l1 + d + len(line))
+
+
+def _early(path: tuple[int, ...], v: int, avoid: int, bar: int) -> bool:
+    """Whether ``path`` first visits ``v`` by time ``bar``, not visiting ``avoid`` before:
+    then the earliest such arrival (a bound of :func:`corridor_target_bounds`) is ``<= bar``."""
+    for u in path[: bar + 1]:
+        if u == v:
+            return True
+        if u == avoid:
+            return False
+    return False
 
 
 def corridor_target_split(
@@ -421,7 +437,12 @@ def corridor_target_split(
                 continue  # o starts between g and X: it need not pass g
             if not _visits_by(path_o, x, len(path_o)):
                 continue  # o never at X: child 2 would not change its path
-            l1, b_ox = corridor_target_bounds(travel, line, j, xi, m, o, max(above, f_cur - 1))
+            bar = max(above, f_cur - 1)
+            step = 1 if xi > j else -1
+            if _early(path_m, line[j - step], -1, bar) and _early(path_o, g, line[j + step], bar):
+                continue  # the current paths show l1 <= bar, without a search
+            arrival = path_o.index(x, 1) if x in path_o[1:] else len(path_o) - 1
+            l1, b_ox = corridor_target_bounds(travel, line, j, xi, m, o, bar, arrival)
             if l1 < 0 or b_ox <= 1:
                 continue
             # Any end of the range is sound; a finite one keeps the constraint small (o
