@@ -946,11 +946,15 @@ def _corridor_target_cross_check(seed: int, count: int) -> tuple[int, int]:
         expected = brute_force(inst, objective)
         if expected is None:
             continue
-        r = check(inst, objective)
-        if objective == "makespan" and r.status == Status.TIME_LIMIT:
-            continue  # the makespan loop can be slow on tiny awkward maps (either way)
+        r = hierplan_opt.solve(inst, "cbs", time_limit=5, objective=objective)
+        if r.status == Status.TIME_LIMIT:
+            # A few tiny maps need long detours that CBS cannot prove in time (with or
+            # without symmetry reasoning); its lower bound must still be valid.
+            assert r.lower_bound is not None and r.lower_bound <= expected
+            continue
+        assert r.plan is not None and validate(inst, r.plan) == []
         assert r.status == Status.OPTIMAL and r.cost == expected, (inst.starts, inst.goals)
-        off = check(inst, objective, symmetry=False)
+        off = hierplan_opt.solve(inst, "cbs", time_limit=5, objective=objective, symmetry=False)
         assert off.status != Status.OPTIMAL or off.cost == expected
         checked += 1
         splits += r.stats["corridor_target_splits"]
