@@ -485,6 +485,33 @@ def _both_barriers_hit(g, entries, b1, b2) -> bool:
     return False
 
 
+def _random_obstacle_grid(rng, sizes, counts):
+    """A grid of one of ``sizes`` with one of ``counts`` random obstacles, and its free ids."""
+    w, h = rng.choice(sizes)
+    cells = [(x, y) for y in range(h) for x in range(w)]
+    obs = rng.sample(cells, rng.choice(counts))
+    g = Graph.grid(w, h, obstacles=obs)
+    return g, [g.vertex(c) for c in cells if c not in obs]
+
+
+def _random_vertex_constraints(rng, g, free, starts, counts):
+    """Random vertex constraints for two agents, and their ``travel`` function."""
+    from hierplan_opt.search.constraints import NEG_V, AgentConstraints
+    from hierplan_opt.search.symmetry import travel_time
+
+    cons = []
+    for i in range(2):
+        c = AgentConstraints.root(g.n, starts[i])
+        for _ in range(rng.choice(counts)):
+            c = c.add((NEG_V, i, rng.choice(free), -1, rng.randint(1, 6)), n=g.n, goal=starts[i])
+        cons.append(c)
+
+    def travel(x, target, blocked, upper):
+        return travel_time(g.adj, starts[x], target, g.dist_list(target), cons[x], blocked, upper)
+
+    return cons, travel
+
+
 def test_rectangle_barriers_are_complete_against_joint_search():
     """The two barriers never both hold for a conflict-free pair (the split's lemma)."""
     import random
@@ -494,11 +521,7 @@ def test_rectangle_barriers_are_complete_against_joint_search():
     rng = random.Random(11)
     found = bogus_caught = 0
     for _ in range(150):
-        w, h = rng.choice([(5, 5), (6, 4), (4, 6), (6, 6)])
-        cells = [(x, y) for y in range(h) for x in range(w)]
-        obs = rng.sample(cells, rng.choice([0, 0, 2, 4]))
-        g = Graph.grid(w, h, obstacles=obs)
-        free = [g.vertex(c) for c in cells if c not in obs]
+        g, free = _random_obstacle_grid(rng, [(5, 5), (6, 4), (4, 6), (6, 6)], [0, 0, 2, 4])
         rect = Rectangles(g)
         for _ in range(300):  # draw until the lemma applies (rejection sampling)
             va, vb, ga, gb = rng.sample(free, 4)
@@ -512,7 +535,7 @@ def test_rectangle_barriers_are_complete_against_joint_search():
         for a_first, b1, b2 in rectangle_barriers(rect, (va, ta), (vb, tb), ga, gb):
             found += 1
             entries = [(va, ta), (vb, tb)] if a_first else [(vb, tb), (va, ta)]
-            assert not _both_barriers_hit(g, entries, b1, b2), (w, h, obs, entries, b1, b2)
+            assert not _both_barriers_hit(g, entries, b1, b2), (g.shape, free, entries, b1, b2)
             # The check can fail: a barrier one step late is not a valid split.
             late = [(u, t + 1) for u, t in b1]
             bogus_caught += _both_barriers_hit(g, entries, late, b2)
@@ -628,27 +651,14 @@ def test_corridor_ranges_are_complete_against_joint_search():
     for degree-2 chains and for single edges (pseudo-corridors), under constraints."""
     import random
 
-    from hierplan_opt.search.constraints import NEG_V, AgentConstraints
-    from hierplan_opt.search.symmetry import Corridors, corridor_ranges, travel_time
+    from hierplan_opt.search.symmetry import Corridors, corridor_ranges
 
     rng = random.Random(3)
     found = bogus_caught = 0
     for _ in range(120):
-        w, h = rng.choice([(5, 4), (5, 5), (6, 4)])
-        cells = [(x, y) for y in range(h) for x in range(w)]
-        obs = rng.sample(cells, rng.choice([2, 4, 6]))
-        g = Graph.grid(w, h, obstacles=obs)
-        free = [g.vertex(c) for c in cells if c not in obs]
+        g, free = _random_obstacle_grid(rng, [(5, 4), (5, 5), (6, 4)], [2, 4, 6])
         s = rng.sample(free, 2)
-        cons = []
-        for i in range(2):
-            c = AgentConstraints.root(g.n, s[i])
-            for _ in range(rng.choice([0, 1, 3])):
-                c = c.add((NEG_V, i, rng.choice(free), -1, rng.randint(1, 6)), n=g.n, goal=s[i])
-            cons.append(c)
-
-        def travel(x, target, blocked, upper, g=g, s=s, cons=cons):
-            return travel_time(g.adj, s[x], target, g.dist_list(target), cons[x], blocked, upper)
+        cons, travel = _random_vertex_constraints(rng, g, free, s, [0, 1, 3])
 
         p = rng.choice(free)
         if not g.adj[p]:
@@ -664,7 +674,7 @@ def test_corridor_ranges_are_complete_against_joint_search():
             if tx < 1 or ty < 1:
                 continue
             found += 1
-            assert not _both_ranges_hit(g, s, cons, [(x[1], tx), (y[1], ty)]), (obs, s, x, y)
+            assert not _both_ranges_hit(g, s, cons, [(x[1], tx), (y[1], ty)]), (free, s, x, y)
             bogus_caught += _both_ranges_hit(g, s, cons, [(x[1], tx + 2), (y[1], ty + 2)])
     assert found >= 50
     assert bogus_caught >= 1
@@ -696,14 +706,12 @@ def test_corridor_splits_match_brute_force_on_narrow_grids():
     assert splits >= 5
 
 
-def test_derived_constraint_skipped_where_the_vertex_is_out_of_reach() -> None:
-    # Agent 0 must be at (1, 0) at time 1: agent 1, five steps away, cannot be there
-    # then, so it keeps its constraint object (and its cached MDD); at time 6 it could.
+def _root_search(inst: Instance):
+    """A default SOC ``_CBS`` search of ``inst`` and its root node."""
     from hierplan_opt.core.timer import Deadline
-    from hierplan_opt.search.constraints import POS_V, AgentConstraints
+    from hierplan_opt.search.constraints import AgentConstraints
 
-    g = Graph.grid(6, 2)
-    inst = Instance.mapf(g, [(0, 0), (5, 1)], [(2, 0), (3, 1)])
+    g = inst.graph
     g.precompute_distances(inst.goals)
     roots = [AgentConstraints.root(g.n, x) for x in inst.goals]
     search = cbs._CBS(
@@ -712,6 +720,17 @@ def test_derived_constraint_skipped_where_the_vertex_is_out_of_reach() -> None:
     )  # fmt: skip
     root = search.root()
     assert root is not None
+    return search, root
+
+
+def test_derived_constraint_skipped_where_the_vertex_is_out_of_reach() -> None:
+    # Agent 0 must be at (1, 0) at time 1: agent 1, five steps away, cannot be there
+    # then, so it keeps its constraint object (and its cached MDD); at time 6 it could.
+    from hierplan_opt.search.constraints import POS_V
+
+    g = Graph.grid(6, 2)
+    inst = Instance.mapf(g, [(0, 0), (5, 1)], [(2, 0), (3, 1)])
+    search, root = _root_search(inst)
     v = g.vertex((1, 0))
     near = search.child(root, 0, [(POS_V, 0, v, -1, 1)])
     far = search.child(root, 0, [(POS_V, 0, v, -1, 6)])
@@ -790,17 +809,12 @@ def test_corridor_target_bounds_are_complete_against_joint_search():
     starts anywhere (o not strictly between the goal and X)."""
     import random
 
-    from hierplan_opt.search.constraints import NEG_V, AgentConstraints
-    from hierplan_opt.search.symmetry import Corridors, corridor_target_bounds, travel_time
+    from hierplan_opt.search.symmetry import Corridors, corridor_target_bounds
 
     rng = random.Random(7)
     found = bogus_caught = 0
     for _ in range(300):
-        w, h = rng.choice([(5, 4), (5, 5), (6, 4), (5, 3)])
-        cells = [(x, y) for y in range(h) for x in range(w)]
-        obs = rng.sample(cells, rng.choice([3, 4, 5, 6]))
-        g = Graph.grid(w, h, obstacles=obs)
-        free = [g.vertex(c) for c in cells if c not in obs]
+        g, free = _random_obstacle_grid(rng, [(5, 4), (5, 5), (6, 4), (5, 3)], [3, 4, 5, 6])
         corr = Corridors(g)
         inner = [v for v in free if corr.corridor(v) is not None]
         if not inner:
@@ -810,15 +824,7 @@ def test_corridor_target_bounds_are_complete_against_joint_search():
         line = (el, *chain, er)
         j = chain.index(goal) + 1
         s = rng.sample(free, 2)
-        cons = []
-        for i in range(2):
-            c = AgentConstraints.root(g.n, s[i])
-            for _ in range(rng.choice([0, 0, 1, 3])):
-                c = c.add((NEG_V, i, rng.choice(free), -1, rng.randint(1, 6)), n=g.n, goal=s[i])
-            cons.append(c)
-
-        def travel(a, target, blocked, upper, g=g, s=s, cons=cons):
-            return travel_time(g.adj, s[a], target, g.dist_list(target), cons[a], blocked, upper)
+        cons, travel = _random_vertex_constraints(rng, g, free, s, [0, 0, 1, 3])
 
         for xi in (0, len(line) - 1):
             so = line.index(s[1]) if s[1] in chain else -1
@@ -831,7 +837,7 @@ def test_corridor_target_bounds_are_complete_against_joint_search():
             found += 1
             horizon = max(l1, l2) + 1
             assert not _target_pair_exists(g, s, cons, goal, l1, line[xi], l2, horizon), (
-                obs, s, goal, xi, l1, l2,
+                free, s, goal, xi, l1, l2,
             )  # fmt: skip
             bogus_caught += _target_pair_exists(g, s, cons, goal, l1 + 3, line[xi], l2, horizon + 3)
     assert found >= 60
@@ -839,18 +845,7 @@ def test_corridor_target_bounds_are_complete_against_joint_search():
 
 
 def _split_at_root(inst: Instance):
-    from hierplan_opt.core.timer import Deadline
-    from hierplan_opt.search.constraints import AgentConstraints
-
-    g = inst.graph
-    g.precompute_distances(inst.goals)
-    roots = [AgentConstraints.root(g.n, x) for x in inst.goals]
-    search = cbs._CBS(
-        g, inst.starts, inst.goals, roots, Deadline(None), prioritize=True, bypass=True,
-        heuristic="wdg", disjoint=True, symmetry=True,
-    )  # fmt: skip
-    root = search.root()
-    assert root is not None
+    search, root = _root_search(inst)
     c, rank = search.choose(root)
     return search, root, search.split(root, c, rank)
 
