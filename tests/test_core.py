@@ -287,3 +287,28 @@ def test_one_team_solver_refuses_several_teams() -> None:
         hp.solve(inst, "flow")
     with pytest.raises(OptionError, match="does not solve MAPF"):
         hp.solve(Instance.mapf(g, [(0, 0)], [(2, 2)]), "flow")
+
+
+def test_bfs_levels_equal_scipy_shortest_paths() -> None:
+    # The distance tables come from a breadth-first order and its predecessors; they must
+    # equal scipy's unweighted shortest paths, on grids with walled-off parts and on
+    # directed roadmaps (towards the target: the reversed graph).
+    from scipy.sparse.csgraph import shortest_path
+
+    from hierplan_opt.core.graph import _bfs_levels
+
+    rng = np.random.default_rng(5)
+    graphs = [Graph.grid(13, 8, blocked=rng.random((8, 13)) < 0.35) for _ in range(4)]
+    for _ in range(4):
+        pts = {f"v{i}": (float(i), 0.0) for i in range(30)}
+        arcs = {(f"v{a}", f"v{b}") for a, b in rng.integers(0, 30, (45, 2)) if a != b}
+        graphs.append(Graph.roadmap(pts, sorted(arcs), directed=True))
+    for g in graphs:
+        ref = shortest_path(g._csgraph, directed=True, unweighted=True)
+        ref = np.where(np.isfinite(ref), ref, UNREACHABLE).astype(np.int64)
+        for s in range(g.n):
+            assert _bfs_levels(g._csgraph, s).tolist() == ref[s].tolist()
+        if g.directed:  # the tables towards each target: BFS on the reversed graph
+            g.fill_distances(range(g.n))
+            for t in range(g.n):
+                assert g.dist_to(t).tolist() == ref[:, t].tolist()
