@@ -540,7 +540,8 @@ class _CBS:
             # it its cached MDD and pair weights. "Cannot reach" from lower bounds on the
             # distance from y's start (no BFS): the grid distance on a 4-connected grid,
             # and the triangle inequality on y's distances to its goal.
-            grid = self._grid()
+            grid: Rectangles | None = None
+            grid_made = False  # the coordinates, made on first need
             sym = not self.graph.directed
             # (constraint, its vertex or -1 for a length constraint, its time)
             at = [(x, -1 if x[0] == LEN_LE else x[3] if x[0] == POS_E else x[2], x[4]) for x in pos]
@@ -555,6 +556,8 @@ class _CBS:
                         lb = dy[s] - dy[v]
                         if sym and lb < 0:
                             lb = -lb
+                        if lb <= t and not grid_made:
+                            grid, grid_made = self._grid(), True
                         if lb <= t and grid is not None:
                             lb = abs(grid.xs[s] - grid.xs[v]) + abs(grid.ys[s] - grid.ys[v])
                         if lb > t:
@@ -718,6 +721,7 @@ class _CBS:
             self.exhausted = not self.deadline.expired()
             return None
         st = self.stats
+        scanned = root.paths  # the root's conflicts come from a full scan of these paths
         openl: list[tuple] = []
         self._push(openl, root)
         expanded = 0
@@ -745,7 +749,8 @@ class _CBS:
                         continue
             if not node.conflicts:
                 # Conflicts are tracked incrementally; confirm a solution with one scan.
-                node.conflicts = find_conflicts(node.paths, self.n)
+                if node.paths is not scanned:
+                    node.conflicts = find_conflicts(node.paths, self.n)
                 if not node.conflicts:
                     return node
                 log.warning("CBS: incremental conflict tracking missed a conflict")
