@@ -308,6 +308,10 @@ def test_auto_switches_after_python_time(monkeypatch):
         assert proc.wait(300) == 0
         jit.note_python(0.0)
         assert jit.kernel() is not None
+        jit.new_solve()  # the next solve starts in Python again, kernel loaded or not
+        assert jit.kernel() is None
+        jit.note_python(jit.JIT_AFTER_S)
+        assert jit.kernel() is not None
     finally:
         jit.set_low_level(None)
 
