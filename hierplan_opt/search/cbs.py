@@ -318,7 +318,8 @@ class _CBS:
         if self.init_paths is not None:
             # Paths already optimal under the root constraints (WDG sub-searches).
             paths = list(self.init_paths)
-        res = Reservations(self.n)
+        # The search's shared table: the first child's ``sync`` then finds these paths in it.
+        res = self._cat
         if len(paths) < self.k:
             for a, p in enumerate(paths):
                 res.add(a, p)
