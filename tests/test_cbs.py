@@ -904,6 +904,21 @@ def test_corridor_target_start_and_goal_inside() -> None:
                 assert r.status == Status.OPTIMAL and r.cost == expected, (starts, goals)
 
 
+def test_corridor_target_skips_a_passer_starting_between_goal_and_exit() -> None:
+    # Found by review fuzzing: o (agent 1) starts between m's goal (2, 2) and the chain's
+    # exit; it need not pass m's goal, so finishing m by l1 is not forced. Without the
+    # guard in corridor_target_split the pair sub-search cuts the optimum (11 instead of 10).
+    free = {(x, 0) for x in range(8)} | {(x, 2) for x in range(8)}
+    free |= {(0, 1), (1, 1), (6, 1), (7, 1)}
+    blocked = [(x, y) for x in range(8) for y in range(3) if (x, y) not in free]
+    g = Graph.grid(8, 3, obstacles=blocked)
+    inst = Instance.mapf(g, [(2, 2), (0, 2)], [(2, 2), (5, 2)])
+    expected = brute_force(inst, "soc")
+    assert expected == 10
+    r = check(inst)
+    assert r.status == Status.OPTIMAL and r.cost == expected
+
+
 def _narrow_instances(rng, count):
     """Small grids with obstacles; goals (often) and starts (half the time) on chains."""
     from hierplan_opt.search.symmetry import Corridors
