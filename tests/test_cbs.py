@@ -706,8 +706,8 @@ def test_corridor_splits_match_brute_force_on_narrow_grids():
     assert splits >= 5
 
 
-def _root_search(inst: Instance):
-    """A default SOC ``_CBS`` search of ``inst`` and its root node."""
+def _root_search(inst: Instance, **options):
+    """A default SOC ``_CBS`` search of ``inst`` (``options`` added) and its root node."""
     from hierplan_opt.core.timer import Deadline
     from hierplan_opt.search.constraints import AgentConstraints
 
@@ -716,7 +716,7 @@ def _root_search(inst: Instance):
     roots = [AgentConstraints.root(g.n, x) for x in inst.goals]
     search = cbs._CBS(
         g, inst.starts, inst.goals, roots, Deadline(None), prioritize=True, bypass=True,
-        heuristic="wdg", disjoint=True, symmetry=True,
+        heuristic="wdg", disjoint=True, symmetry=True, **options,
     )  # fmt: skip
     root = search.root()
     assert root is not None
@@ -845,7 +845,7 @@ def test_corridor_target_bounds_are_complete_against_joint_search():
 
 
 def _split_at_root(inst: Instance):
-    search, root = _root_search(inst)
+    search, root = _root_search(inst, corridor_target=True)
     c, rank = search.choose(root)
     return search, root, search.split(root, c, rank)
 
@@ -867,7 +867,7 @@ def test_corridor_target_split_goal_inside() -> None:
     assert kid is not None and kid.paths[0] == root.paths[0]
     assert g.vertex((4, 1)) not in kid.paths[1][1:11]
     expected = brute_force(inst, "soc")
-    for options in ({}, {"symmetry": False}):
+    for options in ({"corridor_target": True}, {}, {"symmetry": False}):
         r = check(inst, **options)
         assert r.status == Status.OPTIMAL and r.cost == expected == 14
 
@@ -882,7 +882,7 @@ def test_corridor_split_start_inside() -> None:
     assert sorted((a, g.location(cs[0][2])) for a, cs in kids) == [(0, (4, 1)), (1, (0, 1))]
     assert {cs[0][0] for _, cs in kids} == {6}  # NEG_RANGE
     expected = brute_force(inst, "soc")
-    for options in ({}, {"symmetry": False}):
+    for options in ({"corridor_target": True}, {}, {"symmetry": False}):
         r = check(inst, **options)
         assert r.status == Status.OPTIMAL and r.cost == expected
 
@@ -899,7 +899,7 @@ def test_corridor_target_start_and_goal_inside() -> None:
         inst = Instance.mapf(g, starts, goals)
         for objective in ("soc", "makespan"):
             expected = brute_force(inst, objective)
-            for options in ({}, {"symmetry": False}):
+            for options in ({"corridor_target": True}, {}, {"symmetry": False}):
                 r = check(inst, objective, **options)
                 assert r.status == Status.OPTIMAL and r.cost == expected, (starts, goals)
 
@@ -915,7 +915,7 @@ def test_corridor_target_skips_a_passer_starting_between_goal_and_exit() -> None
     inst = Instance.mapf(g, [(2, 2), (0, 2)], [(2, 2), (5, 2)])
     expected = brute_force(inst, "soc")
     assert expected == 10
-    r = check(inst)
+    r = check(inst, corridor_target=True)
     assert r.status == Status.OPTIMAL and r.cost == expected
 
 
@@ -956,7 +956,7 @@ def _corridor_target_cross_check(seed: int, count: int) -> tuple[int, int]:
         expected = brute_force(inst, objective)
         if expected is None:
             continue
-        r = hierplan_opt.solve(inst, "cbs", time_limit=5, objective=objective)
+        r = hierplan_opt.solve(inst, "cbs", time_limit=5, objective=objective, corridor_target=True)
         if r.status == Status.TIME_LIMIT:
             # A few tiny maps need long detours that CBS cannot prove in time (with or
             # without symmetry reasoning); its lower bound must still be valid.
