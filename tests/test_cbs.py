@@ -6,6 +6,7 @@ import heapq
 import itertools
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -118,7 +119,15 @@ def brute_force(inst: Instance, objective: str) -> int | None:
     return None
 
 
-def check(inst: Instance, objective: str = "soc", **options):
+# Corridor reasoning variants every corridor test runs: target reasoning on, default, none.
+CORRIDOR_OPTION_SETS: tuple[dict[str, Any], ...] = (
+    {"corridor_target": True},
+    {},
+    {"symmetry": False},
+)
+
+
+def check(inst: Instance, objective: str = "soc", **options: Any):
     r = hierplan_opt.solve(inst, "cbs", time_limit=20, objective=objective, **options)
     if r.plan is not None:
         assert validate(inst, r.plan) == []
@@ -244,7 +253,7 @@ def _all_options_same_optimum(inst, objective):
             continue
         assert r.status == Status.OPTIMAL, (options, r)
         assert r.cost == expected, (options, objective)
-        assert validate(inst, r.plan) == []
+        assert r.plan is not None and validate(inst, r.plan) == []
         solved += 1
     assert solved >= 1
 
@@ -340,7 +349,7 @@ def test_node_limit_stops():
     )
     r = hierplan_opt.solve(inst, "cbs", node_limit=3, heuristic="none")
     assert r.status == Status.TIME_LIMIT
-    assert r.lower_bound >= inst.soc_lower_bound()
+    assert r.lower_bound is not None and r.lower_bound >= inst.soc_lower_bound()
     assert r.stats["high_level_expanded"] <= 3
 
 
@@ -361,7 +370,7 @@ def test_movingai_first_agents_equal_across_options(name, scen, k):
     for options in OPTION_SETS[:8]:
         r = check(inst, **options)
         assert r.status == Status.OPTIMAL, options
-        assert r.cost >= inst.soc_lower_bound()
+        assert r.cost is not None and r.cost >= inst.soc_lower_bound()
         costs.add(r.cost)
     assert len(costs) == 1
 
@@ -377,7 +386,7 @@ def test_readme_instance(k):
     )
     r = check(inst)
     assert r.status == Status.OPTIMAL
-    assert r.cost == r.lower_bound >= inst.soc_lower_bound()
+    assert r.lower_bound is not None and r.cost == r.lower_bound >= inst.soc_lower_bound()
 
 
 def test_find_conflicts_kinds():
@@ -867,7 +876,7 @@ def test_corridor_target_split_goal_inside() -> None:
     assert kid is not None and kid.paths[0] == root.paths[0]
     assert g.vertex((4, 1)) not in kid.paths[1][1:11]
     expected = brute_force(inst, "soc")
-    for options in ({"corridor_target": True}, {}, {"symmetry": False}):
+    for options in CORRIDOR_OPTION_SETS:
         r = check(inst, **options)
         assert r.status == Status.OPTIMAL and r.cost == expected == 14
 
@@ -882,7 +891,7 @@ def test_corridor_split_start_inside() -> None:
     assert sorted((a, g.location(cs[0][2])) for a, cs in kids) == [(0, (4, 1)), (1, (0, 1))]
     assert {cs[0][0] for _, cs in kids} == {6}  # NEG_RANGE
     expected = brute_force(inst, "soc")
-    for options in ({"corridor_target": True}, {}, {"symmetry": False}):
+    for options in CORRIDOR_OPTION_SETS:
         r = check(inst, **options)
         assert r.status == Status.OPTIMAL and r.cost == expected
 
@@ -899,7 +908,7 @@ def test_corridor_target_start_and_goal_inside() -> None:
         inst = Instance.mapf(g, starts, goals)
         for objective in ("soc", "makespan"):
             expected = brute_force(inst, objective)
-            for options in ({"corridor_target": True}, {}, {"symmetry": False}):
+            for options in CORRIDOR_OPTION_SETS:
                 r = check(inst, objective, **options)
                 assert r.status == Status.OPTIMAL and r.cost == expected, (starts, goals)
 
