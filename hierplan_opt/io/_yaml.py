@@ -193,7 +193,15 @@ def check_nesting(text: str, name: str) -> None:
                     )
             elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 depth -= 1
-    except yaml.YAMLError:
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        if "nesting depth" in str(e) and mark is not None:
+            # libyaml (PyYAML >= 6.0.4 bundles one with a limit of its own, about 1000)
+            # refuses before the event reaching our limit is seen: deeper than both
+            raise InputError(
+                f"{name}:{mark.line + 1}: YAML nesting is deeper than {min(cap, 1000)} "
+                "levels; an instance or plan file never needs that"
+            ) from None
         # not YAML (JSON with tabs, or a syntax error the loader will report): the
         # bracket depth is all a JSON parser can recurse on
         if flow > cap:
