@@ -312,3 +312,52 @@ def test_bfs_levels_equal_scipy_shortest_paths() -> None:
             g.fill_distances(range(g.n))
             for t in range(g.n):
                 assert g.dist_to(t).tolist() == ref[:, t].tolist()
+
+
+@pytest.mark.parametrize("way", ["python", "batch", "levels"])
+def test_distance_table_ways_agree(way: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    # fill_distances makes a table by a Python BFS (small graphs), one scipy call per
+    # batch (mid-sized) or a breadth-first order per target (large): each way, forced
+    # here on small graphs, must give the same tables, as arrays and as lists.
+    import scipy.sparse.csgraph  # noqa: F401  (the choice depends on it being loaded)
+
+    from hierplan_opt.core import graph as graph_mod
+
+    monkeypatch.setattr(graph_mod, "SMALL_BFS_CELLS", 10**9 if way == "python" else 0)
+    monkeypatch.setattr(graph_mod, "DIST_BATCH_CELLS", 10**9 if way == "batch" else 0)
+    rng = np.random.default_rng(11)
+    graphs = [Graph.grid(11, 7, blocked=rng.random((7, 11)) < 0.3) for _ in range(3)]
+    for _ in range(3):
+        pts = {f"v{i}": (float(i), 0.0) for i in range(25)}
+        arcs = {(f"v{a}", f"v{b}") for a, b in rng.integers(0, 25, (40, 2)) if a != b}
+        graphs.append(Graph.roadmap(pts, sorted(arcs), directed=True))
+    for g in graphs:
+        radj = g.reverse_adj  # distances *to* t: a BFS from t over the reversed arcs
+        targets = [int(t) for t in rng.choice(g.n, 6, replace=False)]
+        g.fill_distances(targets)
+        for t in targets:
+            ref = graph_mod._bfs(radj, t)
+            assert g.dist_list(t) == ref
+            assert g.dist_to(t).tolist() == ref
+            assert not g.dist_to(t).flags.writeable
+
+
+def test_grid_xy_only_for_four_connected_grids() -> None:
+    g = Graph.grid(4, 3, obstacles=[(1, 1)])
+    w, xs, ys = g.grid_xy
+    assert w == 4 and all(g.location(v) == (xs[v], ys[v]) for v in range(g.n))
+    assert Graph.grid(3, 3, 1).grid_xy is not None and Graph.grid(3, 3, 2).grid_xy is None
+    assert Graph.roadmap({"A": (0, 0), "B": (1, 0)}, [("A", "B")]).grid_xy is None
+
+    def by_hand(extra: list[tuple[int, int]]) -> Graph:
+        # The same cells and edges as g (plus ``extra``), built without Graph.grid: checked.
+        arcs = [(u, v) for u in range(g.n) for v in g.adj[u]] + extra
+        arcs.sort()
+        indptr = np.searchsorted([u for u, _ in arcs], np.arange(g.n + 1))
+        return Graph(
+            kind="grid", coords=g.coords, passable=g.passable, indptr=indptr,
+            indices=np.array([v for _, v in arcs]), lengths=np.ones(len(arcs)), shape=g.shape,
+        )  # fmt: skip
+
+    assert by_hand([]).grid_xy == g.grid_xy
+    assert by_hand([(0, 5), (5, 0)]).grid_xy is None  # a diagonal edge

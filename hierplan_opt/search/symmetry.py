@@ -83,8 +83,6 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from heapq import heappop, heappush
 
-import numpy as np
-
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.search.constraints import (
     LEN_GT,
@@ -510,22 +508,10 @@ class Rectangles:
         self.width = 0
         self.xs: list[int] = []
         self.ys: list[int] = []
-        shape = graph.shape
-        if graph.kind != "grid" or shape is None or not 2 <= len(shape) <= 3:
-            return
-        if len(shape) == 3 and shape[2] != 1:
-            return
-        w = int(shape[0])
-        cx = graph.coords[:, 0].astype(np.int64)
-        cy = graph.coords[:, 1].astype(np.int64)
-        if not np.array_equal(cx + w * cy, np.arange(graph.n)):
-            return
-        src = np.repeat(np.arange(graph.n), np.diff(graph.indptr))
-        dst = graph.indices
-        if np.any(np.abs(cx[dst] - cx[src]) + np.abs(cy[dst] - cy[src]) != 1):
-            return
-        self.width, self.xs, self.ys = w, cx.tolist(), cy.tolist()
-        self.enabled = True
+        xy = graph.grid_xy
+        if xy is not None:
+            self.width, self.xs, self.ys = xy
+            self.enabled = True
 
 
 def _entries(start: int, cons: AgentConstraints, t: int) -> list[tuple[int, int]]:
