@@ -919,7 +919,7 @@ def _search(
     g = instance.graph
     starts = instance.starts
     goals = instance.goals
-    g.precompute_distances(goals)
+    g.fill_distances(goals)  # the lists the search reads (no arrays made)
     if objective == "soc":
         roots = [AgentConstraints.root(g.n, x) for x in goals]
         cbs = _CBS(g, starts, goals, roots, deadline, heuristic=heuristic, **opts)  # type: ignore[arg-type]
