@@ -305,10 +305,15 @@ class Graph:
 
     @cached_property
     def adj(self) -> list[list[int]]:
-        """Neighbour lists as plain Python ints (fastest for pure-Python search loops)."""
+        """Neighbour lists as plain Python ints (fastest for pure-Python search loops).
+
+        Read-only: vertices without neighbours (blocked cells) share one empty list, as
+        making a list per cell is most of the cost on maps with many blocked cells.
+        """
         ip = self.indptr.tolist()
         ind = self.indices.tolist()
-        return [ind[ip[v] : ip[v + 1]] for v in range(self.n)]
+        none: list[int] = []
+        return [ind[a:b] if a != b else none for a, b in zip(ip[:-1], ip[1:], strict=True)]
 
     @cached_property
     def grid_xy(self) -> tuple[int, list[int], list[int]] | None:
