@@ -82,7 +82,7 @@ def test_short_instances_are_repeated_median_reported(tmp_path, capsys, monkeypa
         'while [ "$1" != "-o" ]; do shift; done\n'
         f"printf '{HEADER}\\n%s,7,13,99,74\\n' $t > \"$2\"\n",
     )
-    assert cols[4] == "0.020" and cols[6] == "3/3"
+    assert cols[4] == "0.0200" and cols[6] == "3/3"
     assert count.read_text().strip() == "3"
     assert "median of the runs" in out
 

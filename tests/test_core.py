@@ -361,3 +361,18 @@ def test_grid_xy_only_for_four_connected_grids() -> None:
 
     assert by_hand([]).grid_xy == g.grid_xy
     assert by_hand([(0, 5), (5, 0)]).grid_xy is None  # a diagonal edge
+
+
+def test_open_grid_distances_are_manhattan_and_equal_bfs() -> None:
+    # A grid without blocked cells gets its tables from the cells' Manhattan distance;
+    # they must equal a BFS (2D, 3D, one-cell-wide) and not be used with obstacles.
+    from hierplan_opt.core import graph as graph_mod
+
+    for dims in [(1, 1), (6, 1), (1, 5), (7, 4), (3, 4, 2), (5, 5, 1)]:
+        g = Graph.grid(*dims)
+        assert g._open_grid
+        g.fill_distances(range(g.n))
+        for t in range(g.n):
+            ref = graph_mod._bfs(g.adj, t)
+            assert g.dist_list(t) == ref and g.dist_to(t).tolist() == ref
+    assert not Graph.grid(4, 4, obstacles=[(1, 2)])._open_grid

@@ -202,6 +202,17 @@ def _again(times: list[float]) -> bool:
     return len(times) < REPEAT_MAX and sum(times) < REPEAT_BUDGET
 
 
+def secs(x: float) -> str:
+    """A CPU time for the table: four decimals below 0.1 s (sub-millisecond runs).
+
+    Example
+    -------
+    >>> secs(0.00071), secs(0.0412), secs(1.5), secs(math.inf)
+    ('0.0007', '0.0412', '1.500', 'inf')
+    """
+    return f"{x:.4f}" if x < 0.1 else f"{x:.3f}"
+
+
 def geomean(xs: list[float]) -> float:
     """Geometric mean (nan for an empty list).
 
@@ -283,7 +294,7 @@ def reference(
         runs = f"{len(ours)}/{len(cpps) if anchor else '-'}"
         print(
             f"{name:36} {known if known is not None else '-':>6} {status:9} "
-            f"{cpu:>7.3f} {cpp['time'] if cpp['solved'] else math.inf:>7.3f} {ratio:>6} "
+            f"{secs(cpu):>7} {secs(cpp['time'] if cpp['solved'] else math.inf):>7} {ratio:>6} "
             f"{runs:>5} {hl:>11} {cpp['hl']:>11} {st.get('low_level_expanded', 0):>9} "
             f"{cpp['ll']:>9}",
             flush=True,
