@@ -203,6 +203,67 @@ def dense(res: Reservations, graph: jit._Graph, h: int) -> tuple[np.ndarray, np.
     return vt, et
 
 
+def as_dicts(res: Reservations | None) -> Reservations | None:
+    """A dict-kept copy of ``res`` (the same agents in the same order at every key)."""
+    if res is None or res.dense is None:
+        return res
+    copy = Reservations(res.n)
+    for a in sorted(
+        (a for a, p in enumerate(res.paths) if p is not None), key=res.stamps.__getitem__
+    ):
+        p = res.paths[a]
+        assert p is not None
+        copy.add(a, p)
+    copy.parked, copy.park_t = res.dense.parked()
+    copy.paths.extend([None] * (len(res.paths) - len(copy.paths)))
+    copy.horizon = res.horizon
+    return copy
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_dense_table_answers_as_the_dicts(seed):
+    # The same updates on a dict-kept table and on one the kernel has taken over: the
+    # counts, the parking and conflicts_of (conflicts and their order) agree throughout,
+    # also after handing the reservations back (undense).
+    k = jit.load()
+    rng = random.Random(seed)
+    g = Graph.grid(6, 5, obstacles=[(2, 2), (3, 2)])
+    free = [v for v in range(g.n) if g.passable[v]]
+    gr = jit._graph(g.adj)
+    plain, own = Reservations(g.n), Reservations(g.n, dense_ok=True)
+    ks = 6
+    plain.sync([None] * ks)
+    own.sync([None] * ks)
+    checks = 0
+    for step in range(400):
+        if step == 5:
+            d = jit._mirror(k, gr, own)
+            assert own.dense is d and not own.vt
+        if step == 300:
+            own.undense()
+            assert own.dense is None
+        a = rng.randrange(ks)
+        op = rng.random()
+        for res in (plain, own):
+            res.remove(a)
+        if op < 0.8:
+            p = walk(g, rng, free, rng.randint(0, 30))
+            for res in (plain, own):
+                res.add(a, p)
+        r = rng.randrange(ks + 1)
+        path = walk(g, rng, free, rng.randint(0, 30))
+        skip = set(rng.sample(range(ks), rng.randint(0, 2)))
+        want = plain.conflicts_of(r, path, skip)
+        assert own.conflicts_of(r, path, skip) == want, step
+        checks += bool(want)
+        if own.dense is not None:
+            vt, et = dense(plain, gr, own.dense.h)
+            assert np.array_equal(own.dense.vt, vt) and np.array_equal(own.dense.et, et)
+            assert own.dense.park_t.tolist() == plain.park_t
+    assert own.vt == plain.vt and own.et == plain.et and own.parked == plain.parked
+    assert checks > 50
+
+
 def test_mirrors_follow_their_tables():
     # More tables than shared buffers, patched in turn (as CBS and its pair searches do):
     # whenever a table owns a buffer, the counts equal its paths.
@@ -250,6 +311,7 @@ def test_cbs_identical_call_by_call(monkeypatch):
         got = run(k, adj, start, goal, dist, cons, res, dist_of, node_limit, **kw)
         if kw:
             moves = astar.Moves(adj, goal, dist, cons, dist_of)
+            res = as_dicts(res)
             want = astar._search(adj, start, goal, dist, cons, res, node_limit, moves.succ, **kw)
             assert got == want
             seen["calls"] += 1
@@ -272,12 +334,22 @@ def test_cbs_identical_call_by_call(monkeypatch):
         seen["mdds"] += 1
         return got
 
+    conflicts_of = jit.DenseMirror.conflicts_of
+
+    def checked_conflicts(self, r, path, skip):
+        got = conflicts_of(self, r, path, skip)
+        assert got == as_dicts(self.owner).conflicts_of(r, path, skip)
+        seen["dense_conflicts"] += 1
+        return got
+
+    seen["dense_conflicts"] = 0
     stats = {}
     try:
         for mode in ("python", "jit"):
             jit.set_low_level(mode)
             monkeypatch.setattr(jit, "run", checked)
             monkeypatch.setattr(jit, "build_mdd", checked_mdd)
+            monkeypatch.setattr(jit.DenseMirror, "conflicts_of", checked_conflicts)
             for spec in INSTANCES:
                 r = hierplan_opt.solve(scenario(spec)[1], "cbs", time_limit=60)
                 keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
@@ -287,6 +359,7 @@ def test_cbs_identical_call_by_call(monkeypatch):
     for spec, (py, jt) in stats.items():
         assert py == jt, spec
     assert seen["calls"] > 100 and seen["cat"] > 50 and seen["mdds"] > 100
+    assert seen["dense_conflicts"] > 100
     assert min(seen["landmarks"], seen["edge"], seen["forbid_from"]) > 0, seen
 
 

@@ -346,6 +346,94 @@ def cat_apply(cat_vt, cat_et, ptr, idx, path, delta):
 
 
 @_njit
+def dense_apply(cat_vt, cat_et, ptr, idx, path, delta, pos, plen, stamp, park_a, park_t, agent, st):
+    """:func:`cat_apply`, and ``agent``'s row of the paths, stamp and parking.
+
+    The rules of ``Reservations.add`` / ``remove``: an add parks its agent at its last
+    vertex; a remove unparks it there only if it is the one parked.
+    """
+    cat_apply(cat_vt, cat_et, ptr, idx, path, delta)
+    last = path.shape[0] - 1
+    g = path[last]
+    if delta > 0:
+        for t in range(last + 1):
+            pos[agent, t] = path[t]
+        plen[agent] = last + 1
+        stamp[agent] = st
+        park_a[g] = agent
+        park_t[g] = last
+    else:
+        plen[agent] = 0
+        if park_a[g] == agent:
+            park_a[g] = -1
+            park_t[g] = NEVER
+
+
+@_njit
+def _emit(out, m, t, kind, a, b, u, v):
+    if m >= out.shape[0]:
+        grown = np.empty((2 * out.shape[0], 6), np.int64)
+        grown[:m] = out[:m]
+        out = grown
+    out[m, 0] = t
+    out[m, 1] = kind
+    out[m, 2] = a
+    out[m, 3] = b
+    out[m, 4] = u
+    out[m, 5] = v
+    return out, m + 1
+
+
+@_njit
+def dense_conflicts(pos, plen, stamp, park_a, park_t, path, r, skip):
+    """The loop of ``Reservations.conflicts_of`` on :func:`dense_apply`'s arrays.
+
+    Rows ``(t, kind, a, b, u, v)`` in the same order: per timestep the vertex conflicts,
+    the target one, the edge ones, each agent list in stamp order (the order in which
+    the table's dicts list them); then the targets of ``r`` parked at its goal.
+    """
+    rows = plen.shape[0]
+    ids = np.empty(rows, np.int64)
+    keys = np.empty(rows, np.int64)
+    k = 0
+    far = 0
+    for b in range(rows):
+        if plen[b] > 0 and b != r and not skip[b]:
+            ids[k] = b
+            keys[k] = stamp[b]
+            k += 1
+            if plen[b] > far:
+                far = plen[b]
+    order = ids[:k][np.argsort(keys[:k], kind="mergesort")]
+    out = np.empty((16, 6), np.int64)
+    m = 0
+    n_t = path.shape[0]
+    prev = path[0]
+    for t in range(n_t):
+        v = path[t]
+        for i in range(k):
+            b = order[i]
+            if t < plen[b] and pos[b, t] == v:
+                out, m = _emit(out, m, t, 0, b, r, -1, v)
+        e = park_a[v]
+        if e >= 0 and e != r and t > park_t[v] and not skip[e]:
+            out, m = _emit(out, m, t, 2, e, r, -1, v)
+        if prev != v:
+            for i in range(k):
+                b = order[i]
+                if t < plen[b] and pos[b, t] == prev and pos[b, t - 1] == v:
+                    out, m = _emit(out, m, t, 1, b, r, v, prev)
+        prev = v
+    g = path[n_t - 1]
+    for t in range(n_t, far):
+        for i in range(k):
+            b = order[i]
+            if t < plen[b] and pos[b, t] == g:
+                out, m = _emit(out, m, t, 2, r, b, -1, g)
+    return out[:m]
+
+
+@_njit
 def mdd(
     ptr,
     idx,

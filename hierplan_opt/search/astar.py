@@ -112,6 +112,8 @@ def space_time_astar(
         return jit.run(
             k, adj, start, goal, dist, cons, res, dist_of, node_limit, nxt=nxt, tcap=tcap, h0=h0
         )
+    if res is not None and res.dense is not None:
+        res.undense()  # the kernel's copy back into the dicts this loop reads
     t0 = perf_counter()
     try:
         return _search(adj, start, goal, dist, cons, res, node_limit, succ, nxt, tcap, h0)

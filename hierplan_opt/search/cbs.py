@@ -222,7 +222,9 @@ class _CBS:
         # One table of the node's paths, patched per child: the low level's
         # conflict-avoidance table (without the agent being replanned) and the index
         # the new paths' conflicts are found with (one table: each is patched once).
-        self._occ = self._cat = Reservations(g.n)
+        # The main search's table may become the compiled low level's own (see
+        # Reservations.dense); the short pair searches' ones share its buffers.
+        self._occ = self._cat = Reservations(g.n, dense_ok=not sub)
         if not sub:
             jit.new_solve()  # the compiled low level is loaded only for a long solve
         # MDDs keyed by the constraint object's version (unique per agent and set);
@@ -256,8 +258,7 @@ class _CBS:
         res = None
         if self.k > 1:
             res = self._cat
-            res.sync(paths)
-            res.remove(a)
+            res.sync(paths, skip=a)
         path, exp = space_time_astar(
             self.adj,
             self.starts[a],

@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE
+from hierplan_opt.search.conflicts import Conflict
 from hierplan_opt.search.constraints import AgentConstraints, successors
 
 if TYPE_CHECKING:
@@ -207,6 +208,11 @@ def _warm_up(k: ModuleType) -> None:
     res.add(0, (2, 1, 0))
     root = AgentConstraints.root(g.n, 2)
     run(k, g.adj, 0, 2, g.dist_list(2), root, res, None, None)
+    own = Reservations(g.n, dense_ok=True)  # CBS's own table: the kernel takes it over
+    own.add(0, (2, 1, 0))
+    run(k, g.adj, 0, 2, g.dist_list(2), root, own, None, None)
+    own.conflicts_of(1, (0, 1, 2))
+    own.remove(0)
     build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
 
 
@@ -432,12 +438,110 @@ class CatMirror:
         self.park_t[path[-1]] = park
 
 
+class DenseMirror(CatMirror):
+    """The whole reservation table of one :class:`Reservations` (its ``dense``).
+
+    Besides the counts of :class:`CatMirror`, the paths themselves: ``pos[a, t]`` (for
+    ``t < plen[a]``; ``plen[a] == 0`` when ``a`` holds none), when each was added
+    (``stamp``) and who is parked where (``park_a``, with ``park_t``), so that
+    :meth:`conflicts_of` answers as the table's dicts would, in the same order. Owned by
+    its table alone (not one of the shared buffers): patching it is one kernel call.
+    """
+
+    __slots__ = ("pos", "plen", "stamp", "park_a")
+
+    def __init__(self, k: ModuleType, graph: _Graph, res: Reservations) -> None:
+        import numpy as np
+
+        super().__init__(k, graph)
+        self._grow(res.horizon + 1)
+        rows = max(len(res.paths), 1)
+        self.pos = np.zeros((rows, self.h), np.int64)
+        self.plen = np.zeros(rows, np.int64)
+        self.stamp = np.zeros(rows, np.int64)
+        self.park_a = np.full(self.n, -1, np.int64)
+        for a, p in enumerate(res.paths):
+            if p is not None:
+                self.add(a, p, res.stamps[a])
+        # The parked agents as the dicts have them (each add above parked its agent).
+        self.park_a.fill(-1)
+        self.park_t.fill(NEVER)
+        for v, (a, t) in res.parked.items():
+            self.park_a[v] = a
+            self.park_t[v] = t
+        self.owner = res
+
+    def _apply(self, agent: int, path: Sequence[int], delta: int, stamp: int) -> None:
+        import numpy as np
+
+        n_t = len(path)
+        if n_t > self.h:
+            self._grow(n_t)
+        pos = self.pos
+        if agent >= pos.shape[0] or n_t > pos.shape[1]:
+            rows = max(agent + 1, pos.shape[0])
+            new = np.zeros((rows, max(self.h, pos.shape[1])), np.int64)
+            new[: pos.shape[0], : pos.shape[1]] = pos
+            self.pos = new
+            for name in ("plen", "stamp"):
+                old = getattr(self, name)
+                grown = np.zeros(rows, np.int64)
+                grown[: old.shape[0]] = old
+                setattr(self, name, grown)
+        g = self.graph
+        self.k.dense_apply(
+            self.vt, self.et, g.ptr, g.idx, np.array(path, np.int64), delta, self.pos,
+            self.plen, self.stamp, self.park_a, self.park_t, agent, stamp,
+        )  # fmt: skip
+
+    def add(self, agent: int, path: Sequence[int], stamp: int) -> None:
+        """Reserve ``path`` for ``agent``, added at ``stamp`` (see ``Reservations.add``)."""
+        self._apply(agent, path, 1, stamp)
+
+    def remove(self, agent: int, path: Sequence[int]) -> None:
+        """Release ``agent``'s ``path`` (see ``Reservations.remove``)."""
+        self._apply(agent, path, -1, 0)
+
+    def conflicts_of(
+        self, r: int, path: Sequence[int], skip: set[int] | frozenset[int]
+    ) -> list[Conflict]:
+        """``Reservations.conflicts_of`` from the arrays: same conflicts, same order."""
+        import numpy as np
+
+        rows = self.plen.shape[0]
+        mask = np.zeros(rows, np.bool_)
+        for b in skip:
+            if b < rows:
+                mask[b] = True
+        out = self.k.dense_conflicts(
+            self.pos, self.plen, self.stamp, self.park_a, self.park_t,
+            np.array(path, np.int64), r, mask,
+        )  # fmt: skip
+        return [Conflict(*c) for c in out.tolist()]
+
+    def parked(self) -> tuple[dict[int, tuple[int, int]], list[int]]:
+        """The table's ``parked`` and ``park_t`` from the arrays."""
+        park_t = self.park_t.tolist()
+        agents = self.park_a.tolist()
+        return {v: (a, park_t[v]) for v, a in enumerate(agents) if a >= 0}, park_t
+
+
 #: How many :class:`CatMirror` buffers are shared (the main search's, pair searches').
 MIRRORS = 3
 _mirrors: list[CatMirror] = []  # most recently used last
 
 
 def _mirror(k: ModuleType, g: _Graph, res: Reservations) -> CatMirror:
+    if res.dense_ok:
+        d = res.dense
+        if d is None or d.graph is not g:
+            res.undense()
+            if res.mirror is not None:
+                res.mirror.detach()
+            d = DenseMirror(k, g, res)
+            res.dense = d
+            res.vt, res.et, res.parked = {}, {}, {}
+        return d
     m = res.mirror
     if m is not None and m.owner is res and m.graph is g:
         if _mirrors[-1] is not m:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 from hierplan_opt.search.conflicts import EDGE, TARGET, VERTEX, Conflict
 
 if TYPE_CHECKING:
-    from hierplan_opt.search.jit import CatMirror
+    from hierplan_opt.search.jit import CatMirror, DenseMirror
 
 #: ``park_t`` of a vertex where nobody parks: later than any timestep.
 NEVER = 1 << 60
@@ -54,9 +54,23 @@ class Reservations:
     ({}, {}, {})
     """
 
-    __slots__ = ("n", "moves", "vt", "et", "parked", "park_t", "paths", "horizon", "mirror")
+    __slots__ = (
+        "n",
+        "moves",
+        "vt",
+        "et",
+        "parked",
+        "park_t",
+        "paths",
+        "horizon",
+        "mirror",
+        "stamps",
+        "clock",
+        "dense_ok",
+        "dense",
+    )
 
-    def __init__(self, n: int, *, moves: bool = True) -> None:
+    def __init__(self, n: int, *, moves: bool = True, dense_ok: bool = False) -> None:
         self.n = n
         #: Whether ``et`` is kept (a table used only for conflicts_of can do without).
         self.moves = moves
@@ -69,22 +83,41 @@ class Reservations:
         #: The compiled low level's dense copy (:class:`~hierplan_opt.search.jit.CatMirror`),
         #: attached by its first call and kept in step here; None otherwise.
         self.mirror: CatMirror | None = None
+        #: ``stamps[a]``: when ``a``'s path was added (a clock of adds). The agents listed
+        #: at a key of ``vt`` / ``et`` are those of their reservations, in stamp order.
+        self.stamps: list[int] = []
+        self.clock = 0
+        #: Whether the compiled low level may take the table over (``dense``): CBS's own
+        #: table, which only CBS's calls read.
+        self.dense_ok = dense_ok
+        #: The compiled low level's own copy (:class:`~hierplan_opt.search.jit.DenseMirror`)
+        #: once it has taken the table over: then it alone holds the reservations (the
+        #: dicts above stay empty; about ten times cheaper to patch) and answers
+        #: :meth:`conflicts_of`; :meth:`undense` hands them back.
+        self.dense: DenseMirror | None = None
 
     # ------------------------------------------------------------------ updates
     def add(self, agent: int, path: Path) -> None:
         """Reserve ``path`` for ``agent`` (which must hold no reservation)."""
-        vkeys, ekeys = self._keys(path)
-        _put(self.vt, vkeys, agent)
-        _put(self.et, ekeys, agent)
         last = len(path) - 1
-        self.parked[path[-1]] = (agent, last)
-        self.park_t[path[-1]] = last
         if last > self.horizon:
             self.horizon = last
         paths = self.paths
         if agent >= len(paths):
-            paths.extend([None] * (agent + 1 - len(paths)))
+            grow = agent + 1 - len(paths)
+            paths.extend([None] * grow)
+            self.stamps.extend([0] * grow)
         paths[agent] = path
+        self.clock += 1
+        self.stamps[agent] = self.clock
+        if self.dense is not None:
+            self.dense.add(agent, path, self.clock)
+            return
+        vkeys, ekeys = self._keys(path)
+        _put(self.vt, vkeys, agent)
+        _put(self.et, ekeys, agent)
+        self.parked[path[-1]] = (agent, last)
+        self.park_t[path[-1]] = last
         if self.mirror is not None:
             self.mirror.update(path, 1, last)
 
@@ -103,6 +136,9 @@ class Reservations:
         if path is None:
             return
         self.paths[agent] = None
+        if self.dense is not None:
+            self.dense.remove(agent, path)
+            return
         vkeys, ekeys = self._keys(path)
         _drop(self.vt, vkeys, agent)
         _drop(self.et, ekeys, agent)
@@ -113,31 +149,46 @@ class Reservations:
         if self.mirror is not None:
             self.mirror.update(path, -1, self.park_t[path[-1]])
 
-    def sync(self, paths: Sequence[Path | None]) -> None:
-        """Make the table hold exactly ``paths`` (agent ``i`` on ``paths[i]``).
+    def sync(self, paths: Sequence[Path | None], skip: int = -1) -> None:
+        """Make the table hold exactly ``paths`` (agent ``i`` on ``paths[i]``), but for
+        agent ``skip`` (if given), which holds no reservation afterwards.
 
         Only the paths that changed (by identity) are re-reserved, so keeping one table
-        for a search costs O(changed paths) per step, not O(all paths).
+        for a search costs O(changed paths) per step, not O(all paths). ``skip`` serves a
+        low-level call for that agent: its old path is not put back only to be removed.
+        ``horizon`` counts ``paths[skip]`` too.
         """
         old = self.paths
         if len(old) != len(paths):
             if self.mirror is not None:
                 self.mirror.detach()  # counts the old paths out; the next call re-attaches
+            self.dense = None  # the same (the next call makes a new one)
             self.vt = {}
             self.et = {}
             for v in self.parked:
                 self.park_t[v] = NEVER
             self.parked = {}
             self.paths = [None] * len(paths)
+            self.stamps = [0] * len(paths)
             for a, p in enumerate(paths):
-                if p is not None:
+                if p is not None and a != skip:
                     self.add(a, p)
         else:
+            changed = False
             for a, p in enumerate(paths):
-                if old[a] is not p:
+                if a == skip:
+                    if old[a] is not None:
+                        self.remove(a)
+                        changed = True
+                elif old[a] is not p:
                     self.remove(a)
                     if p is not None:
                         self.add(a, p)
+                    changed = True
+            if not changed:
+                # Same reservations as after the last update: ``horizon`` (at least the
+                # last step of each of them) is still valid.
+                return
         self.horizon = max((len(p) - 1 for p in paths if p is not None), default=0)
 
     # ------------------------------------------------------------------ queries
@@ -151,6 +202,7 @@ class Reservations:
         >>> r.visits(5)
         [1, 3]
         """
+        self.undense()
         n = self.n
         vt = self.vt
         out: list[int] = []
@@ -176,6 +228,8 @@ class Reservations:
         >>> r.conflicts_of(1, (2, 1, 0))
         [Conflict(t=1, kind=0, a=0, b=1, u=-1, v=1)]
         """
+        if self.dense is not None:
+            return self.dense.conflicts_of(r, path, skip)
         n = self.n
         vt = self.vt
         et = self.et
@@ -212,6 +266,28 @@ class Reservations:
                     if b != r and b not in skip:
                         out.append(Conflict(t, TARGET, r, b, -1, g))
         return out
+
+    def undense(self) -> None:
+        """Take the reservations back from :attr:`dense` into the dicts (if it holds them).
+
+        The agents are re-added in stamp order, so every key lists them as before.
+        """
+        d = self.dense
+        if d is None:
+            return
+        self.dense = None
+        self.vt = {}
+        self.et = {}
+        order = sorted(
+            (a for a, p in enumerate(self.paths) if p is not None), key=self.stamps.__getitem__
+        )
+        for a in order:
+            p = self.paths[a]
+            assert p is not None
+            vkeys, ekeys = self._keys(p)
+            _put(self.vt, vkeys, a)
+            _put(self.et, ekeys, a)
+        self.parked, self.park_t = d.parked()
 
 
 def _put(table: dict[int, list[int]], keys: list[int], agent: int) -> None:
