@@ -180,10 +180,89 @@ def test_random_mdds_identical(seed):
             for mode in ("python", "jit"):
                 jit.set_low_level(mode)
                 m = build_mdd(g.adj, s, t, g.dist_list(t), c, cost, g.dist_list)
-                out.append(ordered(m.levels))
+                # single() first: from the kernel's arrays before the levels are made
+                ones = [[m.single(x, v) for v in range(g.n)] for x in range(-1, cost + 2)]
+                out.append((ones, ordered(m.levels)))
             assert out[0] == out[1], (seed, cost)
     finally:
         jit.set_low_level(None)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_restricted_mdds_identical(seed):
+    # restrict on the kernel's arrays (chained, as CBS restricts an ancestor's MDD
+    # along its descendants) against restrict on the Python-built levels: the same
+    # levels in the same orders, the same one-vertex levels, the same "cost gone".
+    from hierplan_opt.search.mdd import MDD, build_mdd, restrict
+
+    rng = random.Random(2000 + seed)
+    g, free = random_grid(rng)
+    if len(free) < 3:
+        return
+    s, t = rng.sample(free, 2)
+    goals = [t, rng.choice([v for v in free if v != t])]
+    dist = g.dist_list(t)
+    root = AgentConstraints.root(g.n, t)
+    p0, _ = astar.space_time_astar(g.adj, s, t, dist, root)
+    if p0 is None or len(p0) < 2:
+        return
+    cost = len(p0) - 1 + rng.choice([0, 0, 1, 2])
+    try:
+        jit.set_low_level("python")
+        py = build_mdd(g.adj, s, t, dist, root, cost, g.dist_list)
+        jit.set_low_level("jit")
+        jt = build_mdd(g.adj, s, t, dist, root, cost, g.dist_list)
+    finally:
+        jit.set_low_level(None)
+    seen = 0
+    for _ in range(6):
+        own, derived = [], []
+        for _ in range(rng.randint(1, 3)):
+            kind = rng.choice(
+                ["v", "v", "e", "pos_v", "pos_e", "gt", "le", "range", "dpos", "dlen"]
+            )
+            v = rng.choice(free)
+            nb = rng.choice([*g.adj[v], v])
+            tt = rng.randint(0, cost + 1)
+            if kind == "v":
+                own.append((NEG_V, 0, v, -1, tt))
+            elif kind == "e":
+                own.append((NEG_E, 0, v, nb, max(tt, 1)))
+            elif kind == "pos_v":
+                own.append((POS_V, 0, v, -1, tt))
+            elif kind == "pos_e":
+                own.append((POS_E, 0, v, nb, max(tt, 1)))
+            elif kind == "gt":
+                own.append((LEN_GT, 0, -1, -1, tt))
+            elif kind == "le":
+                own.append((LEN_LE, 0, -1, -1, tt + 2))
+            elif kind == "range":
+                own.append((NEG_RANGE, 0, v, tt, tt + 2))
+            elif kind == "dpos":
+                derived.append(((rng.choice([POS_V, POS_E]), 1, v, nb, max(tt, 1)), goals[1]))
+            else:
+                derived.append(((LEN_LE, 1, -1, -1, tt), rng.choice(goals)))
+        r_py = restrict(py, own, derived)
+        r_jt = restrict(jt, own, derived)
+        assert (r_py is None) == (r_jt is None), (seed, own, derived)
+        if r_py is None or r_jt is None:
+            continue
+        seen += 1
+        twin = MDD(None, cost, t, r_jt._raw)  # compared; r_jt stays arrays for the chain
+        ones = [[twin.single(x, v) for v in range(g.n)] for x in range(-1, cost + 2)]
+        assert ones == [[r_py.single(x, v) for v in range(g.n)] for x in range(-1, cost + 2)]
+        span = range(-cost - 2, cost + 2)
+        has = [[twin.has(x, v) for v in range(g.n)] for x in span if x >= -cost - 1]
+        passes = [[twin.passes(v, x) for v in range(g.n)] for x in span]
+        assert ordered(twin.levels) == ordered(r_py.levels)
+        assert has == [[r_py.has(x, v) for v in range(g.n)] for x in span if x >= -cost - 1]
+        assert passes == [[r_py.passes(v, x) for v in range(g.n)] for x in span]
+        assert passes == [
+            [v == t or any(v in lv for lv in r_py.levels[x:]) for v in range(g.n)] for x in span
+        ]
+        if rng.random() < 0.7:  # chain: restrict the restricted MDD further
+            py, jt = r_py, r_jt
+    assert seen > 0 or cost < 2
 
 
 def dense(res: Reservations, graph: jit._Graph, h: int) -> tuple[np.ndarray, np.ndarray]:
@@ -328,9 +407,15 @@ def test_cbs_identical_call_by_call(monkeypatch):
     def checked_mdd(k, adj, start, goal, dist, cons, cost, dist_of):
         got = build(k, adj, start, goal, dist, cons, cost, dist_of)
         jit.set_low_level("python")
-        want = mdd.build_mdd(adj, start, goal, dist, cons, cost, dist_of).levels
+        want = mdd.build_mdd(adj, start, goal, dist, cons, cost, dist_of)
         jit.set_low_level("jit")
-        assert ordered(got) == ordered(want)
+        assert ordered(jit.mdd_levels(got, cost, goal)) == ordered(want.levels)
+        one = jit.mdd_singles(got, cost, goal)
+        assert all(
+            want.single(t, v) == (one[t] == v)
+            for t in range(cost + 1)
+            for v in (-1, *want.levels[t])
+        )
         seen["mdds"] += 1
         return got
 

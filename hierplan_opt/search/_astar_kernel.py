@@ -545,3 +545,114 @@ def mdd(
         for i in range(lo[t], hi[t]):
             alive[ov[i]] = t
     return ov, ks, ke, kids, lo, hi, last
+
+
+@_njit
+def mdd_restrict(ov, ks, ke, kids, lo, hi, last, cost, goal, drop_t, drop_v, only, cut):
+    """The two passes of ``mdd.restrict`` on :func:`mdd`'s arrays (same orders).
+
+    ``drop_t, drop_v``: the vertices dropped per level; ``only[t]``: the vertex level
+    ``t`` is reduced to (-2: none given, -1: none left); ``cut``: rows ``(t, u, v)`` of
+    cut moves. Returns arrays as :func:`mdd`'s, ``lo`` empty if the cost is gone.
+    """
+    nv = goal + 1
+    for t in range(cost):
+        for i in range(lo[t], hi[t]):  # (the arrays may be longer than their use)
+            if ov[i] >= nv:
+                nv = ov[i] + 1
+    for i in range(drop_v.shape[0]):  # (any vertex of the graph)
+        if drop_v[i] >= nv:
+            nv = drop_v[i] + 1
+    mark = np.full(nv, -1, np.int64)  # mark[v] == t: v dropped at level t
+    alive = np.full(nv, -1, np.int64)  # alive[v] == t: v kept at level t
+    n_drop = drop_t.shape[0]
+    n_cut = cut.shape[0]
+    # Backward: new nodes level by level (cost - 1 down to 0), like the kernel's mdd.
+    bov = np.empty(ov.shape[0], np.int64)
+    bks = np.empty(ov.shape[0], np.int64)
+    bke = np.empty(ov.shape[0], np.int64)
+    bkids = np.empty(kids.shape[0], np.int64)
+    blo = np.zeros(cost + 1, np.int64)
+    bhi = np.zeros(cost + 1, np.int64)
+    empty = np.zeros(0, np.int64)
+    ok = last
+    for i in range(n_drop):
+        if drop_t[i] == cost and drop_v[i] == goal:
+            ok = False
+    if only[cost] != -2 and only[cost] != goal:
+        ok = False
+    if not ok:
+        return bov, bks, bke, bkids, empty, bhi, False
+    alive[goal] = cost
+    no = 0
+    nkid = 0
+    for t in range(cost - 1, -1, -1):
+        if t < cost - 1 and bhi[t + 1] == blo[t + 1]:
+            return bov, bks, bke, bkids, empty, bhi, False
+        for i in range(n_drop):
+            if drop_t[i] == t:
+                mark[drop_v[i]] = t
+        o = only[t]
+        blo[t] = no
+        for i in range(lo[t], hi[t]):
+            v = ov[i]
+            if mark[v] == t or (o != -2 and v != o):
+                continue
+            s = nkid
+            for x in range(ks[i], ke[i]):
+                u = kids[x]
+                if alive[u] != t + 1:
+                    continue
+                gone = False
+                for c in range(n_cut):
+                    if cut[c, 0] == t and cut[c, 1] == v and cut[c, 2] == u:
+                        gone = True
+                        break
+                if not gone:
+                    bkids[nkid] = u
+                    nkid += 1
+            if nkid > s:
+                bov[no] = v
+                bks[no] = s
+                bke[no] = nkid
+                no += 1
+        bhi[t] = no
+        for i in range(blo[t], bhi[t]):
+            alive[bov[i]] = t
+    if bhi[0] == blo[0]:
+        return bov, bks, bke, bkids, empty, bhi, False
+    # Forward: drop what the start no longer reaches (reach[v] == t: reached at t).
+    reach = np.full(nv, -1, np.int64)
+    keep = np.zeros(no, np.bool_)
+    for i in range(blo[0], bhi[0]):
+        keep[i] = True
+    for t in range(cost - 1):
+        for i in range(blo[t], bhi[t]):
+            if keep[i]:
+                for x in range(bks[i], bke[i]):
+                    reach[bkids[x]] = t + 1
+        for i in range(blo[t + 1], bhi[t + 1]):
+            if reach[bov[i]] == t + 1:
+                keep[i] = True
+    # Compact (kept nodes' children are all kept).
+    ov2 = np.empty(no, np.int64)
+    ks2 = np.empty(no, np.int64)
+    ke2 = np.empty(no, np.int64)
+    kids2 = np.empty(nkid, np.int64)
+    lo2 = np.zeros(cost + 1, np.int64)
+    hi2 = np.zeros(cost + 1, np.int64)
+    m = 0
+    mk = 0
+    for t in range(cost - 1, -1, -1):
+        lo2[t] = m
+        for i in range(blo[t], bhi[t]):
+            if keep[i]:
+                ov2[m] = bov[i]
+                ks2[m] = mk
+                for x in range(bks[i], bke[i]):
+                    kids2[mk] = bkids[x]
+                    mk += 1
+                ke2[m] = mk
+                m += 1
+        hi2[t] = m
+    return ov2[:m].copy(), ks2[:m].copy(), ke2[:m].copy(), kids2[:mk].copy(), lo2, hi2, True

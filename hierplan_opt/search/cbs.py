@@ -623,7 +623,7 @@ class _CBS:
                     return
             elif kind == LEN_LE:
                 g = self.goals[ag]
-                if m.goal == g or any(g in lv for lv in m.levels[t:]):
+                if m.passes(g, t):
                     return
         self.mdd_cache[new.ver] = m
 

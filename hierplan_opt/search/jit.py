@@ -213,7 +213,8 @@ def _warm_up(k: ModuleType) -> None:
     run(k, g.adj, 0, 2, g.dist_list(2), root, own, None, None)
     own.conflicts_of(1, (0, 1, 2))
     own.remove(0)
-    build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
+    raw = build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
+    mdd_restrict(raw, 2, 2, [None, {0}, None], [None, None, 2], {(0, 0, 1)}, k)
 
 
 # ---------------------------------------------------------------------- data
@@ -615,13 +616,61 @@ def build_mdd(
     cons: AgentConstraints,
     cost: int,
     dist_of: Callable[[int], Sequence[int]] | None,
-) -> list[dict[int, list[int]]]:
-    """The levels of ``mdd.build_mdd`` (``cost >= 1``) from the kernel ``k``."""
+) -> tuple[Any, ...]:
+    """The MDD of ``mdd.build_mdd`` (``cost >= 1``) from the kernel ``k``, as its arrays.
+
+    :func:`mdd_levels` makes the levels of them, :func:`mdd_singles` the one-vertex
+    levels.
+    """
     from hierplan_opt.search.constraints import Moves
 
     nxt = Moves(adj, goal, dist, cons, dist_of).nxt
     _, args, _ = _search_args(adj, start, goal, dist, cons, nxt, cost)
-    ov, ks, ke, kids, lo, hi, last = k.mdd(*args, UNREACHABLE)
+    return k.mdd(*args, UNREACHABLE)
+
+
+def mdd_restrict(
+    raw: tuple[Any, ...],
+    cost: int,
+    goal: int,
+    drop: Sequence[set[int] | None],
+    only: Sequence[int | None],
+    cut: set[tuple[int, int, int]],
+    k: ModuleType | None = None,
+) -> tuple[Any, ...] | None:
+    """The passes of ``mdd.restrict`` on :func:`build_mdd`'s arrays; None if the cost is
+    gone. ``drop``, ``only`` and ``cut`` as that function makes them; ``k`` the kernel
+    (default: the loaded one, which made the arrays)."""
+    import numpy as np
+
+    k = k or _kernel
+    assert k is not None
+    dt = [t for t, d in enumerate(drop) if d is not None for _ in d]
+    dv = [v for d in drop if d is not None for v in d]
+    on = [-2 if o is None else o for o in only]
+    cuts = np.array(sorted(cut), np.int64).reshape(len(cut), 3)
+    ov, ks, ke, kids, lo, hi, last = raw
+    out = k.mdd_restrict(
+        ov, ks, ke, kids, lo, hi, last, cost, goal, np.array(dt, np.int64),
+        np.array(dv, np.int64), np.array(on, np.int64), cuts,
+    )  # fmt: skip
+    return out if out[4].shape[0] else None
+
+
+def mdd_singles(raw: tuple[Any, ...], cost: int, goal: int) -> list[int]:
+    """Per level of :func:`build_mdd`'s arrays ``raw``: its vertex if it has one, else -1."""
+    ov, _, _, _, lo, hi, last = raw
+    one = [-1] * (cost + 1)
+    for t, (a, b) in enumerate(zip(lo.tolist(), hi.tolist(), strict=True)):
+        if b - a == 1:
+            one[t] = int(ov[a])
+    one[cost] = goal if last else -1
+    return one
+
+
+def mdd_levels(raw: tuple[Any, ...], cost: int, goal: int) -> list[dict[int, list[int]]]:
+    """The levels (as ``mdd.MDD.levels``) of :func:`build_mdd`'s arrays ``raw``."""
+    ov, ks, ke, kids, lo, hi, last = raw
     vl = ov.tolist()
     kl = kids.tolist()
     kid_lists = [kl[a:b] for a, b in zip(ks.tolist(), ke.tolist(), strict=True)]

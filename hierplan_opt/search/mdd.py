@@ -10,6 +10,7 @@ there are *cardinal* (Sharon et al. 2015; Boyarski et al. 2015).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 from hierplan_opt.search import jit
 from hierplan_opt.search.constraints import (
@@ -38,12 +39,28 @@ class MDD:
     [[0], [1, 2], [3]]
     """
 
-    __slots__ = ("levels", "cost", "goal")
+    __slots__ = ("_levels", "cost", "goal", "_raw", "_one")
 
-    def __init__(self, levels: list[dict[int, list[int]]], cost: int, goal: int) -> None:
-        self.levels = levels
+    def __init__(
+        self, levels: list[dict[int, list[int]]] | None, cost: int, goal: int, raw: Any = None
+    ) -> None:
+        self._levels = levels
         self.cost = cost
         self.goal = goal
+        #: The compiled builder's arrays (see :func:`.jit.build_mdd`) while ``levels`` is
+        #: not made yet: many MDDs are only asked :meth:`single`, which needs no dicts.
+        self._raw = raw
+        #: ``_one[t]``: the vertex of level ``t`` if it has one vertex, else -1.
+        self._one: list[int] | None = None
+
+    @property
+    def levels(self) -> list[dict[int, list[int]]]:
+        """Level ``t``: ``vertex -> its children at level t + 1`` (made on first use)."""
+        lv = self._levels
+        if lv is None:
+            lv = self._levels = jit.mdd_levels(self._raw, self.cost, self.goal)
+            self._raw = None
+        return lv
 
     def width(self, t: int) -> int:
         return len(self.levels[t]) if t <= self.cost else 1
@@ -52,18 +69,52 @@ class MDD:
         """Whether every optimal path is at ``v`` at time ``t``."""
         if t > self.cost:
             return v == self.goal
-        lv = self.levels[t]
-        return len(lv) == 1 and v in lv
+        one = self._one
+        if one is None:
+            if self._levels is None:
+                one = self._one = jit.mdd_singles(self._raw, self.cost, self.goal)
+            else:
+                one = self._one = [next(iter(lv)) if len(lv) == 1 else -1 for lv in self._levels]
+        return one[t] == v
 
     def has(self, t: int, v: int) -> bool:
         if t >= self.cost:
             return v == self.goal
-        return v in self.levels[t]
+        lv = self._levels
+        if lv is None:  # the kernel's arrays: level t is ov[lo[t]:hi[t]]
+            if t < 0:  # as a list index
+                return self.has(t + self.cost + 1, v)
+            ov, _, _, _, lo, hi, _ = self._raw
+            return bool((ov[lo[t] : hi[t]] == v).any())
+        return v in lv[t]
+
+    def passes(self, v: int, t: int) -> bool:
+        """Whether some optimal path is at ``v`` at some time ``>= t`` (parked included).
+
+        Example
+        -------
+        >>> from hierplan_opt.core.graph import Graph
+        >>> g = Graph.grid(3, 1)
+        >>> m = build_mdd(g.adj, 0, 2, g.dist_list(2), AgentConstraints(), 2)
+        >>> m.passes(1, 1), m.passes(1, 2), m.passes(2, 9)
+        (True, False, True)
+        """
+        if v == self.goal:
+            return True
+        if t < 0:  # as a list slice
+            t = max(t + self.cost + 1, 0)
+        if t >= self.cost:
+            return False
+        lv = self._levels
+        if lv is None:  # the levels t..cost-1 are ov[:hi[t]] (written from cost-1 down)
+            ov, _, _, _, _, hi, _ = self._raw
+            return bool((ov[: hi[t]] == v).any())
+        return any(v in x for x in lv[t:])
 
     def children(self, t: int, v: int) -> list[int]:
         if t >= self.cost:
             return [self.goal]
-        return self.levels[t][v]
+        return (self._levels or self.levels)[t][v]
 
 
 def build_mdd(
@@ -83,7 +134,7 @@ def build_mdd(
         return MDD([{start: []}], 0, goal)
     k = jit.kernel()  # the compiled twin of the two passes below (see search.jit)
     if k is not None:
-        return MDD(jit.build_mdd(k, adj, start, goal, dist, cons, cost, dist_of), cost, goal)
+        return MDD(None, cost, goal, jit.build_mdd(k, adj, start, goal, dist, cons, cost, dist_of))
     moves = Moves(adj, goal, dist, cons, dist_of)
     fwd: list[dict[int, list[int]]] = [{start: []}]
     for t in range(1, cost):
@@ -205,6 +256,9 @@ def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]
                 neg_v(other_goal, tt)
         if not ok:
             return None
+    if m._levels is None:  # the compiled builder's arrays: restrict them in the kernel
+        raw = jit.mdd_restrict(m._raw, cost, goal, drop, only, cut)
+        return None if raw is None else MDD(None, cost, goal, raw)
     # Backward: the nodes that still reach the goal, with the moves that do.
     old = m.levels
     levels: list[dict[int, list[int]]] = [{} for _ in range(cost + 1)]
