@@ -468,7 +468,9 @@ def test_auto_switches_after_python_time(monkeypatch):
         assert jit.kernel() is not None
         jit.new_solve()  # the next solve starts in Python again, kernel loaded or not
         assert jit.kernel() is None
-        jit.note_python(jit.JIT_AFTER_S)
+        jit.note_python(jit.JIT_WARM_S / 2)
+        assert jit.kernel() is None
+        jit.note_python(jit.JIT_WARM_S)  # loaded: it switches sooner (no pause to pay)
         assert jit.kernel() is not None
     finally:
         jit.set_low_level(None)

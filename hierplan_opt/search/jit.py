@@ -11,8 +11,9 @@ choice only changes the speed. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`)
     thread would through the GIL); when it is done, the next call loads the kernels from
     the cache (a pause of about 0.6 s) and runs them. A small solve never imports numba;
     a long one is never blocked by the compiler. Should the helper outlive its parent,
-    it finishes writing the cache. A short solve stays in Python also in a process where
-    an earlier long one loaded the kernel: the kernel's set-up per call and per map
+    it finishes writing the cache. In a process where an earlier solve loaded the
+    kernel, a solve switches after :data:`JIT_WARM_S` seconds of Python low level
+    instead: a short one stays in Python, as the kernel's set-up per call and per map
     (arrays of the graph and the conflict table) costs more than such searches
     (warehouse-10-20-10-2-1-even-1 k10: 21.6 ms against 14.5 ms a solve).
 ``python``
@@ -22,7 +23,10 @@ choice only changes the speed. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`)
 
 The conflict-avoidance table reaches the kernel as a :class:`CatMirror`: dense count
 arrays that :class:`~hierplan_opt.search.reservations.Reservations` keeps up to date as
-paths are added and removed, so a call does not convert the table.
+paths are added and removed, so a call does not convert the table. CBS's own table is
+taken over by a :class:`DenseMirror` (the paths too, and ``conflicts_of``), and MDDs
+built by the kernel stay its arrays (:func:`mdd_singles`, :func:`mdd_restrict`) until
+their levels are asked for (:func:`mdd_levels`).
 
 Example
 -------
@@ -58,6 +62,10 @@ log = logging.getLogger(__name__)
 MODES = ("auto", "python", "jit")
 #: Seconds of Python low-level search in one solve after which ``auto`` loads the kernel.
 JIT_AFTER_S = 0.5
+#: The same once the kernel is loaded (an earlier solve of the process loaded it): no
+#: pause to pay then, only the kernel's set-up per map, which a solve that has spent
+#: this long in the Python low level already outweighs.
+JIT_WARM_S = 0.02
 #: ``forbid_from`` / ``park_t`` value meaning "never" (as reservations.NEVER).
 NEVER = 1 << 60
 
@@ -132,7 +140,7 @@ def kernel() -> ModuleType | None:
         return None
     if k is None and m == "jit":
         k = load()
-    elif m == "auto" and python_seconds < JIT_AFTER_S:
+    elif m == "auto" and python_seconds < (JIT_AFTER_S if k is None else JIT_WARM_S):
         return None  # a short solve stays in Python, also once a long one loaded the kernel
     return k
 
