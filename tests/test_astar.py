@@ -262,3 +262,46 @@ def test_restricted_mdd_equals_rebuilt(seed):
         assert [{k: sorted(x) for k, x in lv.items()} for lv in r.levels] == [
             {k: sorted(x) for k, x in lv.items()} for lv in rebuilt.levels
         ]
+
+
+def test_cut_off_and_failure_memo_change_no_result():
+    # Random narrow grids, other agents' goals forbidden from random times on (their
+    # length constraints) plus vertex constraints: with the cut-off check and the memo
+    # of failed constraint sets the search returns exactly what it returns without
+    # (path or None), also when the same constraints come again; a goal that cut_off
+    # declares out of reach has no path, and the check does fire.
+    import random
+
+    from hierplan_opt.search.astar import cut_off
+
+    cuts = fails = memo = 0
+    for seed in range(60):
+        rng = random.Random(seed)
+        w, h = rng.choice([(6, 3), (7, 2), (5, 5), (9, 3)])
+        obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 4))]
+        g = Graph.grid(w, h, obstacles=obst)
+        free = [v for v in range(g.n) if g.passable[v]]
+        if len(free) < 4:
+            continue
+        cache: dict = {}
+        for _ in range(12):
+            s, t = rng.sample(free, 2)
+            others = [v for v in free if v != t]
+            c = AgentConstraints.root(g.n, t)
+            for _ in range(rng.randint(1, 5)):
+                goals = [t, rng.choice(others)]
+                le = (LEN_LE, 1, -1, -1, rng.randint(0, 8))
+                c = add_derived(c, [le], n=g.n, goals=goals, goal=t)
+            for _ in range(rng.randint(0, 12)):
+                c = c.add((NEG_V, 0, rng.choice(free), -1, rng.randint(1, 6)), n=g.n, goal=t)
+            dist = g.dist_list(t)
+            plain, _ = space_time_astar(g.adj, s, t, dist, c)
+            fails += plain is None
+            for _ in range(2):  # the second call may be answered by the memo
+                got, _ = space_time_astar(g.adj, s, t, dist, c, cut_cache=cache)
+                assert got == plain, seed
+            if cut_off(g.adj, s, t, dist, c.forbid_from, c.max_finish) < 0:
+                cuts += 1
+                assert plain is None, seed
+        memo += sum(len(k) == 3 for k in cache)  # failed sets the cut-off did not catch
+    assert cuts >= 20 and memo >= 3 and fails >= cuts + memo, (cuts, memo, fails)

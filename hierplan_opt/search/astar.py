@@ -49,6 +49,7 @@ def space_time_astar(
     res: Reservations | None = None,
     dist_of: Callable[[int], Sequence[int]] | None = None,
     node_limit: int | None = None,
+    cut_cache: dict[tuple[object, ...], int] | None = None,
 ) -> tuple[tuple[int, ...] | None, int]:
     """Shortest path of one agent under ``cons``; ties broken by fewest conflicts.
 
@@ -66,6 +67,11 @@ def space_time_astar(
         ``graph.dist_list`` (needed only when ``cons`` has landmarks).
     node_limit
         Give up (return None) after this many expansions.
+    cut_cache
+        If given, a dict kept across calls on one graph (by the caller): when ``cons``
+        forbids vertices from some time on, :func:`cut_off` is tried first (once per
+        start, goal, forbidden set and finish bound) and proves most searches without a
+        path at once, instead of exhausting space-time.
 
     Returns
     -------
@@ -107,18 +113,37 @@ def space_time_astar(
         h0 = minf
     if h0 > maxf:
         return None, 0
+    memo = None
+    if cut_cache is not None and cons.forbid_from and start != goal:
+        key = (start, goal, frozenset(cons.forbid_from.items()), maxf)
+        pops = cut_cache.get(key)
+        if pops is None:
+            pops = cut_cache[key] = cut_off(adj, start, goal, dist, cons.forbid_from, maxf)
+            if pops < 0:
+                return None, -pops  # the check's own expansions, counted once
+        elif pops < 0:
+            return None, 0
+        # The same constraints already proven to admit no path (another branch or WDG
+        # sub-search reached them): no search.
+        memo = (start, goal, cons.content())
+        if memo in cut_cache:
+            return None, 0
     k = jit.kernel()
     if k is not None and (res is None or res.moves):  # the kernel counts moves too
-        return jit.run(
+        found = jit.run(
             k, adj, start, goal, dist, cons, res, dist_of, node_limit, nxt=nxt, tcap=tcap, h0=h0
         )
-    if res is not None and res.dense is not None:
-        res.undense()  # the kernel's copy back into the dicts this loop reads
-    t0 = perf_counter()
-    try:
-        return _search(adj, start, goal, dist, cons, res, node_limit, succ, nxt, tcap, h0)
-    finally:
-        jit.note_python(perf_counter() - t0)
+    else:
+        if res is not None and res.dense is not None:
+            res.undense()  # the kernel's copy back into the dicts this loop reads
+        t0 = perf_counter()
+        try:
+            found = _search(adj, start, goal, dist, cons, res, node_limit, succ, nxt, tcap, h0)
+        finally:
+            jit.note_python(perf_counter() - t0)
+    if memo is not None and found[0] is None and node_limit is None:
+        cut_cache[memo] = -1
+    return found
 
 
 def _search(
@@ -246,6 +271,54 @@ def _search(
             cnt += 1
             heappush(open_heap, (fu, c, negt1, cnt, u, t1, entry))
     return None, expanded
+
+
+def cut_off(
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    dist: Sequence[int],
+    forbid_from: dict[int, int],
+    max_finish: int,
+) -> int:
+    """Whether ``goal`` is out of reach under the forbidden-from constraints alone.
+
+    A relaxation of :func:`space_time_astar`'s problem: vertex ``w`` may be entered
+    only before time ``forbid_from[w]``, every other constraint is dropped. Waiting
+    never helps there (a vertex only closes, never opens), so the earliest arrival at
+    each vertex is a breadth-first search (A* with ``dist``); if it cannot reach the
+    goal by ``max_finish``, no path obeys all the constraints. Returns the number of
+    vertices expanded, negated when the goal is cut off.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(3, 1)
+    >>> h = g.dist_list(2)
+    >>> cut_off(g.adj, 0, 2, h, {1: 5}, 1 << 40) > 0, cut_off(g.adj, 0, 2, h, {1: 1}, 1 << 40) < 0
+    (True, True)
+    """
+    reach: dict[int, int] = {start: 0}
+    heap = [(dist[start], 0, start)]
+    pops = 0
+    while heap:
+        f, t, v = heappop(heap)
+        if f > max_finish:
+            break
+        if reach[v] < t:
+            continue
+        pops += 1
+        if v == goal:
+            return pops
+        t1 = t + 1
+        for u in adj[v]:
+            if t1 >= forbid_from.get(u, UNREACHABLE) or reach.get(u, UNREACHABLE) <= t1:
+                continue
+            if dist[u] >= UNREACHABLE:
+                continue
+            reach[u] = t1
+            heappush(heap, (t1 + dist[u], t1, u))
+    return -max(pops, 1)
 
 
 def _goal_blocked_later(cons: AgentConstraints, goal: int, t: int) -> bool:

@@ -233,6 +233,9 @@ class _CBS:
         self.pair_cache: dict[tuple[int, int, int, int], int] = {}
         # The same weights keyed by the constraints' content (see AgentConstraints.content).
         self.pair_memo: dict[tuple[int, int, tuple[object, ...], tuple[object, ...]], int] = {}
+        # Goals cut off by forbidden-from constraints (see astar.cut_off), shared with
+        # the WDG sub-searches.
+        self.cut_cache: dict[tuple[object, ...], int] = {}
         self.lower_bound = 0
         self.seq = 0
 
@@ -267,6 +270,7 @@ class _CBS:
             cons,
             res=res,
             dist_of=self.dist_of,
+            cut_cache=self.cut_cache,
         )
         st = self.stats
         st["low_level_calls"] += 1
@@ -704,6 +708,7 @@ class _CBS:
             rectangles=self._rect,
             init_paths=[node.paths[a], node.paths[b]],
         )
+        sub.cut_cache = self.cut_cache
         res = sub.search()
         base = node.costs[a] + node.costs[b]
         self.stats["low_level_expanded"] += sub.stats["low_level_expanded"]
