@@ -141,7 +141,7 @@ def space_time_astar(
             found = _search(adj, start, goal, dist, cons, res, node_limit, succ, nxt, tcap, h0)
         finally:
             jit.note_python(perf_counter() - t0)
-    if memo is not None and found[0] is None and node_limit is None:
+    if memo is not None and cut_cache is not None and found[0] is None and node_limit is None:
         cut_cache[memo] = -1
     return found
 
