@@ -992,3 +992,17 @@ def test_corridor_target_matches_brute_force_on_narrow_grids_long():
     checked, splits = _corridor_target_cross_check(12, 600)
     assert checked >= 350
     assert splits >= 30
+
+
+def test_pair_search_low_level_counted_apart():
+    # WDG sub-search expansions are in the total and also on their own (the C++'s
+    # low-level count leaves them out); a search that runs none reports none.
+    from hierplan_opt.bench import scenario
+
+    r = hierplan_opt.solve(scenario("maze-32-32-2-even-1:10")[1], "cbs")
+    st = r.stats
+    assert r.status is Status.OPTIMAL and r.cost == 465
+    assert st["pair_searches"] > 0
+    assert 0 < st["pair_low_level_expanded"] < st["low_level_expanded"]
+    r = hierplan_opt.solve(scenario("maze-32-32-2-even-1:10")[1], "cbs", heuristic="dg")
+    assert r.stats.get("pair_low_level_expanded", 0) == 0 and r.cost == 465

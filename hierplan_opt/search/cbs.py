@@ -711,7 +711,13 @@ class _CBS:
         sub.cut_cache = self.cut_cache
         res = sub.search()
         base = node.costs[a] + node.costs[b]
-        self.stats["low_level_expanded"] += sub.stats["low_level_expanded"]
+        # Counted in the total, and apart: CBSH2-RTC's low-level count leaves its WDG
+        # sub-searches out, so ``low_level_expanded - pair_low_level_expanded`` compares.
+        sub_ll = sub.stats["low_level_expanded"]
+        self.stats["low_level_expanded"] += sub_ll
+        self.stats["pair_low_level_expanded"] = (
+            self.stats.get("pair_low_level_expanded", 0) + sub_ll
+        )
         if res is None:
             if sub.exhausted:
                 return -1
