@@ -49,7 +49,7 @@ class MDD:
         self.goal = goal
         #: The compiled builder's arrays (see :func:`.jit.build_mdd`) while ``levels`` is
         #: not made yet: many MDDs are only asked :meth:`single`, which needs no dicts.
-        self._raw = raw
+        self._raw: Any = raw
         #: ``_one[t]``: the vertex of level ``t`` if it has one vertex, else -1.
         self._one: list[int] | None = None
 
