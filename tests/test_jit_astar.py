@@ -343,6 +343,27 @@ def test_dense_table_answers_as_the_dicts(seed):
     assert checks > 50
 
 
+def test_resync_to_other_agent_count_drops_the_kernels_parking():
+    # A table the kernel holds (``parked`` empty, the parking in its copy) re-synced to a
+    # different number of agents is rebuilt from the dicts: no parking time of the old
+    # paths may stay behind (the review's reproducer: agent 0's parking at 1 did).
+    jit.load()
+    g = Graph.grid(4, 1)
+    res = Reservations(g.n, dense_ok=True)
+    res.add(0, (0, 1))
+    cons = AgentConstraints.root(g.n, 3)
+    jit.set_low_level("jit")
+    try:
+        astar.space_time_astar(g.adj, 2, 3, g.dist_list(3), cons, res=res)
+    finally:
+        jit.set_low_level(None)
+    assert res.dense is not None
+    res.sync([(3, 2), None, None])
+    fresh = Reservations(g.n)
+    fresh.add(0, (3, 2))
+    assert res.park_t == fresh.park_t and res.parked == fresh.parked
+
+
 def test_mirrors_follow_their_tables():
     # More tables than shared buffers, patched in turn (as CBS and its pair searches do):
     # whenever a table owns a buffer, the counts equal its paths.
