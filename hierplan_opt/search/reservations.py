@@ -162,11 +162,7 @@ class Reservations:
         if len(old) != len(paths):
             if self.mirror is not None:
                 self.mirror.detach()  # counts the old paths out; the next call re-attaches
-            if self.dense is not None:
-                # the kernel's copy held the paths (and who parks where; ``parked`` is
-                # empty then): dropped, and every parking time with it
-                self.dense = None
-                self.park_t = [NEVER] * self.n
+            self.undense()  # the kernel's copy back first, so the reset below covers it
             self.vt = {}
             self.et = {}
             for v in self.parked:
