@@ -545,19 +545,14 @@ class Graph:
             # Every cell free and joined to its axis neighbours: the distance is the
             # Manhattan distance of the cells (a BFS gives the same, slower).
             c = self._cells
-            step = max(1, DIST_BATCH_WORK // max(1, self.n))
-            for k in range(0, len(todo), step):
-                if k and deadline is not None and deadline.expired():
-                    return False
-                batch = todo[k : k + step]
+
+            def manhattan(batch: list[int]) -> np.ndarray:
                 arr = np.abs(c[0][None, :] - c[0][batch][:, None])
                 for ax in c[1:]:
                     arr += np.abs(ax[None, :] - ax[batch][:, None])
-                arr.setflags(write=False)
-                for t, row, lst in zip(batch, arr, arr.tolist(), strict=True):
-                    cached[t] = row
-                    lists[t] = lst
-            return True
+                return arr
+
+            return self._fill_batches(todo, 1, manhattan, deadline)
         if self._small_bfs(len(todo)):
             # Plain lists, what the search loops read; the array is made on request.
             for t in todo:
@@ -565,30 +560,46 @@ class Graph:
             return True
         # Distances *to* a target are distances *from* it on the reversed graph.
         mat = self._csgraph_reversed if self.directed else self._csgraph
-        step = max(8, DIST_BATCH_WORK // max(1, self.n))
         if self.n <= DIST_BATCH_CELLS:
             # One C call per batch: on small graphs scipy's per-call overhead dominates
             # a table, and a batch pays it once.
             from scipy.sparse.csgraph import shortest_path
 
-            for k in range(0, len(todo), step):
-                if k and deadline is not None and deadline.expired():
-                    return False
-                batch = todo[k : k + step]
+            def bfs(batch: list[int]) -> np.ndarray:
                 d = shortest_path(mat, method="D", directed=True, unweighted=True, indices=batch)
                 d[np.isinf(d)] = UNREACHABLE
-                arr = d.astype(np.int64)
-                arr.setflags(write=False)
-                for t, row, lst in zip(batch, arr, arr.tolist(), strict=True):
-                    cached[t] = row
-                    lists[t] = lst
-            return True
+                return d.astype(np.int64)
+
+            return self._fill_batches(todo, 8, bfs, deadline)
+        step = max(8, DIST_BATCH_WORK // max(1, self.n))
         for k, t in enumerate(todo):
             if k and k % step == 0 and deadline is not None and deadline.expired():
                 return False
             arr = _bfs_levels(mat, t)
             arr.setflags(write=False)
             cached[t] = arr
+        return True
+
+    def _fill_batches(
+        self,
+        todo: list[int],
+        least: int,
+        rows: Callable[[list[int]], np.ndarray],
+        deadline: Deadline | None,
+    ) -> bool:
+        """Cache ``rows(batch)`` (one table per target of ``batch``, as arrays and lists)
+        for ``todo`` in batches of ``DIST_BATCH_WORK`` cells (at least ``least`` targets),
+        checking ``deadline`` between batches; False if it expired."""
+        step = max(least, DIST_BATCH_WORK // max(1, self.n))
+        for k in range(0, len(todo), step):
+            if k and deadline is not None and deadline.expired():
+                return False
+            batch = todo[k : k + step]
+            arr = rows(batch)
+            arr.setflags(write=False)
+            for t, row, lst in zip(batch, arr, arr.tolist(), strict=True):
+                self._dist_cache[t] = row
+                self._dist_list_cache[t] = lst
         return True
 
     @cached_property
