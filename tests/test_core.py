@@ -289,6 +289,21 @@ def test_one_team_solver_refuses_several_teams() -> None:
         hp.solve(Instance.mapf(g, [(0, 0)], [(2, 2)]), "flow")
 
 
+def grids_and_digraphs(
+    rng: np.random.Generator, wh: tuple[int, int], p: float, k: int, va: tuple[int, int]
+) -> list[Graph]:
+    """``k`` grids ``wh`` with cells blocked at rate ``p`` (walled-off parts happen),
+    then ``k`` directed roadmaps of ``va[0]`` vertices and up to ``va[1]`` random arcs."""
+    w, h = wh
+    graphs = [Graph.grid(w, h, blocked=rng.random((h, w)) < p) for _ in range(k)]
+    nv, na = va
+    for _ in range(k):
+        pts = {f"v{i}": (float(i), 0.0) for i in range(nv)}
+        arcs = {(f"v{a}", f"v{b}") for a, b in rng.integers(0, nv, (na, 2)) if a != b}
+        graphs.append(Graph.roadmap(pts, sorted(arcs), directed=True))
+    return graphs
+
+
 def test_bfs_levels_equal_scipy_shortest_paths() -> None:
     # The distance tables come from a breadth-first order and its predecessors; they must
     # equal scipy's unweighted shortest paths, on grids with walled-off parts and on
@@ -298,12 +313,7 @@ def test_bfs_levels_equal_scipy_shortest_paths() -> None:
     from hierplan_opt.core.graph import _bfs_levels
 
     rng = np.random.default_rng(5)
-    graphs = [Graph.grid(13, 8, blocked=rng.random((8, 13)) < 0.35) for _ in range(4)]
-    for _ in range(4):
-        pts = {f"v{i}": (float(i), 0.0) for i in range(30)}
-        arcs = {(f"v{a}", f"v{b}") for a, b in rng.integers(0, 30, (45, 2)) if a != b}
-        graphs.append(Graph.roadmap(pts, sorted(arcs), directed=True))
-    for g in graphs:
+    for g in grids_and_digraphs(rng, (13, 8), 0.35, 4, (30, 45)):
         ref = shortest_path(g._csgraph, directed=True, unweighted=True)
         ref = np.where(np.isfinite(ref), ref, UNREACHABLE).astype(np.int64)
         for s in range(g.n):
@@ -326,12 +336,7 @@ def test_distance_table_ways_agree(way: str, monkeypatch: pytest.MonkeyPatch) ->
     monkeypatch.setattr(graph_mod, "SMALL_BFS_CELLS", 10**9 if way == "python" else 0)
     monkeypatch.setattr(graph_mod, "DIST_BATCH_CELLS", 10**9 if way == "batch" else 0)
     rng = np.random.default_rng(11)
-    graphs = [Graph.grid(11, 7, blocked=rng.random((7, 11)) < 0.3) for _ in range(3)]
-    for _ in range(3):
-        pts = {f"v{i}": (float(i), 0.0) for i in range(25)}
-        arcs = {(f"v{a}", f"v{b}") for a, b in rng.integers(0, 25, (40, 2)) if a != b}
-        graphs.append(Graph.roadmap(pts, sorted(arcs), directed=True))
-    for g in graphs:
+    for g in grids_and_digraphs(rng, (11, 7), 0.3, 3, (25, 40)):
         radj = g.reverse_adj  # distances *to* t: a BFS from t over the reversed arcs
         targets = [int(t) for t in rng.choice(g.n, 6, replace=False)]
         g.fill_distances(targets)
