@@ -55,7 +55,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--margin",
         type=_metres,
         default=None,
-        help="extra clearance in metres: robots i, j keep r_i + r_j + margin apart (default 0)",
+        help="extra clearance in metres: robots i, j keep r_i + r_j + margin apart "
+        "(default: 0.1 x the shortest edge when two or more robots are points of radius 0, "
+        "else 0)",
     )
     p.add_argument("--delta", type=_metres, default=None, help=argparse.SUPPRESS)  # old name
     p.add_argument(
@@ -102,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     method = args.method or ("graph" if args.objective == "makespan" else "lp")
     if args.margin is not None and args.delta is not None:
         raise InputError("give --margin or its old name --delta, not both")
-    margin = args.margin if args.margin is not None else (args.delta or 0.0)
+    margin = args.margin if args.margin is not None else args.delta  # None: default
     with progress_of(args, f"post {method}"):
         schedule = postprocess(
             instance,
@@ -139,7 +141,8 @@ def run(args: argparse.Namespace) -> int:
         gap = f"{rep.worst_gap:+.4g} m" if math.isfinite(rep.worst_gap) else "none close"
         line += (
             f"; replay min distance {rep.min_distance:.4g} m, worst pair vs required {gap} "
-            f"({'ok' if ok else 'FAILED'})"
+            f"(margin {schedule.margin:.4g} m), {rep.violations} pairs too close or on one "
+            f"point ({'ok' if ok else 'FAILED'})"
         )
         if bad:
             line += f"; bound violated: {bad[0]}"
