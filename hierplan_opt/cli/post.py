@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 
 from hierplan_opt.cli.common import (
@@ -88,7 +89,7 @@ def _clearance(schedule) -> str:
 def run(args: argparse.Namespace) -> int:
     from hierplan_opt.cli.common import check_outputs, load_instance_from_args
     from hierplan_opt.core.errors import InputError
-    from hierplan_opt.io import load_plan
+    from hierplan_opt.io import read_plan
     from hierplan_opt.schedule import postprocess, replay, to_dot, write_schedule
     from hierplan_opt.schedule.output import FORMATS
     from hierplan_opt.schedule.replay import check_bounds
@@ -100,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         ("--gantt", args.gantt, FIGURE_SUFFIXES),
     )
     instance = load_instance_from_args(args)
-    plan = load_plan(args.plan, instance)
+    plan, plan_stats = read_plan(args.plan, instance)
     method = args.method or ("graph" if args.objective == "makespan" else "lp")
     if args.margin is not None and args.delta is not None:
         raise InputError("give --margin or its old name --delta, not both")
@@ -116,6 +117,9 @@ def run(args: argparse.Namespace) -> int:
             acceleration=not args.no_acceleration,
             lp_backend=args.lp_backend,
         )
+    solver = plan_stats.get("solver") or plan_stats.get("algorithm")
+    if isinstance(solver, str) and solver:
+        schedule = dataclasses.replace(schedule, settings={**schedule.settings, "solver": solver})
     write_schedule(schedule, args.out)
     if args.dot:
         assert schedule.stn is not None

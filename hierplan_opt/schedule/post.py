@@ -24,6 +24,7 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import tick
 from hierplan_opt.core.validate import validate
 from hierplan_opt.schedule.clearance import default_margin, finite_nonnegative
+from hierplan_opt.schedule.files import plan_tree
 from hierplan_opt.schedule.output import Schedule, build_schedule
 from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 from hierplan_opt.schedule.solve_lp import BACKENDS, solve_lp
@@ -136,6 +137,22 @@ def postprocess(
     )
     g = instance.graph
     req = tpg.requirement
+    settings: dict[str, Any] = {
+        "objective": objective,
+        "method": method,
+        "margin": req.margin,
+        "clearance": bool(clearance),
+        "acceleration": bool(acceleration),
+        "epsilon": float(epsilon),
+        "radii": {a.name: float(a.kinematics.radius) for a in instance.agents},
+    }
+    if deadlines:
+        settings["deadlines"] = {
+            (instance.agents[k].name if isinstance(k, int) else str(k)): float(v)
+            for k, v in deadlines.items()
+        }
+    if method == "lp":
+        settings["lp_backend"] = lp_stats.get("lp_backend", lp_backend)
     return build_schedule(
         stn,
         times,
@@ -149,6 +166,9 @@ def postprocess(
         margin=req.margin,
         clearance=req.report(),
         stats=stats,
+        plan=plan,
+        settings=settings,
+        plan_rows=plan_tree(instance, plan),
     )
 
 
