@@ -195,3 +195,34 @@ def test_large_plans_round_trip_and_simulate(tmp_path: Path, solver: str, k: int
     ex = simulate(inst, back)
     assert ex.statistics["collisions"] == 0
     assert int(np.count_nonzero(np.isnan(ex.arrival))) == 0
+
+
+def test_validate_cli_on_schedule_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "plus.yaml").write_text(
+        "graph: {type: grid, rows: ['@.@', '...', '@.@']}\n"
+        "robot_types: {r: {drive: omni, v_max: 1.0, radius: 0.3}}\n"
+        "agents:\n"
+        "  - {name: a, start: [0, 1], goal: [2, 1], type: r}\n"
+        "  - {name: b, start: [1, 0], goal: [1, 2], type: r}\n"
+    )
+    (tmp_path / "plan.yaml").write_text(
+        "schedule:\n"
+        "  a: [{x: 0, y: 1, t: 0}, {x: 1, y: 1, t: 1}, {x: 2, y: 1, t: 2}]\n"
+        "  b: [{x: 1, y: 0, t: 0}, {x: 1, y: 0, t: 1}, {x: 1, y: 1, t: 2}, {x: 1, y: 2, t: 3}]\n"
+    )
+    inst, plan, out = (str(tmp_path / n) for n in ("plus.yaml", "plan.yaml", "s.yaml"))
+    assert main(["post", inst, plan, "--out", out]) == 0
+    assert main(["validate", inst, out]) == 0
+    assert "valid schedule" in capsys.readouterr().out
+    # Without clearance the robots of radius 0.3 pass the crossing too close: exit 1.
+    assert main(["post", inst, plan, "--out", out, "--no-clearance"]) == 0
+    capsys.readouterr()
+    assert main(["validate", inst, out]) == 1
+    assert "pairs too close" in capsys.readouterr().out
+    # Times edited by hand: one line, exit 2.
+    data = yaml.safe_load(Path(out).read_text())
+    data["schedule"]["a"][1]["arrival"] = 0.1
+    Path(out).write_text(yaml.safe_dump(data))
+    assert main(["validate", inst, out]) == 2
+    err = capsys.readouterr().err
+    assert "the times break a bound" in err and len(err.strip().splitlines()) == 1
