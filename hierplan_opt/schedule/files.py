@@ -281,8 +281,9 @@ def _check_radii(instance: Instance, settings: dict[str, Any], where: str) -> No
 # ---------------------------------------------------------------------- the reader
 def is_schedule_file(path: str | Path) -> bool:
     """Whether ``path`` looks like a schedule file (way-points with ``arrival`` times),
-    not a plan: CSV, or ``arrival`` in its first 64 kB (cheap: large YAML files take
-    seconds to parse, and the reader parses them once).
+    not a plan: a CSV file that starts with its ``# makespan:`` line, or ``arrival``
+    and ``schedule`` in the first 64 kB (cheap: large YAML files take seconds to parse,
+    and the reader parses them once).
 
     Example
     -------
@@ -293,13 +294,13 @@ def is_schedule_file(path: str | Path) -> bool:
     False
     """
     p = Path(path)
-    if p.suffix.lower() == ".csv":
-        return True
     try:
         with p.open("rb") as f:
             head = f.read(1 << 16)
     except OSError:
         return False
+    if p.suffix.lower() == ".csv":  # statistics lines first, makespan the first of them
+        return head.lstrip().startswith(b"# makespan:")
     return b"arrival" in head and b"schedule" in head
 
 
