@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, fraction, positive_int
+from hierplan_opt.cli.common import (
+    NOT_ARRIVED,
+    OK,
+    PLAN_INVALID,
+    add_instance_arguments,
+    fraction,
+    positive_int,
+)
 
 HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
 
@@ -176,7 +183,10 @@ def execute(
 
         animate(ex, instance, args.animate)
     st = ex.statistics
-    return OK if st["collisions"] == 0 and st["distance_kept"] else PLAN_INVALID
+    if st["collisions"] or not st["distance_kept"]:
+        return PLAN_INVALID
+    # Broken robots are listed apart and do not change the exit code.
+    return NOT_ARRIVED if st["stranded"] else OK
 
 
 def check_execution_outputs(args: argparse.Namespace) -> None:

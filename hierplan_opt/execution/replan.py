@@ -50,6 +50,43 @@ log = logging.getLogger(__name__)
 SAMPLE = 0.05
 
 
+def footprint_vertices(graph: Graph, point: np.ndarray, need: float) -> np.ndarray:
+    """Passable vertices another robot may not use while a robot stands still at
+    ``point`` (metres): every vertex closer than ``need`` (``r_b + r_other + margin``;
+    for point robots the vertex it stands on), and of every edge that passes closer
+    than ``need`` the end nearer to ``point`` (so no remaining edge comes close).
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 1)
+    >>> footprint_vertices(g, np.array([0.5, 0.0]), 0.0).tolist()  # mid-edge point robot
+    [0]
+    >>> footprint_vertices(g, np.array([1.0, 0.0]), 0.7).tolist()
+    [1]
+    """
+    scale = graph.cell_size if graph.kind == "grid" else 1.0
+    pos = graph.coords * scale
+    p = np.asarray(point, dtype=float)[: pos.shape[1]]
+    d = np.linalg.norm(pos - p, axis=1)
+    hit = graph.passable & ((d < need) | (d <= _EPS))
+    src = np.repeat(np.arange(graph.n), np.diff(graph.indptr))
+    dst = graph.indices
+    a, b = pos[src], pos[dst]
+    ab = b - a
+    L = np.einsum("ij,ij->i", ab, ab)
+    f = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(L > 0, L, 1.0), 0.0, 1.0)
+    ds = np.linalg.norm(a + f[:, None] * ab - p, axis=1)
+    close = (ds < need) | (ds <= _EPS)
+    tie = d[src] == d[dst]
+    near_end = np.where(tie, np.minimum(src, dst), np.where(d[src] < d[dst], src, dst))
+    hit[near_end[close]] = True
+    return np.flatnonzero(hit & graph.passable)
+
+
+#: Distances this small are one point (metres).
+_EPS = 1e-9
+
+
 def _last_happened(sim: _Sim, j: int) -> int:
     nodes = sim.S.tpg.agent_nodes(j)
     done = np.flatnonzero(~np.isnan(sim.t[nodes.start : nodes.stop]))
@@ -73,8 +110,8 @@ def restrict_to_frontier(sim: _Sim, now: float) -> None:
     blocked = _descendants(stn, broken_nodes) if broken_nodes else set()
     first_blocked = []
     for j in range(K):
-        fb = int(ends[j + 1])
-        for v in range(last[j] + 1, int(ends[j + 1])):
+        fb = int(sim.geo_block.get(j, ends[j + 1]))
+        for v in range(last[j] + 1, fb):
             if v in blocked:
                 fb = v
                 break
@@ -157,7 +194,6 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     margin = sim.schedule0.margin
     radius = np.array([a.kinematics.radius for a in inst.agents], dtype=float)
     r_max = float(radius.max())
-    pos_v = g.coords * (g.cell_size if g.kind == "grid" else 1.0)
     extra_blocked = np.zeros(g.n, dtype=bool)
     starts: dict[int, int] = {}
     holds: dict[int, tuple[float, np.ndarray, float]] = {}
@@ -166,10 +202,6 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         gid = sim.gid[j]
         h = _last_happened(sim, j)
         if sim.broken[gid]:
-            p = sim.traj[gid][-1][1] * sim.scale
-            near = np.linalg.norm(pos_v - p, axis=1) < radius[gid] + r_max + margin
-            extra_blocked |= near & g.passable
-            extra_blocked[_start_vertex(sim, h)] = True
             continue
         s = _start_vertex(sim, h)
         starts[gid] = s
@@ -180,10 +212,9 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         holds[gid] = (max(t_h, t_r), p_h, dist / v_max)
         goals[gid] = int(tpg.node_vertex[int(tpg.agent_ptr[j + 1]) - 1])
     for gid in np.flatnonzero(sim.broken).tolist():
-        if gid not in sim.gid:  # broke down before an earlier re-plan: still there
-            p = sim.traj[gid][-1][1] * sim.scale
-            near = np.linalg.norm(pos_v - p, axis=1) < radius[gid] + r_max + margin
-            extra_blocked |= near & g.passable
+        # Where it physically stands (its footprint), not the vertex it had claimed.
+        p = sim.traj[gid][-1][1] * sim.scale
+        extra_blocked[footprint_vertices(g, p, radius[gid] + r_max + margin)] = True
     for s in starts.values():
         extra_blocked[s] = False  # never block a robot's own start
     gid2 = tuple(sorted(starts))
@@ -329,10 +360,11 @@ def _substitute_goals(
         taken.discard(goal)
         taken.add(v)
         goals[gid] = v
+        sim.substituted[gid] = (goal, v)
         sim._log(
             t_r,
             sim.names[gid],
-            "replan",
+            "goal",
             "replan",
             0.0,
             f"its goal {g.location(goal)} is blocked or cut off: it heads for {g.location(v)}",

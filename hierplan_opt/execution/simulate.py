@@ -67,6 +67,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
+#: Event kinds that are disturbances (the others: ``replan``, ``goal``,
+#: ``trajectories`` record what the layers did).
+DISTURBANCE_KINDS = ("stop", "breakdown", "slow", "random")
 MODES = ("agent", "robot")
 LAYERS = {
     "slack": ("slack",),
@@ -355,6 +358,13 @@ class _Sim:
         #: ``("depart", g, -1, g_a)``: ``g`` leaves its held place after ``g_a`` reached
         #: its new start; ``("node", g, v, g_a)``: node ``v`` of the new STN after that.
         self.handover: dict[int, list[tuple[str, int, int, int]]] = {}
+        self.radius = np.array([a.kinematics.radius for a in instance.agents], dtype=float)
+        self.margin = float(schedule.margin)
+        #: Per robot (phase index) the first node it may not reach: a broken robot
+        #: stands in its way (reset with every phase).
+        self.geo_block: dict[int, int] = {}
+        #: Robots whose goal a re-plan replaced: ``gid -> (goal, substitute)`` (vertices).
+        self.substituted: dict[int, tuple[int, int]] = {}
 
     # ------------------------------------------------------------ phases
     def run(self) -> None:
@@ -442,6 +452,7 @@ class _Sim:
             if not self.phases:
                 self.rate0 = self.rate
         self.remaining = S.cross_count.copy()
+        self.geo_block = {}
         self.version = np.zeros(n, dtype=np.int64)
         self.in_heap = np.zeros(n, dtype=bool)
         self.active = np.ones(n, dtype=bool)
@@ -468,6 +479,7 @@ class _Sim:
         wait for a broken robot wait for good)."""
         S = self.S
         self.active[:] = True
+        self._hold_before(self.geo_block)  # nobody drives into a broken robot
         for j, g in enumerate(self.gid):
             nodes = S.tpg.agent_nodes(j)
             if self.broken[g]:
@@ -823,6 +835,41 @@ class _Sim:
             self._try_push(n)
         self._react(g, n, "stop", f"halts {d.duration:g} s", now)
 
+    def _footprint_blocked(self, g: int, now: float) -> dict[int, int]:
+        """Robots (phase index) whose way ahead passes the broken robot ``g``'s
+        footprint (closer than ``r_g + r_j + margin``; point robots: through its point),
+        and the first of their nodes they may not reach."""
+        S = self.S
+        tpg = S.tpg
+        p = self.traj[g][-1][1] * self.scale
+        radius = self.radius
+        out: dict[int, int] = {}
+        for j, g2 in enumerate(self.gid):
+            if g2 == g or self.broken[g2]:
+                continue
+            nodes = tpg.agent_nodes(j)
+            done = np.flatnonzero(~np.isnan(self.t[nodes.start : nodes.stop]))
+            first = nodes.start + (int(done[-1]) + 1 if len(done) else 0)
+            if first >= nodes.stop or not len(done):
+                continue
+            here = self.traj_pos(g2, now, first) * self.scale
+            ends = tpg.node_pos[first : nodes.stop]
+            starts = np.vstack([here[None, :], ends[:-1]])
+            need = float(radius[g] + radius[g2] + self.margin)
+            d = _segment_distance(starts, ends, p)
+            hit = np.flatnonzero((d < need - 1e-9 * max(1.0, need)) | (d <= 1e-9))
+            if len(hit):
+                out[j] = first + int(hit[0])
+        return out
+
+    def _hold_before(self, blocked: dict[int, int]) -> None:
+        """Robots never set off towards their blocked nodes (they stay where they were)."""
+        ends = self.S.tpg.agent_ptr
+        for j, v in blocked.items():
+            self.version[v : int(ends[j + 1])] += 1
+            self.active[v : int(ends[j + 1])] = False
+            self.in_heap[v : int(ends[j + 1])] = False
+
     def _breakdown(self, g: int, j: int, now: float) -> None:
         name = self.names[g]
         S = self.S
@@ -830,6 +877,12 @@ class _Sim:
         pending = [v for v in nodes if np.isnan(self.t[v])]
         blocked = _descendants(self.stn, pending) - set(pending)
         others = {self.gid[int(S.tpg.node_agent[v])] for v in blocked}
+        # Whoever would drive into the broken robot (whatever the TPG says) holds.
+        geo = self._footprint_blocked(g, now)
+        for j2, v in geo.items():
+            self.geo_block[j2] = min(v, self.geo_block.get(j2, v))
+        self._hold_before(geo)
+        others |= {self.gid[j2] for j2 in geo}
         if not others:
             self._log(now, name, "breakdown", "none", math.inf, "no other robot depends on it")
             return
@@ -852,6 +905,14 @@ def _kind(d: Disturbance) -> str:
 
 def _shift(d: Stop | Breakdown, now: float) -> Stop | Breakdown:
     return d
+
+
+def _segment_distance(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Distance from point ``p`` to each segment ``a[k] -> b[k]``."""
+    ab = b - a
+    L = np.einsum("ij,ij->i", ab, ab)
+    f = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(L > 0, L, 1.0), 0.0, 1.0)
+    return np.linalg.norm(a + f[:, None] * ab - p, axis=1)
 
 
 def _descendants(stn: STN, roots: Sequence[int]) -> set[int]:

@@ -106,10 +106,79 @@ def distances(
         body = radius[a] + radius[b]
         need = body + m if required is None else float(required(a, b))
         worst = min(worst, float(d - need))
-        if d < body - TOL * max(1.0, body):
+        if collides(d, body):
             collisions += 1
     kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
     return float(best), collisions, kept, float(worst)
+
+
+#: Centres closer than this (metres) are on one point: a collision for every radius.
+POINT = 1e-9
+
+
+def collides(d: float, body: float) -> bool:
+    """Whether two robots whose centres come ``d`` apart collide: their footprints
+    overlap (``d < r_i + r_j``), or they are on one point (also for radius 0).
+
+    Example
+    -------
+    >>> collides(0.0, 0.0), collides(0.5, 0.0), collides(0.69, 0.7), collides(0.7, 0.7)
+    (True, False, True, False)
+    """
+    return d < body - TOL * max(1.0, body) or d <= POINT
+
+
+def outcomes(
+    instance: Instance, sim: _Sim, arrival: np.ndarray, finals: list[np.ndarray]
+) -> tuple[np.ndarray, dict[str, str], list[str]]:
+    """``(at_goal, why, stranded)``: which robots ended at a goal of their own (or of
+    their team), why each other one did not, and the working robots among them (those
+    that did not break down).
+
+    ``finals`` are the robots' last positions (instance coordinates).
+    """
+    g = instance.graph
+    K = len(sim.names)
+    at_goal = np.zeros(K, dtype=bool)
+    why: dict[str, str] = {}
+    stranded: list[str] = []
+    for k in range(K):
+        a = instance.agents[k]
+        if a.goal is not None:
+            goals = [a.goal]
+        elif a.team is not None and instance.teams:
+            goals = list(instance.teams[a.team].targets)
+        else:
+            goals = []
+        p = np.asarray(finals[k], dtype=float)
+        here = [v for v in goals if float(np.linalg.norm(g.coords[v] - p)) <= 1e-6]
+        if here and not np.isnan(arrival[k]):
+            at_goal[k] = True
+            continue
+        name = sim.names[k]
+        where = _where(g, p)
+        if sim.broken[k]:
+            why[name] = f"broke down at {where}"
+            continue
+        stranded.append(name)
+        if k in sim.substituted:
+            goal, sub = sim.substituted[k]
+            why[name] = (
+                f"its goal {g.location(goal)} was blocked or cut off: substituted "
+                f"{g.location(sub)}, ended at {where}"
+            )
+        elif np.isnan(arrival[k]):
+            why[name] = f"blocked: never arrived, stopped at {where}"
+        else:
+            why[name] = f"ended at {where}, not a goal of its own"
+    return at_goal, why, stranded
+
+
+def _where(g: Any, p: np.ndarray) -> str:
+    r = np.round(p, 3)
+    if np.allclose(r, np.round(r)):
+        return str(tuple(int(x) for x in np.round(r)))
+    return "(" + ", ".join(f"{x:g}" for x in r.tolist()) + ")"
 
 
 def finish(
@@ -147,8 +216,12 @@ def finish(
         tr.setflags(write=False)
     exe = executed_schedule(sim.names, traj, schedule, policy)
     d_min, collisions, kept, worst = distances(exe, instance, required, slack)
-    done = ~np.isnan(arrival)
-    handled = Counter(e.layer for e in sim.log)
+    from hierplan_opt.execution.simulate import DISTURBANCE_KINDS
+
+    done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj])
+    events = [e for e in sim.log if e.kind in DISTURBANCE_KINDS]
+    handled = Counter(e.layer for e in events)
+    replans = sum(e.kind == "replan" and e.layer == "replan" for e in sim.log)
     stats: dict[str, Any] = {
         "policy": policy,
         "mode": mode,
@@ -159,18 +232,22 @@ def finish(
         "distance_bound": slack,
         "distance_kept": bool(kept),
         "worst_gap": worst,
-        "makespan": float(arrival[done].max()) if done.any() else math.nan,
+        # Not reached while a working robot is away from its goal (never hidden).
+        "makespan": float(arrival[done].max()) if done.any() and not stranded else math.nan,
         "planned_makespan": schedule.makespan,
         "arrival_avg": float(arrival[done].mean()) if done.any() else math.nan,
         "arrival_max": float(arrival[done].max()) if done.any() else math.nan,
         "arrival_sum": float(arrival[done].sum()),
         "finished": int(done.sum()),
         "unfinished": [sim.names[g] for g in np.flatnonzero(~done).tolist()],
+        "why_unfinished": why,
+        "stranded": stranded,
         "broken": [sim.names[g] for g in np.flatnonzero(sim.broken).tolist()],
-        "disturbances": len(sim.log),
+        "substituted": [sim.names[g] for g in sorted(sim.substituted)],
+        "disturbances": len(events),
         "stn_resolves": sim.counts["stn_resolves"],
         "reorders": sim.counts["reorders"],
-        "replans": sim.counts["replans"],
+        "replans": replans,
         "handled": {k: handled.get(k, 0) for k in ("slack", "stn", "replan", "reorder", "none")},
         "runtime": dict(sim.runtime),
     }
