@@ -19,7 +19,15 @@ from hierplan_opt.schedule.output import (
     write_schedule,
 )
 from hierplan_opt.schedule.post import postprocess
-from hierplan_opt.schedule.replay import ReplayReport, check_bounds, replay
+from hierplan_opt.schedule.replay import (
+    PairSeparations,
+    ReplayReport,
+    check_bounds,
+    collides,
+    pair_separations,
+    replay,
+    required_separation,
+)
 from hierplan_opt.schedule.solve_graph import (
     GraphSolution,
     InconsistentSTNError,
@@ -44,6 +52,7 @@ __all__ = [
     "LPError",
     "LPSolution",
     "PairClearance",
+    "PairSeparations",
     "ReplayReport",
     "Requirement",
     "Schedule",
@@ -53,14 +62,17 @@ __all__ = [
     "build_stn",
     "build_tpg",
     "check_bounds",
+    "collides",
     "critical_path",
     "earliest_times",
     "fix_and_propagate",
     "latest_times",
+    "pair_separations",
     "postprocess",
     "reach_time",
     "read_schedule",
     "replay",
+    "required_separation",
     "schedule_text",
     "solve_graph",
     "solve_lp",
