@@ -24,7 +24,6 @@ robot blocks others, the running schedule is cut at a *frontier* and a new plan 
 from __future__ import annotations
 
 import logging
-import math
 import time
 from typing import TYPE_CHECKING
 
@@ -180,6 +179,51 @@ def _start_vertex(sim: _Sim, h: int) -> int:
     return int(tpg.node_vertex[lv])
 
 
+def _start_options(sim: _Sim, h: int) -> list[int]:
+    """The vertices a robot held at node ``h`` may start the new plan from, best
+    first: the vertex it stands on; between two vertices the one it has claimed
+    (:func:`_start_vertex`), then the other end of its edge."""
+    S = sim.S
+    tpg = S.tpg
+    first = _start_vertex(sim, h)
+    if S.is_vertex[h]:
+        return [first]
+    ends = [int(tpg.node_vertex[int(S.last_vertex[h])])]
+    nxt = int(S.next_vertex[h])
+    if nxt < tpg.num_nodes and int(tpg.node_agent[nxt]) == int(tpg.node_agent[h]):
+        ends.append(int(tpg.node_vertex[nxt]))
+    return [first] + [v for v in ends if v != first]
+
+
+def _distinct_starts(options: dict[int, list[int]]) -> dict[int, int] | None:
+    """One start vertex per robot, all distinct: robots on a vertex keep it; a robot
+    between two vertices takes its first option nobody else has (None: impossible).
+
+    Example
+    -------
+    >>> _distinct_starts({0: [5], 1: [5, 6], 2: [7, 8]})
+    {0: 5, 1: 6, 2: 7}
+    >>> _distinct_starts({0: [5], 1: [5]}) is None
+    True
+    """
+    taken: dict[int, int] = {}
+    for gid, opts in options.items():
+        if len(opts) == 1:
+            if opts[0] in taken.values():
+                return None
+            taken[gid] = opts[0]
+    used = set(taken.values())
+    for gid, opts in options.items():
+        if gid in taken:
+            continue
+        free = [v for v in opts if v not in used]
+        if not free:
+            return None
+        taken[gid] = free[0]
+        used.add(free[0])
+    return dict(sorted(taken.items()))
+
+
 def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.ndarray] | None:
     """A new plan and schedule from the current positions (None when impossible)."""
     inst = sim.instance
@@ -195,7 +239,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     radius = np.array([a.kinematics.radius for a in inst.agents], dtype=float)
     r_max = float(radius.max())
     extra_blocked = np.zeros(g.n, dtype=bool)
-    starts: dict[int, int] = {}
+    options: dict[int, list[int]] = {}
     holds: dict[int, tuple[float, np.ndarray, float]] = {}
     goals: dict[int, int] = {}
     for j in range(K):
@@ -203,14 +247,22 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         h = _last_happened(sim, j)
         if sim.broken[gid]:
             continue
-        s = _start_vertex(sim, h)
-        starts[gid] = s
+        options[gid] = _start_options(sim, h)
+        goals[gid] = int(tpg.node_vertex[int(tpg.agent_ptr[j + 1]) - 1])
+    starts = _distinct_starts(options)
+    if starts is None:
+        sim._log(t_r, "-", "replan", "none", 0.0, "two robots would start at one vertex")
+        return None
+    for j in range(K):
+        gid = sim.gid[j]
+        if gid not in starts:
+            continue
+        h = _last_happened(sim, j)
         t_h = float(np.nanmax([sim.t[h], sim.traj[gid][-1][0]]))
         p_h = sim.traj[gid][-1][1]
         v_max = inst.agents[gid].kinematics.v_max
-        dist = float(np.linalg.norm((g.coords[s] - p_h) * sim.scale))
+        dist = float(np.linalg.norm((g.coords[starts[gid]] - p_h) * sim.scale))
         holds[gid] = (max(t_h, t_r), p_h, dist / v_max)
-        goals[gid] = int(tpg.node_vertex[int(tpg.agent_ptr[j + 1]) - 1])
     for gid in np.flatnonzero(sim.broken).tolist():
         # Where it physically stands (its footprint), not the vertex it had claimed.
         p = sim.traj[gid][-1][1] * sim.scale
@@ -219,9 +271,6 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         extra_blocked[s] = False  # never block a robot's own start
     gid2 = tuple(sorted(starts))
     if not gid2:
-        return None
-    if len(set(starts.values())) < len(starts):
-        sim._log(t_r, "-", "replan", "none", 0.0, "two robots would start at one vertex")
         return None
     dims = g.shape
     assert dims is not None
@@ -262,17 +311,19 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     # Hand-over: robots first reach their start vertices (in index order when two
     # ways to a start vertex come close), then new paths wait for nearby hand-overs.
     ready: dict[int, float] = {}
-    ways: dict[int, np.ndarray] = {}
+    ways = {gid: _way(sim, gid, t_r, g.coords[starts[gid]]) * sim.scale for gid in gid2}
+    near = _Near(ways, gid2)
+    rad2 = radius[np.array(gid2)]
     deps: list[tuple[str, int, int, int]] = []
+    # The last piece of each way (into its start vertex) against the earlier ways.
+    last = np.array([ways[gid][-2:] if len(ways[gid]) > 1 else ways[gid][[0, 0]] for gid in gid2])
+    close_last = near.first_close(last[:, 0], last[:, 1], np.arange(len(gid2)), rad2, margin)
     for k, gid in enumerate(gid2):
         t_h, p_h, move = holds[gid]
-        ways[gid] = _way(sim, gid, t_r, g.coords[starts[gid]]) * sim.scale
         depart = t_h
-        for gid_a in gid2[:k]:
-            need = radius[gid] + radius[gid_a] + margin
-            if _close(ways[gid_a], ways[gid][-2:], need):
-                depart = max(depart, ready[gid_a])
-                deps.append(("depart", gid, -1, gid_a))
+        for a in sorted(a for a in close_last.get(k, {}) if a < k):
+            depart = max(depart, ready[gid2[a]])
+            deps.append(("depart", gid, -1, gid2[a]))
         if depart > t_h + 1e-12:
             sim._record(gid, depart, p_h)
         ready[gid] = depart + move
@@ -280,20 +331,18 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         v0 = int(tpg2.agent_ptr[j])
         release[v0] = ready[gid]
         deadline[v0] = np.inf
+    # Each new path's first piece that comes close to another robot's way waits until
+    # that robot has reached its start vertex.
+    ptr = tpg2.agent_ptr
+    owner = tpg2.node_agent
+    nxt = np.minimum(np.arange(tpg2.num_nodes) + 1, np.repeat(ptr[1:] - 1, np.diff(ptr)))
+    close = near.first_close(tpg2.node_pos, tpg2.node_pos[nxt], owner, rad2, margin)
     for j, gid in enumerate(gid2):
-        nodes = np.arange(int(tpg2.agent_ptr[j]), int(tpg2.agent_ptr[j + 1]))
-        pts = tpg2.node_pos[nodes]
-        for gid_a in gid2:
-            if gid_a == gid:
+        for a, v in sorted(close.get(j, {}).items()):
+            if a == j:
                 continue
-            need = radius[gid] + radius[gid_a] + margin
-            for i in range(len(nodes)):
-                seg = pts[i : i + 2]
-                if _close(ways[gid_a], seg, need):
-                    v = int(nodes[i])
-                    release[v] = max(release[v], ready[gid_a])
-                    deps.append(("node", gid, v, gid_a))
-                    break
+            release[v] = max(release[v], ready[gid2[a]])
+            deps.append(("node", gid, v, gid2[a]))
     sim.handover[len(sim.phases)] = deps
     new_stn = stn.with_bounds(release=release, deadline=deadline)
     sched, times = rescheduled(sched, new_stn)
@@ -382,22 +431,105 @@ def _way(sim: _Sim, gid: int, t_r: float, start: np.ndarray) -> np.ndarray:
     return pts
 
 
-def _close(way: np.ndarray, seg: np.ndarray, need: float) -> bool:
-    """Whether polyline ``way`` comes within ``need`` (+ sampling) of ``seg``."""
-    if need <= 0:
-        return False
-    samples = [way[:1]]
-    for a, b in zip(way[:-1], way[1:], strict=True):
-        n = max(1, int(math.ceil(np.linalg.norm(b - a) / SAMPLE)))
-        f = np.linspace(0, 1, n + 1)[1:, None]
-        samples.append(a + f * (b - a))
-    pts = np.vstack(samples)
-    if len(seg) == 1:
-        d = np.linalg.norm(pts - seg[0], axis=1)
-    else:
-        a, b = seg[0], seg[1]
-        ab = b - a
-        L = float(ab @ ab)
-        s = np.clip(((pts - a) @ ab) / L, 0, 1) if L > 0 else np.zeros(len(pts))
-        d = np.linalg.norm(pts - (a + s[:, None] * ab), axis=1)
-    return bool(d.min() < need + SAMPLE)
+def near_pairs(q: np.ndarray, p: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair ``(i, k)`` with ``|q[i] - p[k]| < reach`` (index arrays), by hashing
+    ``p`` into a grid of cells ``reach`` wide: near-linear in ``len(q) + len(p)`` plus
+    the pairs found.
+
+    Example
+    -------
+    >>> q = np.array([[0.0, 0.0], [5.0, 5.0]])
+    >>> p = np.array([[0.5, 0.0], [3.0, 0.0], [5.0, 5.2]])
+    >>> [x.tolist() for x in near_pairs(q, p, 1.0)]
+    [[0, 1], [0, 2]]
+    """
+    empty = np.zeros(0, dtype=np.int64)
+    if not len(q) or not len(p) or reach <= 0:
+        return empty, empty
+    lo = np.minimum(q.min(axis=0), p.min(axis=0))
+    cq = np.floor((q - lo) / reach).astype(np.int64)
+    cp = np.floor((p - lo) / reach).astype(np.int64)
+    span = int(max(cq.max(), cp.max())) + 3
+    dim = q.shape[1]
+    weights = span ** np.arange(dim, dtype=np.int64)
+    kp = (cp + 1) @ weights
+    order = np.argsort(kp, kind="stable")
+    kp_sorted = kp[order]
+    offsets = np.array(np.meshgrid(*[[-1, 0, 1]] * dim, indexing="ij")).reshape(dim, -1).T
+    qi_all, pk_all = [], []
+    for off in offsets:
+        key = (cq + 1 + off) @ weights
+        left = np.searchsorted(kp_sorted, key, side="left")
+        right = np.searchsorted(kp_sorted, key, side="right")
+        count = right - left
+        total = int(count.sum())
+        if not total:
+            continue
+        qi = np.repeat(np.arange(len(q)), count)
+        start = np.repeat(left - np.cumsum(count) + count, count)
+        qi_all.append(qi)
+        pk_all.append(order[start + np.arange(total)])
+    if not qi_all:
+        return empty, empty
+    qi = np.concatenate(qi_all)
+    pk = np.concatenate(pk_all)
+    keep = np.linalg.norm(q[qi] - p[pk], axis=1) < reach
+    return qi[keep], pk[keep]
+
+
+class _Near:
+    """The robots' ways to their start vertices, sampled every :data:`SAMPLE` metres
+    and hashed into a grid (:func:`near_pairs`), to find the segments that come close
+    to them (hand-over)."""
+
+    def __init__(self, ways: dict[int, np.ndarray], gid2: tuple[int, ...]) -> None:
+        pts, own = [], []
+        for k, gid in enumerate(gid2):
+            way = ways[gid]
+            a, b = way[:-1], way[1:]
+            n = np.maximum(1, np.ceil(np.linalg.norm(b - a, axis=1) / SAMPLE).astype(int))
+            samples = [way[:1]]
+            for m, (p, q) in enumerate(zip(a, b, strict=True)):
+                f = np.arange(1, n[m] + 1)[:, None] / n[m]
+                samples.append(p + f * (q - p))
+            block = np.vstack(samples)
+            pts.append(block)
+            own.append(np.full(len(block), k))
+        self.pts = np.vstack(pts)
+        self.own = np.concatenate(own)
+
+    def first_close(
+        self,
+        a: np.ndarray,
+        b: np.ndarray,
+        seg_owner: np.ndarray,
+        radius: np.ndarray,
+        margin: float,
+    ) -> dict[int, dict[int, int]]:
+        """``{owner: {way: first segment}}``: for each owner of segments ``a[s] -> b[s]``
+        (in order) and each way that comes within ``r + r' + margin`` (plus the
+        sampling step; point robots: within the sampling step) of one of them, the
+        first such segment."""
+        if not len(a):
+            return {}
+        mid = (a + b) / 2
+        half = np.linalg.norm(b - a, axis=1) / 2
+        r_max = float(radius.max())
+        reach = half + r_max * 2 + margin + 2 * SAMPLE
+        seg, pt = near_pairs(mid, self.pts, float(reach.max()))
+        if not len(seg):
+            return {}
+        p = self.pts[pt]
+        ab = b[seg] - a[seg]
+        L = np.einsum("ij,ij->i", ab, ab)
+        f = np.clip(np.einsum("ij,ij->i", p - a[seg], ab) / np.where(L > 0, L, 1.0), 0, 1)
+        d = np.linalg.norm(a[seg] + f[:, None] * ab - p, axis=1)
+        so, wo = seg_owner[seg], self.own[pt]
+        need = radius[so] + radius[wo] + margin
+        ok = d < need + SAMPLE
+        out: dict[int, dict[int, int]] = {}
+        for s_, o, w in zip(seg[ok].tolist(), so[ok].tolist(), wo[ok].tolist(), strict=True):
+            first = out.setdefault(o, {})
+            if w not in first or s_ < first[w]:
+                first[w] = s_
+        return out

@@ -78,9 +78,7 @@ def outcome_line(ex: Execution) -> str:
         parts.append(f"{len(st['broken'])} broke down ({', '.join(st['broken'])})")
     if st["stranded"]:
         names = ", ".join(st["stranded"][:5]) + (" ..." if len(st["stranded"]) > 5 else "")
-        parts.append(
-            f"FAILED: {len(st['stranded'])} working robot(s) not at their goals ({names})"
-        )
+        parts.append(f"FAILED: {len(st['stranded'])} working robot(s) not at their goals ({names})")
     parts.append(f"{st['collisions']} collisions")
     return "; ".join(parts)
 

@@ -3,8 +3,9 @@
 The executed trajectories are piecewise linear in time, so the minimum distance of two
 robots is exact (the closed form of :mod:`hierplan_opt.schedule.replay`, with its
 exact pruning of pairs that stay far apart). ``collisions`` counts pairs whose centres
-came closer than ``r_i + r_j`` (their footprints overlapped); ``distance_kept`` says
-whether every pair kept the guaranteed ``r_i + r_j + margin``.
+came closer than ``r_i + r_j`` (their footprints overlapped) or onto one point (any
+radius, 0 included): :func:`hierplan_opt.schedule.replay.collides`, the one
+definition; ``distance_kept`` says whether every pair kept the guaranteed ``r_i + r_j + margin``.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.schedule.output import Schedule, Waypoints
-from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min
+from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min, collides
 
 if TYPE_CHECKING:
     from hierplan_opt.execution.simulate import Execution, _Sim
@@ -110,22 +111,6 @@ def distances(
             collisions += 1
     kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
     return float(best), collisions, kept, float(worst)
-
-
-#: Centres closer than this (metres) are on one point: a collision for every radius.
-POINT = 1e-9
-
-
-def collides(d: float, body: float) -> bool:
-    """Whether two robots whose centres come ``d`` apart collide: their footprints
-    overlap (``d < r_i + r_j``), or they are on one point (also for radius 0).
-
-    Example
-    -------
-    >>> collides(0.0, 0.0), collides(0.5, 0.0), collides(0.69, 0.7), collides(0.7, 0.7)
-    (True, False, True, False)
-    """
-    return d < body - TOL * max(1.0, body) or d <= POINT
 
 
 def outcomes(
