@@ -47,8 +47,8 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--replan-solver",
         metavar="NAME",
-        help="MAPF solver of re-plans (ecbs; of --replan-below: the plan's solver in 'run', "
-        "else ecbs, cbm for teams)",
+        help="MAPF solver of re-plans (default auto: ECBS up to 100 robots, else LaCAM; "
+        "of --replan-below: the plan's solver in 'run', else ecbs, cbm for teams)",
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
@@ -130,7 +130,7 @@ def execute(
         policy=args.policy,
         mode=args.mode,
         seed=args.seed,
-        solver=args.replan_solver or "ecbs",
+        solver=args.replan_solver or "auto",
         trajectories=trajectories,
     )
     report: dict[str, Any] = ex.report()

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -179,6 +179,50 @@ def _start_vertex(sim: _Sim, h: int) -> int:
     return int(tpg.node_vertex[lv])
 
 
+#: ``solver="auto"`` re-plans with ECBS up to this many robots, LaCAM beyond.
+AUTO_ECBS_ROBOTS = 100
+
+
+def replan_solver(name: str, robots: int) -> str:
+    """The solver a re-plan of ``robots`` robots uses: ``auto`` is ECBS up to
+    :data:`AUTO_ECBS_ROBOTS` robots, else LaCAM (fast first plans).
+
+    Example
+    -------
+    >>> replan_solver("auto", 50), replan_solver("auto", 300), replan_solver("cbs", 300)
+    ('ecbs', 'lacam', 'cbs')
+    """
+    if name != "auto":
+        return name
+    return "ecbs" if robots <= AUTO_ECBS_ROBOTS else "lacam"
+
+
+def _solve(sim: _Sim, inst2: Instance) -> tuple[Any, str, str]:
+    """``(result, solver, why)``: a validated plan of the re-plan instance (result
+    None and ``why`` when there is none). ``auto`` falls back to LaCAM when ECBS
+    fails."""
+    first = replan_solver(sim.solver, inst2.num_agents)
+    tries = [first] + (["lacam"] if sim.solver == "auto" and first != "lacam" else [])
+    why = ""
+    for name in tries:
+        options: dict[str, Any] = {"anytime": 0} if name == "lacam" else {}
+        try:
+            fn = registry.get(name).load()
+            res = fn(inst2, time_limit=sim.replan_time_limit, seed=0, objective="soc", **options)
+        except HierplanError as exc:
+            why = f"re-plan failed: {exc}"
+            continue
+        if res.plan is None:
+            why = f"re-plan found no plan ({name}: {res.status})"
+            continue
+        bad = validate(inst2, res.plan)
+        if bad:
+            why = f"re-plan invalid ({name}): {bad[0]}"
+            continue
+        return res, name, ""
+    return None, first, why
+
+
 def _start_options(sim: _Sim, h: int) -> list[int]:
     """The vertices a robot held at node ``h`` may start the new plan from, best
     first: the vertex it stands on; between two vertices the one it has claimed
@@ -226,6 +270,7 @@ def _distinct_starts(options: dict[int, list[int]]) -> dict[int, int] | None:
 
 def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.ndarray] | None:
     """A new plan and schedule from the current positions (None when impossible)."""
+    t_begin = time.perf_counter()
     inst = sim.instance
     g = inst.graph
     S = sim.S
@@ -281,22 +326,14 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         Agent(inst.agents[k].name, starts[k], goals[k], None, inst.agents[k].kinematics)
         for k in gid2
     )
-    try:
-        inst2 = Instance(graph, agents, (), None, f"{inst.name}-replan")
-        fn = registry.get(sim.solver).load()
-        t0 = time.perf_counter()
-        res = fn(inst2, time_limit=sim.replan_time_limit, seed=0, objective="soc")
-        solve_time = time.perf_counter() - t0
-    except HierplanError as exc:
-        sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan failed: {exc}")
+    inst2 = Instance(graph, agents, (), None, f"{inst.name}-replan")
+    t0 = time.perf_counter()
+    res, solver, why = _solve(sim, inst2)
+    solve_time = time.perf_counter() - t0
+    if res is None:
+        sim._log(t_r, "-", "replan", "none", 0.0, why)
         return None
-    if res.plan is None:
-        sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan found no plan ({res.status})")
-        return None
-    bad = validate(inst2, res.plan)
-    if bad:
-        sim._log(t_r, "-", "replan", "none", 0.0, f"re-plan invalid: {bad[0]}")
-        return None
+    t_post = time.perf_counter()
     try:
         sched = postprocess(inst2, res.plan, margin=margin, check_plan=False)
     except HierplanError as exc:
@@ -308,6 +345,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     tpg2 = stn.tpg
     release = np.array(stn.release, dtype=float)
     deadline = np.array(stn.deadline, dtype=float)
+    t_hand = time.perf_counter()
     # Hand-over: robots first reach their start vertices (in index order when two
     # ways to a start vertex come close), then new paths wait for nearby hand-overs.
     ready: dict[int, float] = {}
@@ -346,14 +384,28 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     sim.handover[len(sim.phases)] = deps
     new_stn = stn.with_bounds(release=release, deadline=deadline)
     sched, times = rescheduled(sched, new_stn)
+    t_end = time.perf_counter()
+    layer = sim.frontier_time + (t_end - t_begin)
+    sim.replan_timing.append(
+        {
+            "time": t_r,
+            "robots": len(gid2),
+            "solver": solver,
+            "frontier": sim.frontier_time,
+            "solve": solve_time,
+            "post": t_hand - t_post,
+            "handover": t_end - t_hand,
+            "layer": layer,
+        }
+    )
     sim._log(
         t_r,
         "-",
         "replan",
         "replan",
         0.0,
-        f"{reason}: new plan for {len(gid2)} robots ({sim.solver}, cost {res.cost}, "
-        f"{solve_time:.3g} s)",
+        f"{reason}: new plan for {len(gid2)} robots ({solver}, cost {res.cost}, solve "
+        f"{solve_time:.3g} s, whole layer {layer:.3g} s)",
     )
     return sched, new_stn, gid2, times
 

@@ -353,6 +353,10 @@ class _Sim:
         self.pending: list[Stop | Breakdown] = []
         self.seq = 0
         self.replans: list[Any] = []
+        #: Per re-plan: when, robots, solver and seconds of frontier, solve, post,
+        #: hand-over and the whole layer (frontier to new schedule).
+        self.replan_timing: list[dict[str, Any]] = []
+        self.frontier_time = 0.0
         self.front: list[int] = []
         #: Hand-over waits of each re-planned phase (robot mode keeps them as events):
         #: ``("depart", g, -1, g_a)``: ``g`` leaves its held place after ``g_a`` reached
@@ -759,7 +763,10 @@ class _Sim:
             self.replan_reason = reason
             from hierplan_opt.execution.replan import restrict_to_frontier
 
+            t0 = time.perf_counter()
             restrict_to_frontier(self, now)
+            self.frontier_time = time.perf_counter() - t0
+            self.runtime["replan"] += self.frontier_time
 
     def _log(
         self, when: float, agent: str, kind: str, layer: str, delay: float, detail: str
@@ -937,7 +944,7 @@ def simulate(
     mode: str = "agent",
     seed: int = 0,
     dt: float = 0.1,
-    solver: str = "ecbs",
+    solver: str = "auto",
     replan_time_limit: float = 30.0,
     trajectories: Trajectories | None = None,
 ) -> Execution:
@@ -962,7 +969,8 @@ def simulate(
     dt : float
         Sampling step of ``robot`` mode trajectories (seconds).
     solver : str
-        Registered MAPF solver for re-plans (default ECBS).
+        Registered MAPF solver for re-plans; ``auto`` (default): ECBS up to 100
+        robots, LaCAM beyond, LaCAM when ECBS fails.
     trajectories : Trajectories, optional
         Refined trajectories of this schedule (:func:`hierplan_opt.trajectory.refine`):
         every robot follows its refined timing instead of constant velocity, holding

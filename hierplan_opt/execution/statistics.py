@@ -235,6 +235,7 @@ def finish(
         "replans": replans,
         "handled": {k: handled.get(k, 0) for k in ("slack", "stn", "replan", "reorder", "none")},
         "runtime": dict(sim.runtime),
+        "replan_runtime": [dict(r) for r in sim.replan_timing],
     }
     if robot is not None:
         stats["acceleration_violations"] = len(robot.violations)
