@@ -378,13 +378,13 @@ def test_robot_mode_records_what_a_max_cannot_do():
     from dataclasses import replace
 
     from hierplan_opt.execution.robot import robot_run
-    from hierplan_opt.execution.simulate import _Sim
+    from hierplan_opt.execution.simulate import Simulation
 
     k = Kinematics("bot", "omni", v_max=1.0, a_max=0.5, radius=0.2)
     g = Graph.grid(9, 3)
     inst = Instance.mapf(g, [(1, 0), (0, 0), (0, 2)], [(5, 0), (4, 0), (8, 2)], kinematics=k)
     s = postprocess(inst, hp.solve(inst, "cbs").plan)
-    sim = _Sim(inst, s, [Breakdown("agent0", 1.5)], "replan", 0, "ecbs", 30.0)
+    sim = Simulation(inst, s, [Breakdown("agent0", 1.5)], "replan", 0, "ecbs", 30.0)
     sim.run()
     assert len(sim.phases) == 2
     honest = robot_run(sim, inst, 0.05)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -34,14 +34,12 @@ from hierplan_opt.core.errors import HierplanError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Agent, Instance
 from hierplan_opt.core.validate import validate
+from hierplan_opt.execution.state import ExecState, descendants
 from hierplan_opt.schedule.output import Schedule, build_schedule
 from hierplan_opt.schedule.post import postprocess
 from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 from hierplan_opt.schedule.stn import STN
 from hierplan_opt.schedule.tpg import ENTER
-
-if TYPE_CHECKING:
-    from hierplan_opt.execution.simulate import _Sim
 
 log = logging.getLogger(__name__)
 
@@ -86,16 +84,14 @@ def footprint_vertices(graph: Graph, point: np.ndarray, need: float) -> np.ndarr
 _EPS = 1e-9
 
 
-def _last_happened(sim: _Sim, j: int) -> int:
+def _last_happened(sim: ExecState, j: int) -> int:
     nodes = sim.S.tpg.agent_nodes(j)
     done = np.flatnonzero(~np.isnan(sim.t[nodes.start : nodes.stop]))
     return nodes.start + int(done[-1]) if len(done) else nodes.start - 1
 
 
-def restrict_to_frontier(sim: _Sim, now: float) -> None:
+def restrict_to_frontier(sim: ExecState, now: float) -> None:
     """Deactivate every node beyond the frontier (see the module text)."""
-    from hierplan_opt.execution.simulate import _descendants
-
     S = sim.S
     tpg = S.tpg
     K = tpg.num_agents
@@ -106,10 +102,10 @@ def restrict_to_frontier(sim: _Sim, now: float) -> None:
     for j in range(K):
         if sim.broken[sim.gid[j]]:
             broken_nodes += list(range(last[j] + 1, int(ends[j + 1])))
-    blocked = _descendants(stn, broken_nodes) if broken_nodes else set()
+    blocked = descendants(stn, broken_nodes) if broken_nodes else set()
     first_blocked = []
     for j in range(K):
-        fb = int(sim.geo_block.get(j, ends[j + 1]))
+        fb = sim.geo_block.get(j, int(ends[j + 1]))
         for v in range(last[j] + 1, fb):
             if v in blocked:
                 fb = v
@@ -142,7 +138,7 @@ def restrict_to_frontier(sim: _Sim, now: float) -> None:
     sim.front = front
 
 
-def _braking_vertex(sim: _Sim, j: int, h: int, now: float) -> int:
+def _braking_vertex(sim: ExecState, j: int, h: int, now: float) -> int:
     """The first vertex node after ``h`` that robot ``j`` can still stop at: at least
     its braking distance ``v_max^2 / (2 a_max)`` ahead when it is moving (so a robot
     with bounded acceleration, which is never ahead of this run by more than it
@@ -167,7 +163,7 @@ def _braking_vertex(sim: _Sim, j: int, h: int, now: float) -> int:
     return end
 
 
-def _start_vertex(sim: _Sim, h: int) -> int:
+def _start_vertex(sim: ExecState, h: int) -> int:
     """The vertex a robot held at node ``h`` starts the new plan from."""
     S = sim.S
     tpg = S.tpg
@@ -197,7 +193,7 @@ def replan_solver(name: str, robots: int) -> str:
     return "ecbs" if robots <= AUTO_ECBS_ROBOTS else "lacam"
 
 
-def _solve(sim: _Sim, inst2: Instance) -> tuple[Any, str, str]:
+def _solve(sim: ExecState, inst2: Instance) -> tuple[Any, str, str]:
     """``(result, solver, why)``: a validated plan of the re-plan instance (result
     None and ``why`` when there is none). ``auto`` falls back to LaCAM when ECBS
     fails."""
@@ -223,7 +219,7 @@ def _solve(sim: _Sim, inst2: Instance) -> tuple[Any, str, str]:
     return None, first, why
 
 
-def _start_options(sim: _Sim, h: int) -> list[int]:
+def _start_options(sim: ExecState, h: int) -> list[int]:
     """The vertices a robot held at node ``h`` may start the new plan from, best
     first: the vertex it stands on; between two vertices the one it has claimed
     (:func:`_start_vertex`), then the other end of its edge."""
@@ -268,7 +264,7 @@ def _distinct_starts(options: dict[int, list[int]]) -> dict[int, int] | None:
     return dict(sorted(taken.items()))
 
 
-def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.ndarray] | None:
+def replan(sim: ExecState, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.ndarray] | None:
     """A new plan and schedule from the current positions (None when impossible)."""
     t_begin = time.perf_counter()
     inst = sim.instance
@@ -277,7 +273,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     tpg = S.tpg
     reason = sim.replan_reason
     if g.kind != "grid":
-        sim._log(t_r, "-", "replan", "none", 0.0, "re-planning needs a grid map")
+        sim.log_event(t_r, "-", "replan", "none", 0.0, "re-planning needs a grid map")
         return None
     K = tpg.num_agents
     margin = sim.schedule0.margin
@@ -296,7 +292,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
         goals[gid] = int(tpg.node_vertex[int(tpg.agent_ptr[j + 1]) - 1])
     starts = _distinct_starts(options)
     if starts is None:
-        sim._log(t_r, "-", "replan", "none", 0.0, "two robots would start at one vertex")
+        sim.log_event(t_r, "-", "replan", "none", 0.0, "two robots would start at one vertex")
         return None
     for j in range(K):
         gid = sim.gid[j]
@@ -331,13 +327,13 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
     res, solver, why = _solve(sim, inst2)
     solve_time = time.perf_counter() - t0
     if res is None:
-        sim._log(t_r, "-", "replan", "none", 0.0, why)
+        sim.log_event(t_r, "-", "replan", "none", 0.0, why)
         return None
     t_post = time.perf_counter()
     try:
         sched = postprocess(inst2, res.plan, margin=margin, check_plan=False)
     except HierplanError as exc:
-        sim._log(t_r, "-", "replan", "none", 0.0, f"MAPF-POST of the re-plan failed: {exc}")
+        sim.log_event(t_r, "-", "replan", "none", 0.0, f"MAPF-POST of the re-plan failed: {exc}")
         return None
     sim.replans.append((inst2, res.plan))
     assert sched.stn is not None
@@ -363,7 +359,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
             depart = max(depart, ready[gid2[a]])
             deps.append(("depart", gid, -1, gid2[a]))
         if depart > t_h + 1e-12:
-            sim._record(gid, depart, p_h)
+            sim.record(gid, depart, p_h)
         ready[gid] = depart + move
     for j, gid in enumerate(gid2):
         v0 = int(tpg2.agent_ptr[j])
@@ -398,7 +394,7 @@ def replan(sim: _Sim, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], np.nd
             "layer": layer,
         }
     )
-    sim._log(
+    sim.log_event(
         t_r,
         "-",
         "replan",
@@ -433,7 +429,7 @@ def rescheduled(sched: Schedule, stn: STN, **stats: float) -> tuple[Schedule, np
 
 
 def _substitute_goals(
-    sim: _Sim,
+    sim: ExecState,
     t_r: float,
     g: Graph,
     graph: Graph,
@@ -462,7 +458,7 @@ def _substitute_goals(
         taken.add(v)
         goals[gid] = v
         sim.substituted[gid] = (goal, v)
-        sim._log(
+        sim.log_event(
             t_r,
             sim.names[gid],
             "goal",
@@ -472,7 +468,7 @@ def _substitute_goals(
         )
 
 
-def _way(sim: _Sim, gid: int, t_r: float, start: np.ndarray) -> np.ndarray:
+def _way(sim: ExecState, gid: int, t_r: float, start: np.ndarray) -> np.ndarray:
     """A robot's positions from ``t_r`` to its start vertex (instance coordinates)."""
     tr = sim.traj[gid]
     ts = np.array([t for t, _ in tr])

@@ -13,7 +13,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.validate import validate
-from hierplan_opt.execution.simulate import Execution
+from hierplan_opt.execution.state import Execution
 
 
 def text_report(ex: Execution, title: str = "") -> str:

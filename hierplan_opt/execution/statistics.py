@@ -12,16 +12,14 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.execution.state import DISTURBANCE_KINDS, ExecState, Execution
 from hierplan_opt.schedule.output import Schedule, Waypoints
 from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min, collides
-
-if TYPE_CHECKING:
-    from hierplan_opt.execution.simulate import Execution, _Sim
 
 #: Distance tolerance (metres, relative).
 TOL = 1e-9
@@ -114,7 +112,7 @@ def distances(
 
 
 def outcomes(
-    instance: Instance, sim: _Sim, arrival: np.ndarray, finals: list[np.ndarray]
+    instance: Instance, sim: ExecState, arrival: np.ndarray, finals: list[np.ndarray]
 ) -> tuple[np.ndarray, dict[str, str], list[str]]:
     """``(at_goal, why, stranded)``: which robots ended at a goal of their own (or of
     their team), why each other one did not, and the working robots among them (those
@@ -167,11 +165,15 @@ def _where(g: Any, p: np.ndarray) -> str:
 
 
 def finish(
-    sim: _Sim, instance: Instance, schedule: Schedule, policy: str, mode: str, seed: int, dt: float
+    sim: ExecState,
+    instance: Instance,
+    schedule: Schedule,
+    policy: str,
+    mode: str,
+    seed: int,
+    dt: float,
 ) -> Execution:
     """Build the :class:`Execution` of a finished simulation."""
-    from hierplan_opt.execution.simulate import Execution
-
     traj = []
     for g in range(sim.K):
         pts = sim.traj[g]
@@ -201,8 +203,6 @@ def finish(
         tr.setflags(write=False)
     exe = executed_schedule(sim.names, traj, schedule, policy)
     d_min, collisions, kept, worst = distances(exe, instance, required, slack)
-    from hierplan_opt.execution.simulate import DISTURBANCE_KINDS
-
     done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj])
     events = [e for e in sim.log if e.kind in DISTURBANCE_KINDS]
     handled = Counter(e.layer for e in events)
