@@ -72,31 +72,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any, str]:
-    """The schedule to execute: MAPF-POST of a plan file, or of the plan recovered from
-    a schedule file (same objective and margin)."""
-    from hierplan_opt.core.errors import InputError
-    from hierplan_opt.execution.report import plan_from_schedule
+    """The schedule to execute: MAPF-POST of a plan file, or a schedule file read by the
+    one reader (its own plan, settings and times; ``--margin`` re-posts its plan)."""
     from hierplan_opt.io import load_plan
-    from hierplan_opt.io._yaml import read_yaml
-    from hierplan_opt.schedule import postprocess
+    from hierplan_opt.schedule import Schedule, postprocess
+    from hierplan_opt.schedule.files import is_schedule_file
 
-    data = read_yaml(args.plan)
-    rows = data.get("schedule") if isinstance(data, dict) else None
-    first = next(iter(rows.values()), None) if isinstance(rows, dict) and rows else None
-    if isinstance(first, list) and first and isinstance(first[0], dict) and "arrival" in first[0]:
-        stats = data.get("statistics") or {}
-        plan = plan_from_schedule(instance, args.plan, data)
-        margin = float(stats.get("margin", 0.0) or 0.0)
-        if args.margin is not None:
-            margin = args.margin
-        objective = str(stats.get("objective", "makespan"))
-        method = str(stats.get("method", "graph"))
-        try:
-            return postprocess(instance, plan, objective, margin=margin, method=method), "schedule"
-        except InputError as exc:
-            raise InputError(f"{args.plan}: {exc}") from None
+    if is_schedule_file(args.plan):
+        schedule = Schedule.load(args.plan, instance)
+        if args.margin is not None and args.margin != schedule.margin:
+            assert schedule.plan is not None
+            st = schedule.settings
+            schedule = postprocess(
+                instance,
+                schedule.plan,
+                str(st.get("objective", "makespan")),
+                margin=args.margin,
+                method=str(st.get("method", "graph")),
+                check_plan=False,
+            )
+        return schedule, "schedule"
     plan = load_plan(args.plan, instance)
-    return postprocess(instance, plan, margin=args.margin or 0.0), "plan"
+    return postprocess(instance, plan, margin=args.margin), "plan"
 
 
 def execute(

@@ -581,10 +581,10 @@ def simulate(
     >>> from hierplan_opt.schedule import postprocess
     >>> from hierplan_opt.execution.disturbances import Stop
     >>> inst = Instance.mapf(Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
-    >>> s = postprocess(inst, Plan.from_paths([[1, 2, 3], [0, 1, 2]]))
+    >>> s = postprocess(inst, Plan.from_paths([[1, 2, 3], [0, 1, 2]]), margin=0)
     >>> ex = simulate(inst, s, disturbances=[Stop("agent0", 1.5, at_time=0.5)])
     >>> ex.arrival.tolist(), ex.statistics["collisions"], [e.layer for e in ex.log]
-    ([3.5, 2.5], 0, ['stn'])
+    ([3.5, 3.5], 0, ['stn'])
     """
     if policy not in POLICIES:
         raise OptionError(f"unknown policy {policy!r} (use {', '.join(POLICIES)})")

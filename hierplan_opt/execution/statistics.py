@@ -83,7 +83,7 @@ def distances(
     >>> from hierplan_opt import Graph, Plan
     >>> from hierplan_opt.schedule import postprocess
     >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (0, 1)], [(2, 0), (2, 1)])
-    >>> distances(postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]])), inst)
+    >>> distances(postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]]), margin=0), inst)
     (1.0, 0, True, 1.0)
     """
     K = schedule.num_agents

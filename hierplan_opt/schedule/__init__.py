@@ -10,6 +10,7 @@ times by graph algorithms (:mod:`.solve_graph`) or an LP (:mod:`.solve_lp`) ->
 from __future__ import annotations
 
 from hierplan_opt.schedule.clearance import ClearanceError, PairClearance, Requirement
+from hierplan_opt.schedule.files import load_schedule, plan_from_tree, plan_tree
 from hierplan_opt.schedule.output import (
     Schedule,
     Waypoints,
@@ -67,7 +68,10 @@ __all__ = [
     "earliest_times",
     "fix_and_propagate",
     "latest_times",
+    "load_schedule",
     "pair_separations",
+    "plan_from_tree",
+    "plan_tree",
     "postprocess",
     "reach_time",
     "read_schedule",
