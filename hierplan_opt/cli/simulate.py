@@ -108,18 +108,10 @@ def execute(
 
     ``plan_solver`` makes the delay-aware re-plan of ``--replan-below`` (default: the
     re-plan solver)."""
-    from hierplan_opt.core.errors import OptionError
-    from hierplan_opt.execution import load_disturbances, simulate
-    from hierplan_opt.execution.report import text_report, write_report
+    from hierplan_opt.execution import simulate
 
-    if args.replan_below is not None and not args.runs:
-        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
-
-    dist = (
-        load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
-        if args.disturbances
-        else []
-    )
+    check_monte_carlo(args)
+    dist = disturbances_of(args, instance)
     ex = simulate(
         instance,
         schedule,
@@ -130,6 +122,40 @@ def execute(
         solver=args.replan_solver or "auto",
         trajectories=trajectories,
     )
+    return report_execution(args, instance, schedule, ex, title, dist, trajectories, plan_solver)
+
+
+def check_monte_carlo(args: argparse.Namespace) -> None:
+    from hierplan_opt.core.errors import OptionError
+
+    if args.replan_below is not None and not args.runs:
+        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
+
+
+def disturbances_of(args: argparse.Namespace, instance: Any) -> list[Any]:
+    """The ``--disturbances`` file's disturbances (checked against the robots' names)."""
+    from hierplan_opt.execution import load_disturbances
+
+    if not args.disturbances:
+        return []
+    return load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
+
+
+def report_execution(
+    args: argparse.Namespace,
+    instance: Any,
+    schedule: Any,
+    ex: Any,
+    title: str,
+    dist: list[Any],
+    trajectories: Any = None,
+    plan_solver: str | None = None,
+) -> int:
+    """Print the readable report of execution ``ex`` (and a Monte Carlo batch with
+    ``--runs``), write REPORT and pictures; the exit code: 0, 1 (collision or distance
+    not kept), 5 (a working robot not at its goal)."""
+    from hierplan_opt.execution.report import text_report, write_report
+
     report: dict[str, Any] = ex.report()
     print(text_report(ex, title))
     if args.runs:

@@ -52,7 +52,7 @@ def plan_and_post(
     seed: int = 0,
     objective: str | None = None,
     post: str | None = "makespan",
-    margin: float = 0.0,
+    margin: float | None = None,
     method: str | None = None,
     lp_backend: str = "auto",
     deadlines: Mapping[str | int, float] | None = None,

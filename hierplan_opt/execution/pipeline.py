@@ -54,7 +54,7 @@ def run(
     mode: str = "agent",
     time_limit: float | None = 60.0,
     objective: str | None = None,
-    margin: float = 0.0,
+    margin: float | None = None,
     refine: bool = False,
     seed: int = 0,
     dt: float = 0.1,

@@ -25,18 +25,18 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from hierplan_opt import registry
 from hierplan_opt.core.errors import HierplanError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Agent, Instance
-from hierplan_opt.core.validate import validate
+from hierplan_opt.core.result import Result, Status
+from hierplan_opt.execution.chain import Planned, plan_and_post
 from hierplan_opt.execution.state import ExecState, descendants
 from hierplan_opt.schedule.output import Schedule, build_schedule
-from hierplan_opt.schedule.post import postprocess
 from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 from hierplan_opt.schedule.stn import STN
 from hierplan_opt.schedule.tpg import ENTER
@@ -193,30 +193,33 @@ def replan_solver(name: str, robots: int) -> str:
     return "ecbs" if robots <= AUTO_ECBS_ROBOTS else "lacam"
 
 
-def _solve(sim: ExecState, inst2: Instance) -> tuple[Any, str, str]:
-    """``(result, solver, why)``: a validated plan of the re-plan instance (result
-    None and ``why`` when there is none). ``auto`` falls back to LaCAM when ECBS
-    fails."""
+def _solve(sim: ExecState, inst2: Instance, margin: float) -> Planned:
+    """The re-plan instance through the checked chain (:func:`.chain.plan_and_post`:
+    solve, validate, MAPF-POST with the running schedule's margin); ``auto`` falls
+    back to LaCAM when ECBS finds no plan."""
     first = replan_solver(sim.solver, inst2.num_agents)
     tries = [first] + (["lacam"] if sim.solver == "auto" and first != "lacam" else [])
-    why = ""
+    planned: Planned | None = None
     for name in tries:
         options: dict[str, Any] = {"anytime": 0} if name == "lacam" else {}
         try:
-            fn = registry.get(name).load()
-            res = fn(inst2, time_limit=sim.replan_time_limit, seed=0, objective="soc", **options)
+            planned = plan_and_post(
+                inst2,
+                name,
+                time_limit=sim.replan_time_limit,
+                objective="soc",
+                margin=margin,
+                **options,
+            )
         except HierplanError as exc:
             why = f"re-plan failed: {exc}"
+            planned = Planned(Result(Status.ERROR, None, solver=name), None, name, 0.0, why=why)
             continue
-        if res.plan is None:
-            why = f"re-plan found no plan ({name}: {res.status})"
-            continue
-        bad = validate(inst2, res.plan)
-        if bad:
-            why = f"re-plan invalid ({name}): {bad[0]}"
-            continue
-        return res, name, ""
-    return None, first, why
+        if planned.schedule is not None:
+            return planned
+        planned = replace(planned, why=f"re-plan: {planned.why}")
+    assert planned is not None
+    return planned
 
 
 def _start_options(sim: ExecState, h: int) -> list[int]:
@@ -323,18 +326,13 @@ def replan(sim: ExecState, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], 
         for k in gid2
     )
     inst2 = Instance(graph, agents, (), None, f"{inst.name}-replan")
-    t0 = time.perf_counter()
-    res, solver, why = _solve(sim, inst2)
-    solve_time = time.perf_counter() - t0
-    if res is None:
-        sim.log_event(t_r, "-", "replan", "none", 0.0, why)
+    planned = _solve(sim, inst2, margin)
+    if planned.schedule is None:
+        sim.log_event(t_r, "-", "replan", "none", 0.0, planned.why)
         return None
-    t_post = time.perf_counter()
-    try:
-        sched = postprocess(inst2, res.plan, margin=margin, check_plan=False)
-    except HierplanError as exc:
-        sim.log_event(t_r, "-", "replan", "none", 0.0, f"MAPF-POST of the re-plan failed: {exc}")
-        return None
+    res, solver, sched = planned.result, planned.solver, planned.schedule
+    solve_time = planned.solve_time
+    assert res.plan is not None
     sim.replans.append((inst2, res.plan))
     assert sched.stn is not None
     stn = sched.stn
@@ -382,6 +380,7 @@ def replan(sim: ExecState, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], 
     sched, times = rescheduled(sched, new_stn)
     t_end = time.perf_counter()
     layer = sim.frontier_time + (t_end - t_begin)
+    handover = t_end - t_hand
     sim.replan_timing.append(
         {
             "time": t_r,
@@ -389,8 +388,8 @@ def replan(sim: ExecState, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], 
             "solver": solver,
             "frontier": sim.frontier_time,
             "solve": solve_time,
-            "post": t_hand - t_post,
-            "handover": t_end - t_hand,
+            "post": planned.post_time,
+            "handover": handover,
             "layer": layer,
         }
     )
