@@ -186,3 +186,29 @@ def test_warehouse_50_delays_and_breakdowns_no_pair_meets(warehouse50, seed: int
         k: v for k, v in st["handled"].items() if v
     }
     assert st["replans"] == sum(e.kind == "replan" and e.layer == "replan" for e in ex.log)
+
+
+def test_library_run_is_the_whole_hierarchy() -> None:
+    from hierplan_opt.execution import Stop
+
+    inst = hp.Instance.mapf(hp.Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
+    r = hp.run(inst, "cbs", disturbances=[Stop("agent0", 1.5, at_time=0.5)], margin=0)
+    assert r.ok and r.result.cost == 4 and r.schedule is not None
+    assert r.execution is not None and r.execution.statistics["finished"] == 2
+    assert set(r.times) >= {"solve", "post", "simulate", "total"}
+    assert hp.simulate is simulate
+
+
+def test_run_passes_solver_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    inst = tmp_path / "corridor.yaml"
+    inst.write_text(
+        "format: hierplan/1\nname: corridor\n"
+        'graph: {type: grid, rows: [".......", ".......", "......."]}\n'
+        "agents:\n  - {name: a, start: [0, 1], goal: [6, 1]}\n"
+        "  - {name: b, start: [3, 1], goal: [3, 2]}\n"
+    )
+    assert main(["run", str(inst), "--solver", "ecbs", "--set", "w=1.2"]) == 0
+    assert "plan: ecbs" in capsys.readouterr().out
+    assert main(["run", str(inst), "--solver", "ecbs", "--set", "nonsense=1"]) == 2
+    err = capsys.readouterr().err
+    assert "nonsense" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

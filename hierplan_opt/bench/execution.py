@@ -274,10 +274,9 @@ def replan_rows(instance: Instance, seeds: int, time_limit: float) -> list[dict]
     """Table 6: each re-plan's whole layer time beside its MAPF solve's own time."""
     import dataclasses
 
-    import hierplan_opt as hp
     from hierplan_opt.core.instance import Kinematics
     from hierplan_opt.execution import Breakdown, RandomDelays, Stop, simulate
-    from hierplan_opt.schedule import postprocess
+    from hierplan_opt.execution.chain import plan_and_post
 
     K = instance.num_agents
     _say(
@@ -296,11 +295,11 @@ def replan_rows(instance: Instance, seeds: int, time_limit: float) -> list[dict]
             instance,
             agents=tuple(dataclasses.replace(a, kinematics=kin) for a in instance.agents),
         )
-        res = hp.solve(inst, "ecbs", time_limit=time_limit)
-        if res.plan is None:
-            _say(f"{radius:>6} no plan ({res.status.value})")
+        planned = plan_and_post(inst, "ecbs", time_limit=time_limit)
+        if planned.schedule is None:
+            _say(f"{radius:>6} {planned.why}")
             continue
-        sched = postprocess(inst, res.plan, check_plan=False)
+        sched = planned.schedule
         names = [a.name for a in inst.agents]
         for seed in range(seeds):
             rng = np.random.default_rng(seed)
