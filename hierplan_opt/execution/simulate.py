@@ -600,6 +600,23 @@ def simulate(
         )
     if trajectories is not None:
         check_trajectories(schedule, trajectories, mode)
+    if mode == "robot" and trajectories is None and policy != "naive":
+        from hierplan_opt.execution.closedloop import ClosedLoop
+        from hierplan_opt.execution.kinematic import kinematic_plant
+
+        plant = kinematic_plant(instance, schedule, disturbances)
+        loop = ClosedLoop(
+            instance,
+            schedule,
+            plant,
+            disturbances=disturbances,
+            policy=policy,
+            seed=seed,
+            solver=solver,
+            replan_time_limit=replan_time_limit,
+            dt=dt,
+        )
+        return loop.run()
     sim = Simulation(
         instance, schedule, disturbances, policy, seed, solver, replan_time_limit, trajectories
     )

@@ -29,9 +29,10 @@ from hierplan_opt.schedule.stn import PIECE, STN
 from hierplan_opt.schedule.tpg import VERTEX, WAIT
 
 POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
-#: Event kinds that are disturbances (the others: ``replan``, ``goal``,
-#: ``trajectories`` record what the layers did).
-DISTURBANCE_KINDS = ("stop", "breakdown", "slow", "random")
+#: Event kinds that are disturbances (``late``: the closed loop saw a robot late beyond
+#: its slack; the others - ``replan``, ``goal``, ``trajectories``, ``horizon`` - record
+#: what the layers did).
+DISTURBANCE_KINDS = ("stop", "breakdown", "slow", "random", "late")
 MODES = ("agent", "robot")
 LAYERS = {
     "slack": ("slack",),

@@ -172,8 +172,10 @@ def finish(
     mode: str,
     seed: int,
     dt: float,
+    plant: Any = None,
 ) -> Execution:
-    """Build the :class:`Execution` of a finished simulation."""
+    """Build the :class:`Execution` of a finished simulation (``plant``: the closed
+    loop's plant, whose sampled motion is in ``sim.traj``)."""
     traj = []
     for g in range(sim.K):
         pts = sim.traj[g]
@@ -192,7 +194,7 @@ def finish(
         required = required_distance(sim)
         guaranteed = min(t.safety_distance for t in sim.follows.values())
     robot = None
-    if mode == "robot":
+    if mode == "robot" and plant is None:
         from hierplan_opt.execution.robot import robot_run
 
         robot = robot_run(sim, instance, dt)
@@ -237,6 +239,10 @@ def finish(
         "runtime": dict(sim.runtime),
         "replan_runtime": [dict(r) for r in sim.replan_timing],
     }
+    if plant is not None:
+        stats["acceleration_violations"] = int(getattr(plant, "violations", 0))
+        stats["max_acceleration_ratio"] = float(getattr(plant, "max_ratio", math.nan))
+        stats["loop"] = "closed"
     if robot is not None:
         stats["acceleration_violations"] = len(robot.violations)
         stats["max_acceleration_ratio"] = robot.max_ratio
@@ -256,5 +262,9 @@ def finish(
         statistics=stats,
         arrival=arrival,
         replans=tuple(sim.replans),
-        robot_times=robot.event_times if robot is not None else None,
+        robot_times=(
+            robot.event_times
+            if robot is not None
+            else (sim.phases[0].times if plant is not None and sim.phases else None)
+        ),
     )
