@@ -31,9 +31,11 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
     p.add_argument(
         "--mode",
-        choices=("agent", "robot"),
+        choices=("agent", "robot", "replay"),
         default="agent",
-        help="agent: constant velocity; robot: bounded acceleration, turning in place",
+        help="agent: constant velocity; robot: closed loop over kinematic robots (bounded "
+        "acceleration, turning in place; their delays feed back into the layers); replay: "
+        "the same dynamics open loop on the agent run's event times",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")

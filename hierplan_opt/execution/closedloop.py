@@ -104,12 +104,18 @@ class ClosedLoop:
         self.timed = sorted(self.state.timed, key=lambda d: float(d.at_time or 0.0))
         self.state.timed = []
         self.halt_until = np.zeros(self.state.K)
+        #: Halts not started yet: the robot brakes, then stands still this long.
+        self.halt_pending: dict[int, float] = {}
         self.replan_pending = ""
         self.block_limit: dict[int, int] = {}  # robot (phase index) -> last node it may reach
         self.late_logged: set[int] = set()
         self.last_motion = 0.0
         #: While a re-plan is pending: the node each robot (phase index) stops at.
         self.frontier: dict[int, int] = {}
+        #: Halted robots (stops, random delays): the node each one brakes for.
+        self.halt_gate: dict[int, int] = {}
+        #: Each robot's speed over the last step (metres per second).
+        self.speeds = np.zeros(self.state.K)
 
     # ------------------------------------------------------------ phases
     def _start(
@@ -190,7 +196,9 @@ class ClosedLoop:
             t = float(self.plant.time)
             for g in range(st.K):
                 st.traj[g].append((t, pos[g, :dim] / scale))
-            self.last_motion = float(np.max(np.linalg.norm(pos - before, axis=1), initial=0.0))
+            moved = np.linalg.norm(pos - before, axis=1)
+            self.speeds = moved / self.dt
+            self.last_motion = float(np.max(moved, initial=0.0))
         # Close the running phase.
         ph = st.phases[-1]
         st.phases[-1] = Phase(ph.schedule, ph.agents, ph.start, st.t.copy(), st.T.copy(), st.stn)
@@ -259,11 +267,12 @@ class ClosedLoop:
             if rng.random() < d.probability:
                 x = d.draw(rng)
                 if x > 0:
-                    self._hold(g, now + x)
+                    self._hold(g, x)
                     self._react(j, g, v + 1, now, "random", f"delayed {x:.3g} s")
 
-    def _hold(self, g: int, until: float) -> None:
-        self.halt_until[g] = max(self.halt_until[g], until)
+    def _hold(self, g: int, duration: float) -> None:
+        """Robot ``g`` halts ``duration`` seconds once it stands still (it brakes first)."""
+        self.halt_pending[g] = self.halt_pending.get(g, 0.0) + duration
 
     def _disturbances(self, now: float) -> None:
         st = self.state
@@ -278,7 +287,7 @@ class ClosedLoop:
                 self._breakdown(j, g, now)
                 continue
             assert isinstance(d, Stop)
-            self._hold(g, now + d.duration)
+            self._hold(g, d.duration)
             n = st.last_happened(j) + 1
             if n >= int(st.S.tpg.agent_ptr[j + 1]):
                 st.log_event(now, d.agent, "stop", "none", 0.0, "robot already at its goal")
@@ -356,7 +365,8 @@ class ClosedLoop:
                 continue
             v_max = self.instance.agents[g].kinematics.v_max * st.scale
             rest = float(np.linalg.norm(tpg.node_pos[n] - pos[g, :dim])) / max(v_max, 1e-12)
-            predicted = max(now, float(self.halt_until[g])) + rest
+            halt = max(now, float(self.halt_until[g])) + self.halt_pending.get(g, 0.0)
+            predicted = halt + rest
             if predicted > st.latest[n] + 1e-6 and predicted > st.T[n] + 1e-6:
                 self._react(j, g, n, now, "late", f"{predicted - st.T[n]:.3g} s behind")
 
@@ -369,7 +379,8 @@ class ClosedLoop:
         v_max = self.instance.agents[g].kinematics.v_max * st.scale
         pos = self.plant.positions()[g, : tpg.node_pos.shape[1]]
         rest = float(np.linalg.norm(tpg.node_pos[n] - pos)) / max(v_max, 1e-12)
-        st.phys[n] = max(float(st.T[n]), max(now, float(self.halt_until[g])) + rest)
+        halt = max(now, float(self.halt_until[g])) + self.halt_pending.get(g, 0.0)
+        st.phys[n] = max(float(st.T[n]), halt + rest)
         self.late_logged.add(n)
         t0 = time.perf_counter()
         verdict, late, note = layers.slack_decision(st, n)
@@ -421,7 +432,6 @@ class ClosedLoop:
         """Release every robot as far as the TPG allows; whether any may still move."""
         st = self.state
         tpg = st.S.tpg
-        S = st.S
         any_free = False
         for j, g in enumerate(st.gid):
             if st.broken[g]:
@@ -429,10 +439,9 @@ class ClosedLoop:
             first = int(tpg.agent_ptr[j])
             end = int(tpg.agent_ptr[j + 1])
             r = first + self.plant.reached(g)
-            if now < self.halt_until[g]:
-                self.plant.release(g, -1)
-                any_free = True
-                continue
+            if g in self.halt_pending and self.speeds[g] <= 1e-9:
+                self.halt_until[g] = now + self.halt_pending.pop(g)  # it stands: halt
+            halted = now < self.halt_until[g] or g in self.halt_pending
             v = max(st.last_happened(j) + 1, first)
             while v < end - 1 and self._ready(v, now):
                 v += 1
@@ -441,17 +450,48 @@ class ClosedLoop:
                 gate = min(gate, self.block_limit[j])
             if self.replan_pending:
                 if j not in self.frontier:
-                    # It stops at the next vertex node (fixed when the re-plan is asked).
-                    w = r + 1
-                    while w < end - 1 and not S.is_vertex[w]:
-                        w += 1
-                    self.frontier[j] = min(w, end - 1)
+                    # It stops at the first vertex node it can brake for (fixed when the
+                    # re-plan is asked).
+                    self.frontier[j] = self._stop_node(j, g, r, vertex=True)
                 gate = min(gate, self.frontier[j])
+            if halted:
+                if g not in self.halt_gate:
+                    self.halt_gate[g] = self._stop_node(j, g, r, vertex=False)
+                gate = min(gate, self.halt_gate[g])
+                any_free = True  # it goes on after the halt
+            else:
+                self.halt_gate.pop(g, None)
             gate = max(gate, r)
             self.plant.release(g, gate - first)
             if gate > r:
                 any_free = True
         return any_free or self.last_motion > 1e-9
+
+    def _stop_node(self, j: int, g: int, r: int, *, vertex: bool) -> int:
+        """The first node after ``r`` (a vertex node with ``vertex``) that robot ``g``
+        can still brake for: at least ``v^2 / (2 a_max)`` ahead (its speed measured from
+        the last step)."""
+        st = self.state
+        S = st.S
+        tpg = S.tpg
+        end = int(tpg.agent_ptr[j + 1]) - 1
+        kin = self.instance.agents[g].kinematics
+        v = self.speeds[g] if g < len(self.speeds) else 0.0
+        a = kin.a_max * st.scale if kin.a_max else math.inf
+        # (The measured speed is the last step's mean: one more step of speeding up and
+        # one step of travel before the new gate acts.)
+        v_up = v + a * self.dt if math.isfinite(a) else v
+        need = v_up * v_up / (2 * a) + v_up * self.dt if math.isfinite(a) else 0.0
+        dim = tpg.node_pos.shape[1]
+        here = self.plant.positions()[g, :dim]
+        ahead = 0.0
+        prev = here
+        for w in range(r + 1, end + 1):
+            ahead += float(np.linalg.norm(tpg.node_pos[w] - prev))
+            prev = tpg.node_pos[w]
+            if ahead >= need - 1e-9 and (not vertex or S.is_vertex[w]):
+                return w
+        return end
 
     # ------------------------------------------------------------ re-plan
     def _replan(self, now: float) -> None:

@@ -15,8 +15,9 @@ Every robot drives along its route (way-points in metres) with a speed profile:
 * ``stop`` (breakdown): it brakes at ``a_max`` and stays stopped.
 
 Slippery regions are ``(centres (m, 3) metres, half width, factor, start, end)``: inside
-a box of that half width around a centre, speed and acceleration are ``factor`` of the
-robot's (configured on the plant, the monitor only sees lateness).
+a box of that half width around a centre, the top speed and the acceleration (speeding
+up) are ``factor`` of the robot's; it slows down to the lower top speed at ``a_max``
+(configured on the plant, the monitor only sees lateness).
 """
 
 from __future__ import annotations
@@ -140,7 +141,8 @@ class KinematicPlant:
     def _step_robot(self, i: int, dt: float) -> None:
         kin = self.kin[i]
         f = self._factor(self.pos[i])
-        a = (kin.a_max if kin.a_max else math.inf) * f
+        a = kin.a_max if kin.a_max else math.inf  # braking: full a_max
+        a_up = a * f  # speeding up on a slippery region: factor f of it
         route, times, stops = self.routes[i], self.times[i], self._stops[i]
         k = int(self.done[i]) + 1
         v0 = float(self.speed[i])
@@ -154,7 +156,10 @@ class KinematicPlant:
             v1 = max(0.0, v0 - a * dt) if math.isfinite(a) else 0.0
             if k < len(route):
                 self._advance(i, 0.5 * (v0 + v1) * dt, limit=k, brake=False)
-            self.speed[i] = v1 if int(self.done[i]) < k else 0.0
+            if int(self.done[i]) >= k and v1 > 0:
+                self._limit(i, 0.0, v0, a, dt)  # stopped harder than a_max: counted
+                v1 = 0.0
+            self.speed[i] = v1
             return
         d_next = float(np.linalg.norm(route[k] - self.pos[i]))
         if d_next <= EPS:
@@ -190,7 +195,9 @@ class KinematicPlant:
         # Time-to-go slows it down only as far as a_max allows (it may come a little
         # early where it cannot slow down in time); braking for stops is a must.
         v_soft = max(v_time, v0 - a * dt) if math.isfinite(a) else v_time
-        v1 = self._limit(i, min(v_cap, v_brake, v_soft), v0, a, dt)
+        # On a slippery region it slows down to its lower top speed as it can.
+        v_top = max(v_cap, v0 - a * dt) if math.isfinite(a) else v_cap
+        v1 = self._limit(i, min(v_top, v_brake, v_soft, v0 + a_up * dt), v0, a, dt)
         self._advance(i, 0.5 * (v0 + v1) * dt, limit=gate, brake=False)
         j = int(self.done[i])
         at_point = j >= 0 and bool(np.all(self.pos[i] == route[j]))

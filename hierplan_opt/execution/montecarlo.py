@@ -207,8 +207,8 @@ def monte_carlo(
         raise OptionError(f"runs must be a positive integer, got {runs!r}")
     if replan_below is not None and not 0 <= replan_below <= 1:
         raise OptionError(f"replan_below must be a probability, got {replan_below!r}")
-    if mode not in ("agent", "robot"):
-        raise OptionError(f"unknown mode {mode!r} (use agent, robot)")
+    if mode not in ("agent", "robot", "replay"):
+        raise OptionError(f"unknown mode {mode!r} (use agent, robot, replay)")
     if trajectories is not None:
         from hierplan_opt.execution.follow import check_trajectories
 

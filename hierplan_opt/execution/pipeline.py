@@ -97,8 +97,8 @@ def run(
         t1 = time.perf_counter()
         traj = refine_schedule(instance, schedule, stretch="auto")
         times["refine"] = time.perf_counter() - t1
-    if mode not in ("agent", "robot"):
-        raise OptionError(f"unknown mode {mode!r} (use agent, robot)")
+    if mode not in ("agent", "robot", "replay"):
+        raise OptionError(f"unknown mode {mode!r} (use agent, robot, replay)")
     t2 = time.perf_counter()
     ex = simulate(
         instance,

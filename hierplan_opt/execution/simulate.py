@@ -48,8 +48,10 @@ import numpy as np
 from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.execution import layers
+from hierplan_opt.execution.closedloop import ClosedLoop
 from hierplan_opt.execution.disturbances import Breakdown, Disturbance, Stop, as_dict
 from hierplan_opt.execution.follow import check_trajectories, refined_position
+from hierplan_opt.execution.kinematic import kinematic_plant
 from hierplan_opt.execution.reorder import arc_locks, try_reorder
 from hierplan_opt.execution.replan import replan, restrict_to_frontier
 from hierplan_opt.execution.state import (
@@ -556,9 +558,14 @@ def simulate(
         :class:`~.disturbances.Slow`, :class:`~.disturbances.RandomDelays`.
     policy : {"slack", "stn", "replan", "reorder", "adg", "naive"}
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
-    mode : {"agent", "robot"}
-        ``agent``: constant velocity between way-points; ``robot``: bounded
-        acceleration and turning in place (see :mod:`.robot`).
+    mode : {"agent", "robot", "replay"}
+        ``agent``: constant velocity between way-points (the discrete-event
+        simulation); ``robot``: closed loop (:class:`.closedloop.ClosedLoop`) over a
+        :class:`.kinematic.KinematicPlant` - bounded acceleration, turning in place,
+        slippery regions; the robots' lateness feeds back into slack, STN re-solve,
+        re-ordering and re-planning; ``replay``: the same dynamics open loop on the
+        agent run's event times (:mod:`.robot`; also what ``robot`` does when
+        following refined ``trajectories`` or under the ``naive`` policy).
     seed : int
         Seeds random delays that give no seed of their own.
     dt : float
@@ -601,9 +608,6 @@ def simulate(
     if trajectories is not None:
         check_trajectories(schedule, trajectories, mode)
     if mode == "robot" and trajectories is None and policy != "naive":
-        from hierplan_opt.execution.closedloop import ClosedLoop
-        from hierplan_opt.execution.kinematic import kinematic_plant
-
         plant = kinematic_plant(instance, schedule, disturbances)
         loop = ClosedLoop(
             instance,
@@ -621,4 +625,5 @@ def simulate(
         instance, schedule, disturbances, policy, seed, solver, replan_time_limit, trajectories
     )
     sim.run()
-    return finish(sim, instance, schedule, policy, mode, seed, dt)
+    ex = finish(sim, instance, schedule, policy, mode, seed, dt)
+    return ex

@@ -194,7 +194,7 @@ def finish(
         required = required_distance(sim)
         guaranteed = min(t.safety_distance for t in sim.follows.values())
     robot = None
-    if mode == "robot" and plant is None:
+    if mode in ("robot", "replay") and plant is None:
         from hierplan_opt.execution.robot import robot_run
 
         robot = robot_run(sim, instance, dt)
