@@ -48,7 +48,7 @@ import numpy as np
 from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.execution import layers
-from hierplan_opt.execution.closedloop import ClosedLoop
+from hierplan_opt.execution.closed_loop import ClosedLoop
 from hierplan_opt.execution.disturbances import Breakdown, Disturbance, Stop, as_dict
 from hierplan_opt.execution.follow import check_trajectories, refined_position
 from hierplan_opt.execution.kinematic import kinematic_plant
@@ -590,7 +590,7 @@ def simulate(
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
     mode : {"agent", "robot", "replay"}
         ``agent``: constant velocity between way-points (the discrete-event
-        simulation); ``robot``: closed loop (:class:`.closedloop.ClosedLoop`) over a
+        simulation); ``robot``: closed loop (:class:`.closed_loop.ClosedLoop`) over a
         :class:`.kinematic.KinematicPlant` - bounded acceleration, turning in place,
         slippery regions; the robots' lateness feeds back into slack, STN re-solve,
         re-ordering and re-planning; ``replay``: the same dynamics open loop on the
