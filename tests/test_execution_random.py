@@ -143,3 +143,21 @@ def test_independent_distance_is_exact() -> None:
     assert pair_min_distance(t, a, t, c) == pytest.approx(0.0)
     e = np.array([[0.0, 1.0], [2.0, 1.0]])
     assert pair_min_distance(t, a, np.array([0.0, 2.0]), e) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("seed", [100, 102])
+def test_point_robots_at_margin_zero_wait_before_a_vertex(seed: int) -> None:
+    """Plain TPG (point robots, margin 0): its nodes are the vertices, so a robot whose
+    Type-2 predecessor is late waits where it was, not on the vertex (it collided)."""
+    from hierplan_opt.schedule import postprocess
+
+    inst, dist, points = random_case(seed, 60)
+    assert points
+    res = hp.solve(inst, "lacam", time_limit=30, anytime=0)
+    assert res.plan is not None
+    s = postprocess(inst, res.plan, margin=0)
+    assert s.stn is not None and s.stn.tpg.regime == "none"
+    radii = [0.0] * inst.num_agents
+    for policy in ("slack", "replan"):
+        ex = simulate(inst, s, disturbances=dist, policy=policy, seed=seed)
+        assert not touching_pairs(ex.trajectories, radii), policy

@@ -446,6 +446,8 @@ class ClosedLoop:
             while v < end - 1 and self._ready(v, now):
                 v += 1
             gate = v
+            if tpg.regime == "none" and gate < end - 1 and not self._ready(gate, now):
+                gate = max(gate - 1, r)  # plain TPG: wait before the vertex, not on it
             if j in self.block_limit:
                 gate = min(gate, self.block_limit[j])
             if self.replan_pending:

@@ -248,7 +248,13 @@ class Simulation(ExecState):
         self.t[v] = when
         pos = self.pos(v)
         if self.phys[v] < when - TOL:
-            self.record(g, float(self.phys[v]), pos)
+            if S.tpg.regime == "none" and not S.first[v] and not math.isnan(self.seg_start[v]):
+                # Plain TPG: nodes are the vertices themselves, no place to wait at:
+                # the robot waits where it was and sets off so as to arrive at ``when``.
+                travel = float(self.phys[v] - self.seg_start[v])
+                self.record(g, when - travel, self.pos(v - 1))
+            else:  # it waits at the node (a marker on its claim's boundary)
+                self.record(g, float(self.phys[v]), pos)
         self.record(g, when, pos)
         # Type-2 successors.
         arcs = S.out_arcs[S.out_ptr[v] : S.out_ptr[v + 1]]
