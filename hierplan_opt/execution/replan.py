@@ -202,21 +202,27 @@ def _solve(sim: ExecState, inst2: Instance, margin: float) -> Planned:
     solve, validate, MAPF-POST with the running schedule's margin); ``auto`` falls
     back to ECBS (after LaCAM) and LaCAM with other seeds when the first plan fails or
     MAPF-POST refuses it (robots that rotate through a cycle of cells cannot keep any
-    clearance)."""
+    clearance); point robots first try the same solver at margin 0, where MAPF-POST
+    schedules rotations (they still never meet on one point)."""
     first = replan_solver(sim.solver, inst2.num_agents)
-    tries = [(first, 0)]
+    tries = [(first, 0, margin)]
+    if margin > 0 and all(a.kinematics.radius == 0 for a in inst2.agents):
+        # Point robots: MAPF-POST schedules rotations at margin 0 (never on one point).
+        tries.append((first, 0, 0.0))
     if sim.solver == "auto":  # other plans (one MAPF-POST refuses: rotations)
         if first == "lacam":
-            tries.append(("ecbs", 0))
+            tries.append(("ecbs", 0, margin))
         tries += [
-            ("lacam", seed) for seed in range(FALLBACK_SEEDS) if (first, seed) != ("lacam", 0)
+            ("lacam", seed, margin)
+            for seed in range(FALLBACK_SEEDS)
+            if (first, seed) != ("lacam", 0)
         ]
     planned: Planned | None = None
-    for name, seed in tries:
+    for name, seed, margin in tries:
         options: dict[str, Any] = {"anytime": 0} if name == "lacam" else {}
         try:
             limit = sim.replan_time_limit
-            if (name, seed) != (first, 0):
+            if planned is not None:  # a fallback
                 limit = min(limit, FALLBACK_TIME_LIMIT)
             planned = plan_and_post(
                 inst2,
