@@ -550,6 +550,7 @@ class ClosedLoop:
             return
         st.replans.append((inst2, planned.result.plan))
         sched = planned.schedule
+        st.replan_margins.append(float(sched.margin))
         assert sched.stn is not None
         stn = sched.stn
         release = np.array(stn.release, dtype=float)

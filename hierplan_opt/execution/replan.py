@@ -400,6 +400,8 @@ def replan(sim: ExecState, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], 
     sim.handover[len(sim.phases)] = deps
     new_stn = stn.with_bounds(release=release, deadline=deadline)
     sched, times = rescheduled(sched, new_stn)
+    sim.replan_margins.append(float(sched.margin))
+    at = f", margin {sched.margin:g} m" if sched.margin < margin else ""
     t_end = time.perf_counter()
     layer = sim.frontier_time + (t_end - t_begin)
     handover = t_end - t_hand
@@ -421,7 +423,7 @@ def replan(sim: ExecState, t_r: float) -> tuple[Schedule, STN, tuple[int, ...], 
         "replan",
         "replan",
         0.0,
-        f"{reason}: new plan for {len(gid2)} robots ({solver}, cost {res.cost}, solve "
+        f"{reason}: new plan for {len(gid2)} robots ({solver}, cost {res.cost}{at}, solve "
         f"{solve_time:.3g} s, whole layer {layer:.3g} s)",
     )
     return sched, new_stn, gid2, times

@@ -330,6 +330,9 @@ class ExecState:
         #: Per re-plan: when, robots, solver and seconds of frontier, solve, post,
         #: hand-over and the whole layer (frontier to new schedule).
         self.replan_timing: list[dict[str, Any]] = []
+        #: The margin of each re-planned schedule (smaller than the first one's when
+        #: point robots fell back to margin 0).
+        self.replan_margins: list[float] = []
         self.frontier_time = 0.0
         self.front: list[int] = []
         #: Hand-over waits of each re-planned phase (robot mode keeps them as events):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -203,7 +204,14 @@ def finish(
         slack, required, guaranteed = 0.0, None, schedule.safety_distance
     for tr in traj:
         tr.setflags(write=False)
-    exe = executed_schedule(sim.names, traj, schedule, policy)
+    base = schedule
+    if sim.replan_margins and min(sim.replan_margins) < schedule.margin:
+        # A re-plan ran at a smaller margin (point robots at margin 0: rotations): the
+        # distance guaranteed from then on is that margin's.
+        low = min(sim.replan_margins)
+        base = replace(schedule, margin=low)
+        guaranteed = min(guaranteed, low)
+    exe = executed_schedule(sim.names, traj, base, policy)
     d_min, collisions, kept, worst = distances(exe, instance, required, slack)
     done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj])
     events = [e for e in sim.log if e.kind in DISTURBANCE_KINDS]
