@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, fraction, positive_int
+from hierplan_opt.cli.common import (
+    NOT_ARRIVED,
+    OK,
+    PLAN_INVALID,
+    add_instance_arguments,
+    fraction,
+    positive_int,
+)
 
 HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
 
@@ -24,9 +31,11 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
     p.add_argument(
         "--mode",
-        choices=("agent", "robot"),
+        choices=("agent", "robot", "replay"),
         default="agent",
-        help="agent: constant velocity; robot: bounded acceleration, turning in place",
+        help="agent: constant velocity; robot: closed loop over kinematic robots (bounded "
+        "acceleration, turning in place; their delays feed back into the layers); replay: "
+        "the same dynamics open loop on the agent run's event times",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
@@ -40,8 +49,8 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--replan-solver",
         metavar="NAME",
-        help="MAPF solver of re-plans (ecbs; of --replan-below: the plan's solver in 'run', "
-        "else ecbs, cbm for teams)",
+        help="MAPF solver of re-plans (default auto: ECBS up to 100 robots, else LaCAM; "
+        "of --replan-below: the plan's solver in 'run', else ecbs, cbm for teams)",
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
@@ -101,18 +110,10 @@ def execute(
 
     ``plan_solver`` makes the delay-aware re-plan of ``--replan-below`` (default: the
     re-plan solver)."""
-    from hierplan_opt.core.errors import OptionError
-    from hierplan_opt.execution import load_disturbances, simulate
-    from hierplan_opt.execution.report import text_report, write_report
+    from hierplan_opt.execution import simulate
 
-    if args.replan_below is not None and not args.runs:
-        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
-
-    dist = (
-        load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
-        if args.disturbances
-        else []
-    )
+    check_monte_carlo(args)
+    dist = disturbances_of(args, instance)
     ex = simulate(
         instance,
         schedule,
@@ -120,9 +121,43 @@ def execute(
         policy=args.policy,
         mode=args.mode,
         seed=args.seed,
-        solver=args.replan_solver or "ecbs",
+        solver=args.replan_solver or "auto",
         trajectories=trajectories,
     )
+    return report_execution(args, instance, schedule, ex, title, dist, trajectories, plan_solver)
+
+
+def check_monte_carlo(args: argparse.Namespace) -> None:
+    from hierplan_opt.core.errors import OptionError
+
+    if args.replan_below is not None and not args.runs:
+        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
+
+
+def disturbances_of(args: argparse.Namespace, instance: Any) -> list[Any]:
+    """The ``--disturbances`` file's disturbances (checked against the robots' names)."""
+    from hierplan_opt.execution import load_disturbances
+
+    if not args.disturbances:
+        return []
+    return load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
+
+
+def report_execution(
+    args: argparse.Namespace,
+    instance: Any,
+    schedule: Any,
+    ex: Any,
+    title: str,
+    dist: list[Any],
+    trajectories: Any = None,
+    plan_solver: str | None = None,
+) -> int:
+    """Print the readable report of execution ``ex`` (and a Monte Carlo batch with
+    ``--runs``), write REPORT and pictures; the exit code: 0, 1 (collision or distance
+    not kept), 5 (a working robot not at its goal)."""
+    from hierplan_opt.execution.report import text_report, write_report
+
     report: dict[str, Any] = ex.report()
     print(text_report(ex, title))
     if args.runs:
@@ -173,7 +208,10 @@ def execute(
 
         animate(ex, instance, args.animate)
     st = ex.statistics
-    return OK if st["collisions"] == 0 and st["distance_kept"] else PLAN_INVALID
+    if st["collisions"] or not st["distance_kept"]:
+        return PLAN_INVALID
+    # Broken robots are listed apart and do not change the exit code.
+    return NOT_ARRIVED if st["stranded"] else OK
 
 
 def check_execution_outputs(args: argparse.Namespace) -> None:

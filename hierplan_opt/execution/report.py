@@ -9,7 +9,7 @@ from typing import Any
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.execution.simulate import Execution
+from hierplan_opt.execution.state import Execution
 
 
 def text_report(ex: Execution, title: str = "") -> str:
@@ -19,10 +19,9 @@ def text_report(ex: Execution, title: str = "") -> str:
     if title:
         lines.append(title)
     lines.append(
-        f"execution ({ex.policy}, {ex.mode} mode): makespan {_f(st['makespan'])} s "
+        f"execution ({ex.policy}, {ex.mode} mode): makespan {_makespan(st)} "
         f"(planned {_f(st['planned_makespan'])} s), arrivals avg {_f(st['arrival_avg'])} s "
-        f"max {_f(st['arrival_max'])} s, {st['finished']}/{len(ex.agent_names)} robots "
-        "at their goals"
+        f"max {_f(st['arrival_max'])} s"
     )
     kept = "kept" if st["distance_kept"] else "NOT kept"
     lines.append(
@@ -45,9 +44,10 @@ def text_report(ex: Execution, title: str = "") -> str:
     h = st["handled"]
     rt = st["runtime"]
     lines.append(
-        f"layers: {len(ex.log)} events; slack {h['slack']}, stn {h['stn']} "
-        f"({st['stn_resolves']} re-solves, {rt['stn'] * 1e3:.3g} ms), replan {h['replan']} "
-        f"({st['replans']} re-plans, {rt['replan']:.3g} s), unhandled {h['none']}"
+        f"layers: {st['disturbances']} disturbances; slack {h['slack']}, reorder "
+        f"{h['reorder']} ({st['reorders']} switches, {rt['reorder'] * 1e3:.3g} ms), stn "
+        f"{h['stn']} ({st['stn_resolves']} re-solves, {rt['stn'] * 1e3:.3g} ms), replan "
+        f"{h['replan']} ({st['replans']} re-plans, {rt['replan']:.3g} s), unhandled {h['none']}"
     )
     shown = [e for e in ex.log if e.kind != "random"][:12]
     randoms = sum(e.kind == "random" for e in ex.log)
@@ -58,9 +58,32 @@ def text_report(ex: Execution, title: str = "") -> str:
         )
     if randoms:
         lines.append(f"  ({randoms} random delays: see the report's events)")
-    if st["unfinished"]:
-        lines.append("not at goal: " + ", ".join(st["unfinished"]))
+    for name in st["unfinished"]:
+        lines.append(f"  not at its goal: {name}: {st['why_unfinished'][name]}")
+    lines.append(outcome_line(ex))
     return "\n".join(lines)
+
+
+def outcome_line(ex: Execution) -> str:
+    """The summary line: robots at their own goals, the broken ones apart, the working
+    robots that are not at their goals (a failed run), collisions."""
+    st = ex.statistics
+    K = len(ex.agent_names)
+    parts = [f"{st['finished']}/{K} robots at their own goals"]
+    if st["broken"]:
+        parts.append(f"{len(st['broken'])} broke down ({', '.join(st['broken'])})")
+    if st["stranded"]:
+        names = ", ".join(st["stranded"][:5]) + (" ..." if len(st["stranded"]) > 5 else "")
+        parts.append(f"FAILED: {len(st['stranded'])} working robot(s) not at their goals ({names})")
+    parts.append(f"{st['collisions']} collisions")
+    return "; ".join(parts)
+
+
+def _makespan(st: dict[str, Any]) -> str:
+    m = st["makespan"]
+    if isinstance(m, (int, float)) and math.isfinite(m):
+        return f"{m:.4g} s"
+    return f"not reached ({len(st['stranded'])} working robot(s) never at their goals)"
 
 
 def _f(x: Any) -> str:
