@@ -169,7 +169,9 @@ class MujocoPlant:
         self.is_omni = self.kind == "omni"
         self.ground = ~self.is_quad
         self.radius = np.array([m.radius for m in models])
-        self.v_max = np.array([m.v_max for m in models])
+        # Quadcopters aim 10 % below v_max: their attitude loop lags the velocity
+        # reference by ~0.1 s and overshoots it by about a_max x 0.05 s (ours).
+        self.v_max = np.array([m.v_max * (0.9 if m.kind == "quad" else 1.0) for m in models])
         self.a_max = np.array([m.a_max for m in models])
         self.omega_max = np.array([m.omega_max for m in models])
         self.mass = np.array([m.mass for m in models]) + payload
@@ -264,7 +266,9 @@ class MujocoPlant:
             vlim = 1.2 * m.v_max
             if m.kind == "diff":
                 half = 0.5 * m.track
-                parts.append(f'<site name="s{i}l" pos="0 {half} 0"/><site name="s{i}r" pos="0 {-half} 0"/>')
+                parts.append(
+                    f'<site name="s{i}l" pos="0 {half} 0"/><site name="s{i}r" pos="0 {-half} 0"/>'
+                )
                 kv = 20.0 * self.mass[i]
                 wl = vlim + m.omega_max * half
                 for side in ("l", "r"):
@@ -331,11 +335,20 @@ class MujocoPlant:
         self.diffs = np.flatnonzero(self.is_diff)
         self.omnis = np.flatnonzero(self.is_omni)
         self.grip_share = np.where(self.is_omni, 0.3, np.where(self.is_quad, np.inf, 1.0))
-        self.noise_axes = np.where(self.is_quad, 1.0, 0.0)[:, None] * np.array([0, 0, 1.0]) + np.array([1.0, 1.0, 0])
+        self.noise_axes = np.where(self.is_quad, 1.0, 0.0)[:, None] * np.array(
+            [0, 0, 1.0]
+        ) + np.array([1.0, 1.0, 0])
         self.quad_ref = np.zeros((len(self.quads), 3))
+        self.quad_ff = np.zeros((len(self.quads), 3))
+        self.holonomic = np.flatnonzero(~self.is_diff)
+        self.v_vec = np.zeros((n, 3))
         self.grounds = np.flatnonzero(self.ground)
-        self.quad_q = np.array([m.jnt_qposadr[m.joint(f"j{i}").id] for i in self.quads], dtype=np.int64)
-        self.quad_d = np.array([m.jnt_dofadr[m.joint(f"j{i}").id] for i in self.quads], dtype=np.int64)
+        self.quad_q = np.array(
+            [m.jnt_qposadr[m.joint(f"j{i}").id] for i in self.quads], dtype=np.int64
+        )
+        self.quad_d = np.array(
+            [m.jnt_dofadr[m.joint(f"j{i}").id] for i in self.quads], dtype=np.int64
+        )
         self.vel_int = np.zeros((len(self.quads), 3))
         self.mu = np.full(n, MU_FLOOR)
         self._set_force_limits()
@@ -400,7 +413,9 @@ class MujocoPlant:
     def retime(self, robot: int, times: np.ndarray) -> None:
         tt = np.asarray(times, dtype=float).reshape(-1)
         if len(tt) != len(self.routes[robot]):
-            raise ValueError(f"robot {robot}: retime with {len(tt)} times for {len(self.routes[robot])} way-points")
+            raise ValueError(
+                f"robot {robot}: retime with {len(tt)} times for {len(self.routes[robot])} way-points"
+            )
         self.times[robot] = tt
         self._refresh(robot)
 
@@ -559,16 +574,15 @@ class MujocoPlant:
         dS = np.where(self.B_stop, dB, dB + self.dBS)
         ttg = self.tB - t
         v_ttg = np.where(ttg > self.control_period, dB / np.maximum(ttg, 1e-9), np.inf)
-        v_des = np.minimum.reduce([self.v_max, v_ttg, np.sqrt(2 * a_c * dS), 4.0 * dS])
+        v_des = np.minimum.reduce([self.v_max, v_ttg, np.sqrt(2 * 0.9 * a_c * dS)])
         paused = (~self.active) | self.broken | (t < self.pause_until)
         v_des = np.where(paused, 0.0, v_des)
-        # Ramp: speed up at most at a_c; braking follows the brake profile.
-        v_new = np.minimum(v_des, self.v_cmd + a_c * self.control_period)
+        step_a = a_c * self.control_period
         move_dir = to_B / np.maximum(dB, 1e-12)[:, None]
         hold_err = self.hold - p
         ctrl = self.data.ctrl
         d = self.is_diff
-        if d.any():
+        if len(self.diffs):
             # Differential drives: face the next way-point (inside the reach tolerance,
             # or held: the next move), turn in place before driving.
             far = (dB > self.reach_tol) & self.active
@@ -579,22 +593,39 @@ class MujocoPlant:
             start_turn = d & (np.abs(err) > TURN_IN_PLACE) & (speed < 0.05) & ~self.broken
             self.turning = (self.turning | start_turn) & (np.abs(err) > TURN_DONE) & d
             # Moving with a large heading error: brake first.
-            v_new = np.where(d & (self.turning | (np.abs(err) > TURN_IN_PLACE)), 0.0, v_new)
+            v_des = np.where(self.turning | (np.abs(err) > TURN_IN_PLACE), 0.0, v_des)
+            # Held: creep onto the held point along the heading (no turning for it).
+            heading = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
+            creep = np.clip(np.einsum("ij,ij->i", hold_err[:, :2], heading), -0.1, 0.1)
+            v_des = np.where(paused & ~self.broken, creep, v_des)
+            v_new = np.clip(v_des, self.v_cmd - step_a, self.v_cmd + step_a)
+            v_new = np.where(self.broken, 0.0, v_new)
+            self.v_cmd = np.where(d, v_new, self.v_cmd)
             om = np.sign(err) * np.minimum.reduce(
                 [self.omega_max, np.sqrt(2 * 2.0 * self.omega_max * np.abs(err)), 3.0 * np.abs(err)]
             )
             om = np.where(self.broken, 0.0, om)
             di = self.diffs
-            v = v_new[di] * np.cos(err[di])
+            v = v_new[di] * np.maximum(np.cos(err[di]), 0.0)
             half = 0.5 * self.track[di]
             ctrl[self.act[di, 0]] = v - om[di] * half
             ctrl[self.act[di, 1]] = v + om[di] * half
             ctrl[self.act[di, 2]] = 0.0
-        self.v_cmd = v_new
+        h = self.holonomic
+        if len(h):
+            # Omni and quadcopters: a velocity vector, changed at most a_c per second.
+            want = v_des[h, None] * move_dir[h]
+            hold = paused[h] & ~self.broken[h]
+            want = want + np.where(hold[:, None], 1.5 * hold_err[h], 0.0)
+            dv = want - self.v_vec[h]
+            nrm = np.linalg.norm(dv, axis=1)
+            dv *= np.minimum(1.0, step_a[h] / np.maximum(nrm, 1e-12))[:, None]
+            vec = self.v_vec[h] + dv
+            vec[self.broken[h]] = 0.0
+            self.v_vec[h] = vec
         if len(self.omnis):
             oi = self.omnis
-            vel = v_new[oi, None] * move_dir[oi]
-            vel = vel + np.where(paused[oi, None] & ~self.broken[oi, None], 2.0 * hold_err[oi], 0.0)
+            vel = self.v_vec[oi]
             ctrl[self.act[oi, 0]] = vel[:, 0]
             ctrl[self.act[oi, 1]] = vel[:, 1]
             yaw_o = self.data.qpos[self.qadr[oi, 2]]
@@ -602,10 +633,9 @@ class MujocoPlant:
                 -3.0 * _wrap(yaw_o - self.yaw0[oi]), -self.omega_max[oi], self.omega_max[oi]
             )
         if len(self.quads):
-            # Quadcopters: velocity reference of the attitude loop.
             q = self.quads
-            ref = v_new[q, None] * move_dir[q]
-            self.quad_ref = ref + np.where(paused[q, None], 1.5 * hold_err[q], 0.0)
+            self.quad_ff = (self.v_vec[q] - self.quad_ref) / self.control_period
+            self.quad_ref = self.v_vec[q].copy()
 
     def _quad_control(self) -> None:
         """Quadcopters: velocity -> acceleration -> thrust direction -> attitude
@@ -620,11 +650,12 @@ class MujocoPlant:
         quat = d.qpos[qa[:, None] + np.arange(3, 7)]
         R = _quat_to_mat(quat)
         err = ref - v
-        self.vel_int = np.clip(self.vel_int + err * self.timestep, -2.0, 2.0)
+        # Integral only vertically (payload, thrust loss): no horizontal windup.
+        self.vel_int[:, 2] = np.clip(self.vel_int[:, 2] + err[:, 2] * self.timestep, -2.0, 2.0)
         a_max = self.a_max[q][:, None]
-        acc = 3.0 * err + 1.0 * self.vel_int
+        acc = self.quad_ff + 4.0 * err + 2.0 * self.vel_int
         norm = np.linalg.norm(acc, axis=1, keepdims=True)
-        acc = acc * np.minimum(1.0, 1.5 * a_max / np.maximum(norm, 1e-12))
+        acc = acc * np.minimum(1.0, a_max / np.maximum(norm, 1e-12))
         m_nom = np.array([self.models[i].mass for i in q])[:, None]
         F = m_nom * (acc + np.array([0, 0, 9.81]))
         b3d = F / np.linalg.norm(F, axis=1, keepdims=True)

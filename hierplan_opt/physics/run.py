@@ -191,7 +191,11 @@ def follow(
     (1, 0)
     """
     wall0 = time.perf_counter()
-    p = plant if plant is not None else make_plant(instance, schedule, disturbances, seed=seed, **options)
+    p = (
+        plant
+        if plant is not None
+        else make_plant(instance, schedule, disturbances, seed=seed, **options)
+    )
     K = schedule.num_agents
     gates = Gates(schedule)
     routes = [waypoints_m(schedule, i) for i in range(K)]
@@ -260,9 +264,7 @@ def statistics(
     ``tracking``, ``real_time_factor`` (simulated s per wall s), ``sim_time``, ``wall``."""
     K = len(reach)
     me = plant.measure
-    finished = sum(
-        1 for i in range(K) if len(reach[i]) and not np.isnan(reach[i][-1])
-    )
+    finished = sum(1 for i in range(K) if len(reach[i]) and not np.isnan(reach[i][-1]))
     broken = int(plant.broken.sum())
     arrival = np.array([r[-1] if len(r) else np.nan for r in reach])
     late = [r - pl for r, pl in zip(reach, planned, strict=True)]
