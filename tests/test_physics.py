@@ -9,16 +9,16 @@ import pytest
 
 pytest.importorskip("mujoco")
 
-from hierplan_opt.core.instance import Kinematics  # noqa: E402
-from hierplan_opt.physics.disturbances import (  # noqa: E402
+from hierplan_opt.core.instance import Kinematics
+from hierplan_opt.physics.disturbances import (
     Payload,
     RobotStop,
     Spill,
     WeakMotor,
     Wind,
 )
-from hierplan_opt.physics.models import robot_model  # noqa: E402
-from hierplan_opt.physics.plant import MujocoPlant  # noqa: E402
+from hierplan_opt.physics.models import robot_model
+from hierplan_opt.physics.plant import MujocoPlant
 
 YOUBOT = Kinematics("youbot", drive="omni", v_max=0.8, a_max=1.0, radius=0.35)
 PIONEER = Kinematics(

@@ -22,12 +22,13 @@ position at every control step (:attr:`MujocoPlant.samples`).
 
 from __future__ import annotations
 
+import importlib
 import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
-import mujoco  # heavy module: only hierplan_opt.physics imports it
 import numpy as np
 
 from hierplan_opt.physics.disturbances import (
@@ -48,6 +49,10 @@ from hierplan_opt.physics.models import (
 )
 
 log = logging.getLogger(__name__)
+
+#: MuJoCo (heavy module: only hierplan_opt.physics imports it; compiled bindings
+#: without type information, hence Any).
+mujoco: Any = importlib.import_module("mujoco")
 
 #: Air density (kg/m^3).
 RHO_AIR = 1.2
@@ -245,7 +250,8 @@ class MujocoPlant:
                 f = self.force_max[i]
                 tq = self.torque_max[i]
                 acts.append(
-                    f'<general site="s{i}c" gear="0 0 1 0 0 0" ctrlrange="0 {f}" ctrllimited="true"/>'
+                    f'<general site="s{i}c" gear="0 0 1 0 0 0" ctrlrange="0 {f}" '
+                    'ctrllimited="true"/>'
                 )
                 for ax in ("1 0 0", "0 1 0", "0 0 1"):
                     acts.append(
@@ -414,7 +420,8 @@ class MujocoPlant:
         tt = np.asarray(times, dtype=float).reshape(-1)
         if len(tt) != len(self.routes[robot]):
             raise ValueError(
-                f"robot {robot}: retime with {len(tt)} times for {len(self.routes[robot])} way-points"
+                f"robot {robot}: retime with {len(tt)} times for "
+                f"{len(self.routes[robot])} way-points"
             )
         self.times[robot] = tt
         self._refresh(robot)
