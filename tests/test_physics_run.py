@@ -1,0 +1,110 @@
+"""Schedules run in MuJoCo physics (issue 33): agreement with the schedule, gates,
+measured clearance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("mujoco")
+
+from hierplan_opt.api import solve
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance, Kinematics
+from hierplan_opt.execution.disturbances import Slow, Stop
+from hierplan_opt.physics.run import Gates, follow, scheduled_positions, waypoints_m
+from hierplan_opt.schedule.post import postprocess
+
+YOUBOT = Kinematics("youbot", drive="omni", v_max=0.8, a_max=1.0, radius=0.35)
+PIONEER = Kinematics(
+    "pioneer", drive="differential", v_max=0.6, omega_max=1.5, a_max=0.3, radius=0.3
+)
+CREATE = Kinematics(
+    "create2", drive="differential", v_max=0.5, omega_max=2.0, a_max=0.5, radius=0.17
+)
+QUAD = Kinematics("quad", drive="omni", v_max=1.0, a_max=2.0, radius=0.15)
+
+#: Agreement tolerances (seconds) of a way-point's arrival against the schedule, per
+#: model, without disturbances: at pass-through way-points the schedule's piecewise
+#: constant speeds ask for speed changes beyond a_max (a Pioneer at 0.3 m/s^2 cannot
+#: drop from 0.6 to 0.15 m/s within 0.2 m), so it arrives early there; last way-points
+#: (the goals) within ``GOAL_TOL``.
+AGREEMENT = {"youbot": 0.6, "pioneer": 1.5, "create2": 1.0, "quad": 0.6}
+GOAL_TOL = 0.6
+
+
+def _swap2d(k: Kinematics) -> tuple[Instance, object]:
+    g = Graph.grid(5, 4, obstacles=[(2, 1), (2, 2)])
+    inst = Instance.mapf(
+        g, [(0, 0), (4, 0), (0, 3), (4, 3)], [(4, 3), (0, 3), (4, 0), (0, 0)], kinematics=k
+    )
+    return inst, postprocess(inst, solve(inst, "cbs", time_limit=10).plan)
+
+
+def _swap3d() -> tuple[Instance, object]:
+    g = Graph.grid(3, 3, 3)
+    inst = Instance.mapf(
+        g, [(0, 0, 0), (2, 2, 2), (0, 2, 0)], [(2, 2, 2), (0, 0, 0), (2, 0, 2)], kinematics=QUAD
+    )
+    return inst, postprocess(inst, solve(inst, "cbs", time_limit=10).plan)
+
+
+@pytest.mark.parametrize("k", [YOUBOT, PIONEER, CREATE, QUAD], ids=lambda k: k.robot_type)
+def test_agreement_without_disturbances(k):
+    inst, sched = _swap3d() if k is QUAD else _swap2d(k)
+    run = follow(inst, sched)
+    st = run.statistics
+    assert st["finished"] == inst.num_agents and st["contacts"] == 0
+    assert st["distance_kept"] and st["min_margin"] >= 0
+    tol = AGREEMENT[k.robot_type]
+    for reach, planned in zip(run.reach, run.planned, strict=True):
+        assert not np.isnan(reach).any()
+        assert np.abs(reach - planned).max() <= tol
+        assert abs(reach[-1] - planned[-1]) <= GOAL_TOL
+    assert abs(st["makespan"] - sched.makespan) <= GOAL_TOL
+
+
+def test_gates_hold_a_robot_behind_a_stopped_one():
+    # Two youBots in a corridor, the front one halts for 5 s: the one behind holds at
+    # its gate (the TPG's Type-2 arc), no contact, and it arrives later than planned.
+    g = Graph.grid(7, 1)
+    inst = Instance.mapf(g, [(1, 0), (0, 0)], [(6, 0), (5, 0)], kinematics=YOUBOT)
+    sched = postprocess(inst, solve(inst, "cbs", time_limit=10).plan)
+    calm = follow(inst, sched)
+    names = sched.agent_names
+    run = follow(inst, sched, [Stop(names[0], duration=5.0, at_time=1.0)])
+    st = run.statistics
+    assert st["contacts"] == 0 and st["min_margin"] >= 0
+    assert st["finished"] == 2
+    assert run.reach[1][-1] > calm.reach[1][-1] + 1.0
+    # Without gates the follower would run into the halted robot: the gates did it.
+    assert any(Gates(sched).preds[1])
+
+
+def test_spill_makes_robots_late_and_no_spill_does_not():
+    g = Graph.grid(6, 3)
+    # Robot 0 brakes to its goal on the spill (a robot cruising over it keeps its
+    # speed: it needs no grip for that).
+    inst = Instance.mapf(g, [(0, 1), (0, 0)], [(3, 1), (2, 2)], kinematics=YOUBOT)
+    sched = postprocess(inst, solve(inst, "cbs", time_limit=10).plan)
+    calm = follow(inst, sched)
+    wet = follow(inst, sched, [Slow(0.3, cells=((2, 1), (3, 1)))])
+    late_calm = calm.statistics["lateness_max"]
+    late_wet = wet.statistics["lateness_max"]
+    assert late_calm < 0.6
+    assert late_wet > late_calm + 1.0
+    assert wet.statistics["contacts"] == 0
+
+
+def test_scheduled_positions_and_tracking():
+    inst, sched = _swap2d(YOUBOT)
+    t = np.array([0.0, sched.makespan + 1])
+    pos = scheduled_positions(sched, t)
+    for i in range(inst.num_agents):
+        wp = waypoints_m(sched, i)
+        assert np.allclose(pos[0, i], wp[0]) and np.allclose(pos[1, i], wp[-1])
+    run = follow(inst, sched)
+    st = run.statistics
+    assert 0 < st["tracking_error_rms"] <= st["tracking_error_max"] < 0.5
+    assert st["real_time_factor"] > 0
+    assert set(st["tracking"]) == set(sched.agent_names)
