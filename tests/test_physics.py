@@ -257,3 +257,17 @@ def test_identical_runs_for_identical_seeds():
     a, b, c = run(3), run(3), run(4)
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_mixed_fleet_omni_moves_sideways():
+    # Reproducer: with a differential drive in the world, an omni robot whose heading
+    # differs from its direction of travel was held still (the turn-in-place rule
+    # applied to every robot).
+    models = [robot_model(YOUBOT, 2), robot_model(PIONEER, 2)]
+    p = MujocoPlant(models, np.array([[0.0, 0, 0], [5.0, 0, 0]]))
+    p.assign(0, np.array([[0.0, 1.5, 0]]), np.array([3.0]))
+    p.release(0, 0)
+    for _ in range(50):
+        p.step(0.1)
+    assert p.reached(0) == 0
+    assert abs(p.headings()[0]) < 0.05

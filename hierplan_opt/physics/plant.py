@@ -222,6 +222,9 @@ class MujocoPlant:
         self.v_cmd = np.zeros(n)  # commanded along-path speed (ramp-limited)
         self.turning = np.zeros(n, dtype=bool)
         self.time = 0.0
+        #: Per robot: when each disturbance kind last acted on it (``spill``, ``stop``,
+        #: ``random``, ``breakdown``, ``wind``): the monitor names the cause of a delay.
+        self.causes: list[dict[str, float]] = [{} for _ in range(n)]
         self.measure = Measure()
         self.samples_t: list[float] = []
         self.samples_p: list[np.ndarray] = []
@@ -431,6 +434,7 @@ class MujocoPlant:
 
     def stop(self, robot: int) -> None:
         self.broken[robot] = True
+        self.causes[robot]["breakdown"] = self.time
         self.hold[robot] = self.positions()[robot]
         self._refresh(robot)
 
@@ -520,6 +524,7 @@ class MujocoPlant:
                 for r in self.randoms:
                     if self.stop_rng.random() < r.probability:
                         self.pause_until[i] = self.time + float(r.delays.draw(self.stop_rng))
+                        self.causes[i]["random"] = self.time
                 self._refresh(i)
                 if not self.active[i] or self.time < self.pause_until[i]:
                     break
@@ -539,6 +544,7 @@ class MujocoPlant:
                     self.stop(i)
                 elif t < d.at_time + d.duration:
                     self.pause_until[i] = max(self.pause_until[i], d.at_time + d.duration)
+                    self.causes[i]["stop"] = t
         if self.spills:
             p = self.positions()
             mu = np.full(self.n, MU_FLOOR)
@@ -548,6 +554,8 @@ class MujocoPlant:
                 for x0, y0, x1, y1 in s.boxes:
                     inside = (p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0) & (p[:, 1] <= y1)
                     mu = np.where(inside, np.minimum(mu, s.friction), mu)
+            for i in np.flatnonzero(mu < MU_FLOOR).tolist():
+                self.causes[i]["spill"] = t
             if not np.array_equal(mu, self.mu):
                 self.mu = mu
                 self._set_force_limits()
@@ -563,6 +571,8 @@ class MujocoPlant:
                 f = 0.5 * RHO_AIR * area[:, None] * np.linalg.norm(rel, axis=1)[:, None] * rel
                 f[self.grounds, 2] = 0.0
                 xf[self.body[mask], :3] += f[mask]
+                for i in np.flatnonzero(mask).tolist():
+                    self.causes[i]["wind"] = t
 
     def _control(self) -> None:
         """Ground robots' path following (and the quadcopters' velocity references)."""
@@ -600,11 +610,11 @@ class MujocoPlant:
             start_turn = d & (np.abs(err) > TURN_IN_PLACE) & (speed < 0.05) & ~self.broken
             self.turning = (self.turning | start_turn) & (np.abs(err) > TURN_DONE) & d
             # Moving with a large heading error: brake first.
-            v_des = np.where(self.turning | (np.abs(err) > TURN_IN_PLACE), 0.0, v_des)
+            v_des = np.where(d & (self.turning | (np.abs(err) > TURN_IN_PLACE)), 0.0, v_des)
             # Held: creep onto the held point along the heading (no turning for it).
             heading = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
             creep = np.clip(np.einsum("ij,ij->i", hold_err[:, :2], heading), -0.1, 0.1)
-            v_des = np.where(paused & ~self.broken, creep, v_des)
+            v_des = np.where(d & paused & ~self.broken, creep, v_des)
             v_new = np.clip(v_des, self.v_cmd - step_a, self.v_cmd + step_a)
             v_new = np.where(self.broken, 0.0, v_new)
             self.v_cmd = np.where(d, v_new, self.v_cmd)
@@ -712,6 +722,12 @@ class MujocoPlant:
     def _sample(self) -> None:
         self.samples_t.append(self.time)
         self.samples_p.append(self.positions())
+
+    def cause(self, robot: int, window: float = 20.0) -> str:
+        """The disturbance that acted on ``robot`` last within ``window`` seconds
+        (``""``: none)."""
+        recent = [(t, k) for k, t in self.causes[robot].items() if self.time - t <= window]
+        return max(recent)[1] if recent else ""
 
     @property
     def samples(self) -> tuple[np.ndarray, np.ndarray]:
