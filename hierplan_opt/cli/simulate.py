@@ -24,9 +24,10 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
     p.add_argument(
         "--mode",
-        choices=("agent", "robot"),
+        choices=("agent", "robot", "physics"),
         default="agent",
-        help="agent: constant velocity; robot: bounded acceleration, turning in place",
+        help="agent: constant velocity; robot: bounded acceleration, turning in place; "
+        "physics: robots in MuJoCo (docs/physics.md)",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")

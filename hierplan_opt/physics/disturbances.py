@@ -117,26 +117,27 @@ def from_execution(
     >>> from_execution([Stop("a", at_time=1.0, duration=2.0)], 1.0)
     [RobotStop(agent='a', at_time=1.0, duration=2.0)]
     """
-    from hierplan_opt.execution.disturbances import Breakdown, RandomDelays, Slow, Stop
-
+    # Recognised by their class names: the execution layer drives physics, so physics
+    # does not import it (no import cycle).
     out: list[PhysicalDisturbance] = []
     for d in disturbances:
+        kind = type(d).__name__
         if isinstance(d, (Spill, Payload, WeakMotor, Wind, RobotStop, RandomStops)):
             out.append(d)
-        elif isinstance(d, Slow):
+        elif kind == "Slow":
             boxes = cell_boxes(d.cells, scale)
             for a, b in d.edges:
                 boxes += cell_boxes([a, b], scale)
             out.append(Spill(boxes, friction, float(d.start), float(d.end)))
-        elif isinstance(d, Breakdown):
+        elif kind == "Breakdown":
             out.append(RobotStop(d.agent, float(d.at_time), None))
-        elif isinstance(d, Stop):
+        elif kind == "Stop":
             if d.at_time is None:
                 raise InputError(
                     f"physics: stop of {d.agent!r} at a way-point is not supported (give at_time)"
                 )
             out.append(RobotStop(d.agent, float(d.at_time), float(d.duration)))
-        elif isinstance(d, RandomDelays):
+        elif kind == "RandomDelays":
             out.append(RandomStops(float(d.probability), d, d.seed))
         else:
             raise InputError(f"physics: unknown disturbance {d!r}")

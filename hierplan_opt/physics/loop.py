@@ -85,7 +85,9 @@ class _Phase:
         self.targets = np.asarray(schedule.times, dtype=float) + offset
         self.latest = np.asarray(schedule.latest, dtype=float) + offset
         self.routes = [waypoints_m(schedule, j) for j in range(len(agents))]
-        self.nodes = [np.asarray(schedule.waypoints[j].node, dtype=np.int64) for j in range(len(agents))]
+        self.nodes = [
+            np.asarray(schedule.waypoints[j].node, dtype=np.int64) for j in range(len(agents))
+        ]
         base = [np.asarray(schedule.waypoints[j].arrival, dtype=float) for j in range(len(agents))]
         self.planned = [b + offset for b in base]
         self.reach: list[list[float]] = [[] for _ in agents]
@@ -140,7 +142,11 @@ def closed_loop(
     if policy not in POLICIES:
         raise HierplanError(f"physics closed loop: unknown policy {policy!r} (use {POLICIES})")
     wall0 = time.perf_counter()
-    p = plant if plant is not None else make_plant(instance, schedule, disturbances, seed=seed, **options)
+    p = (
+        plant
+        if plant is not None
+        else make_plant(instance, schedule, disturbances, seed=seed, **options)
+    )
     K = schedule.num_agents
     names = schedule.agent_names
     events: list[LoopEvent] = []
@@ -168,7 +174,11 @@ def closed_loop(
             reach = phase.reach[jj]
             while len(reach) <= rr:
                 reach.append(now)
-                if phase is not None and phase.offset == 0.0 and len(reach) - 1 < len(first_reach[r]):
+                if (
+                    phase is not None
+                    and phase.offset == 0.0
+                    and len(reach) - 1 < len(first_reach[r])
+                ):
                     first_reach[r][len(reach) - 1] = now
         # 2. Breakdowns.
         for r in range(K):
@@ -178,13 +188,25 @@ def closed_loop(
                 if not waiting:
                     log_event(now, r, "breakdown", "slack", 0.0, "no robot waits for it")
                 elif policy != "replan":
-                    log_event(now, r, "breakdown", "none",
-                              0.0, f"{len(waiting)} robots wait for it; re-plan is off")  # fmt: skip
+                    log_event(
+                        now,
+                        r,
+                        "breakdown",
+                        "none",
+                        0.0,
+                        f"{len(waiting)} robots wait for it; re-plan is off",
+                    )
                 elif handover is None:
                     handover = _frontier(phase, p)
                     handover_since = now
-                    log_event(now, r, "breakdown", "replan", 0.0,
-                              f"blocks {', '.join(names[phase.agents[w]] for w in waiting)}")  # fmt: skip
+                    log_event(
+                        now,
+                        r,
+                        "breakdown",
+                        "replan",
+                        0.0,
+                        f"blocks {', '.join(names[phase.agents[w]] for w in waiting)}",
+                    )
         # 3. Hand-over: every working robot at its frontier -> new plan.
         if handover is not None:
             ready = all(
@@ -192,10 +214,19 @@ def closed_loop(
                 for jj, f in handover.items()
             )
             if not ready and now - handover_since > HANDOVER_TIMEOUT:
-                stuck = [names[phase.agents[jj]] for jj, f in handover.items()
-                         if p.reached(phase.agents[jj]) < f and not p.broken[phase.agents[jj]]]  # fmt: skip
-                log_event(now, -1, "replan", "none", 0.0,
-                          f"frontier not reached in {HANDOVER_TIMEOUT:.0f} s: {', '.join(stuck)}")  # fmt: skip
+                stuck = [
+                    names[phase.agents[jj]]
+                    for jj, f in handover.items()
+                    if p.reached(phase.agents[jj]) < f and not p.broken[phase.agents[jj]]
+                ]
+                log_event(
+                    now,
+                    -1,
+                    "replan",
+                    "none",
+                    0.0,
+                    f"frontier not reached in {HANDOVER_TIMEOUT:.0f} s: {', '.join(stuck)}",
+                )
                 handover = None
                 policy = "stn"
             if ready and handover is not None:
@@ -207,8 +238,14 @@ def closed_loop(
                     log_event(now, -1, "replan", "none", 0.0, "re-plan found no plan")
                 else:
                     phase = new
-                    log_event(now, -1, "replan", "replan", 0.0,
-                              f"{len(new.agents)} robots re-planned in {time.perf_counter() - t0:.2f} s")  # fmt: skip
+                    log_event(
+                        now,
+                        -1,
+                        "replan",
+                        "replan",
+                        0.0,
+                        f"{len(new.agents)} robots re-planned in {time.perf_counter() - t0:.2f} s",
+                    )
         # 4. Gates (capped at the frontier during a hand-over).
         for jj, r in enumerate(phase.agents):
             if p.broken[r]:
@@ -221,10 +258,14 @@ def closed_loop(
         # 5. Lateness: slack or STN re-solve.
         if handover is None:
             _lateness(phase, p, now, threshold, policy, counts, log_event)
-        done = all(
-            p.reached(phase.agents[jj]) >= len(phase.routes[jj]) - 1 or p.broken[phase.agents[jj]]
-            for jj in range(len(phase.agents))
-        ) and handover is None
+        done = (
+            all(
+                p.reached(phase.agents[jj]) >= len(phase.routes[jj]) - 1
+                or p.broken[phase.agents[jj]]
+                for jj in range(len(phase.agents))
+            )
+            and handover is None
+        )
         if done:
             break
         p.step(dt)
@@ -250,8 +291,15 @@ def closed_loop(
     return run, events
 
 
-def _lateness(phase: _Phase, p: MujocoPlant, now: float, threshold: float, policy: str,
-              counts: dict[str, int], log_event: Any) -> None:  # fmt: skip
+def _lateness(
+    phase: _Phase,
+    p: MujocoPlant,
+    now: float,
+    threshold: float,
+    policy: str,
+    counts: dict[str, int],
+    log_event: Any,
+) -> None:
     """Slack or STN re-solve for robots late at their next way-point."""
     for jj, r in enumerate(phase.agents):
         if p.broken[r]:
@@ -271,8 +319,14 @@ def _lateness(phase: _Phase, p: MujocoPlant, now: float, threshold: float, polic
             key = (jj, k, "slack")
             if key not in phase.logged:
                 phase.logged.add(key)
-                log_event(now, r, kind, "slack", late,
-                          f"way-point {k}: {late:.2f} s late, slack {slack:.2f} s")  # fmt: skip
+                log_event(
+                    now,
+                    r,
+                    kind,
+                    "slack",
+                    late,
+                    f"way-point {k}: {late:.2f} s late, slack {slack:.2f} s",
+                )
             continue
         # STN re-solve: happened nodes fixed, this one at its predicted time.
         remaining = float(np.linalg.norm(phase.routes[jj][k] - p.positions()[r]))
@@ -282,8 +336,11 @@ def _lateness(phase: _Phase, p: MujocoPlant, now: float, threshold: float, polic
         # physics being no model of them).
         fixed = {v: predicted}
         try:
-            new_t = fix_and_propagate(phase.stn, phase.targets - phase.offset,
-                                      {u: t - phase.offset for u, t in fixed.items()})  # fmt: skip
+            new_t = fix_and_propagate(
+                phase.stn,
+                phase.targets - phase.offset,
+                {u: t - phase.offset for u, t in fixed.items()},
+            )
         except InconsistentSTNError as exc:
             log_event(now, r, kind, "none", late, f"STN inconsistent: {exc}")
             continue
@@ -291,7 +348,9 @@ def _lateness(phase: _Phase, p: MujocoPlant, now: float, threshold: float, polic
         counts["stn_resolves"] += 1
         for j2, r2 in enumerate(phase.agents):
             p.retime(r2, phase.waypoint_times(j2))
-        log_event(now, r, kind, "stn", late, f"way-point {k}: {late:.2f} s late, slack {slack:.2f} s")
+        log_event(
+            now, r, kind, "stn", late, f"way-point {k}: {late:.2f} s late, slack {slack:.2f} s"
+        )
 
 
 def _waits_for(phase: _Phase, r: int, p: MujocoPlant) -> list[int]:
@@ -341,8 +400,15 @@ def _frontier(phase: _Phase, p: MujocoPlant) -> dict[int, int]:
     return {j: front[j] for j in range(n) if not broken[j]}
 
 
-def _replan(instance: Instance, phase: _Phase, p: MujocoPlant, front: dict[int, int],
-            goals_xy: list[np.ndarray], solver: str, time_limit: float) -> _Phase | None:  # fmt: skip
+def _replan(
+    instance: Instance,
+    phase: _Phase,
+    p: MujocoPlant,
+    front: dict[int, int],
+    goals_xy: list[np.ndarray],
+    solver: str,
+    time_limit: float,
+) -> _Phase | None:
     """A new MAPF plan and schedule from the frontier vertices (broken robots'
     footprints blocked), assigned to the plant."""
     from hierplan_opt.api import solve
