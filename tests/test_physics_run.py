@@ -12,7 +12,14 @@ from hierplan_opt.api import solve
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance, Kinematics
 from hierplan_opt.execution.disturbances import Slow, Stop
-from hierplan_opt.physics.run import Gates, follow, scheduled_positions, waypoints_m
+from hierplan_opt.physics.run import (
+    AGREEMENT,
+    GOAL_TOL,
+    Gates,
+    follow,
+    scheduled_positions,
+    waypoints_m,
+)
 from hierplan_opt.schedule.post import postprocess
 
 YOUBOT = Kinematics("youbot", drive="omni", v_max=0.8, a_max=1.0, radius=0.35)
@@ -23,14 +30,6 @@ CREATE = Kinematics(
     "create2", drive="differential", v_max=0.5, omega_max=2.0, a_max=0.5, radius=0.17
 )
 QUAD = Kinematics("quad", drive="omni", v_max=1.0, a_max=2.0, radius=0.15)
-
-#: Agreement tolerances (seconds) of a way-point's arrival against the schedule, per
-#: model, without disturbances: at pass-through way-points the schedule's piecewise
-#: constant speeds ask for speed changes beyond a_max (a Pioneer at 0.3 m/s^2 cannot
-#: drop from 0.6 to 0.15 m/s within 0.2 m), so it arrives early there; last way-points
-#: (the goals) within ``GOAL_TOL``.
-AGREEMENT = {"youbot": 0.6, "pioneer": 1.5, "create2": 1.0, "quad": 0.6}
-GOAL_TOL = 0.6
 
 
 def _swap2d(k: Kinematics) -> tuple[Instance, object]:
