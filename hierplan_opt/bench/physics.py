@@ -77,7 +77,7 @@ def _layers_by_kind(events: list[Any]) -> dict[str, set[str]]:
 
 
 def warehouse(limit: float) -> list[dict[str, Any]]:
-    from hierplan_opt.execution.disturbances import load_disturbances
+    from hierplan_opt.execution.disturbances import Breakdown, Stop, load_disturbances
     from hierplan_opt.io import load_instance
     from hierplan_opt.physics.loop import closed_loop
 
@@ -88,9 +88,17 @@ def warehouse(limit: float) -> list[dict[str, Any]]:
         f"{'replan':>6} {'none':>4} {'RTF':>6}  disturbance -> layer"
     )
     rows = []
+    successor: dict[str, str] = {}
     for part in ("part1", "part2"):
         inst = load_instance(f"{PAPER}/warehouse-{part}.yaml")
         dist = load_disturbances(f"{PAPER}/warehouse-disturbances.yaml")
+        if successor:
+            # Part 2's robots start where part 1's ended: the file's robot names are
+            # carried over to the robot that starts at that robot's part-1 goal.
+            dist = [
+                replace(d, agent=successor[d.agent]) if isinstance(d, (Stop, Breakdown)) else d
+                for d in dist
+            ]
         sched = _plan(inst, "cbm", limit)
         run, events = closed_loop(inst, sched, dist)
         st = run.statistics
@@ -119,6 +127,16 @@ def warehouse(limit: float) -> list[dict[str, Any]]:
             f"disturbance handled by a layer, >= 10x real time): {_ok(target)}"
         )
         rows.append({"part": part, **{k: st[k] for k in ("contacts", "finished")}})
+        if part == "part1":
+            at = {
+                tuple(int(round(c)) for c in sched.waypoints[i].coords[-1]): n
+                for i, n in enumerate(sched.agent_names)
+            }
+            nxt = load_instance(f"{PAPER}/warehouse-part2.yaml")
+            for a in nxt.agents:
+                loc = tuple(int(c) for c in np.atleast_1d(nxt.graph.location(a.start)))
+                if loc in at:
+                    successor[at[loc]] = a.name
     return rows
 
 

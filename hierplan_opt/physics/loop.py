@@ -256,8 +256,9 @@ def closed_loop(
             if g != p.gate[r]:
                 p.release(r, g)
         # 5. Lateness: slack or STN re-solve.
-        if handover is None:
-            _lateness(phase, p, now, threshold, policy, counts, log_event)
+        if handover is None and _lateness(phase, p, now, threshold, policy, counts, log_event):
+            handover = _frontier(phase, p)
+            handover_since = now
         done = (
             all(
                 p.reached(phase.agents[jj]) >= len(phase.routes[jj]) - 1
@@ -299,14 +300,17 @@ def _lateness(
     policy: str,
     counts: dict[str, int],
     log_event: Any,
-) -> None:
-    """Slack or STN re-solve for robots late at their next way-point."""
+) -> bool:
+    """Slack or STN re-solve for robots late at their next way-point; True: the STN
+    became inconsistent and the re-plan layer is to take over."""
     for jj, r in enumerate(phase.agents):
         if p.broken[r]:
             continue
         k = p.reached(r) + 1
-        if k >= len(phase.routes[jj]) or p.gate[r] < k:
-            continue  # done, or waiting at a gate (the TPG's own waiting)
+        if k == 0 or k >= len(phase.routes[jj]) or p.gate[r] < k:
+            # Not at its start yet (a start node is fixed at the phase's start), done,
+            # or waiting at a gate (the TPG's own waiting).
+            continue
         v = int(phase.nodes[jj][k])
         if v < 0:
             continue
@@ -342,6 +346,9 @@ def _lateness(
                 {u: t - phase.offset for u, t in fixed.items()},
             )
         except InconsistentSTNError as exc:
+            if policy == "replan":
+                log_event(now, r, kind, "replan", late, f"STN inconsistent: {exc}")
+                return True
             log_event(now, r, kind, "none", late, f"STN inconsistent: {exc}")
             continue
         phase.targets = new_t + phase.offset
@@ -351,6 +358,7 @@ def _lateness(
         log_event(
             now, r, kind, "stn", late, f"way-point {k}: {late:.2f} s late, slack {slack:.2f} s"
         )
+    return False
 
 
 def _waits_for(phase: _Phase, r: int, p: MujocoPlant) -> list[int]:
