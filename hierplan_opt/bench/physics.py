@@ -217,17 +217,27 @@ def spill(limit: float) -> None:
         d for d in load_disturbances(f"{PAPER}/warehouse-disturbances.yaml") if isinstance(d, Slow)
     ]
     sched = _plan(inst, "cbm", limit)
+    runs = {}
     for label, dist in (("spill", spills), ("no spill", [])):
         run, events = closed_loop(inst, sched, dist)
+        runs[label] = run
         st = run.statistics
         wet = [e for e in events if e.kind == "spill"]
-        late = sorted({e.agent for e in wet})
         layers = sorted({e.layer for e in wet})
         print(
-            f"{label:9} spill events {len(wet):>3} (robots {', '.join(late) or '-'}; layers "
-            f"{', '.join(layers) or '-'}), latest way-point {st['lateness_max']:.2f} s late, "
-            f"makespan {st['makespan']:.2f} s, contacts {st['contacts']}"
+            f"{label:9} spill events {len(wet):>3} (layers {', '.join(layers) or '-'}), robots "
+            f"on the spill: {', '.join(n for n, c in st['disturbed'].items() if 'spill' in c) or '-'}"
+            f", makespan {st['makespan']:.2f} s, contacts {st['contacts']}"
         )
+    wet_robots = [n for n, c in runs["spill"].statistics["disturbed"].items() if "spill" in c]
+    print(f"{'robot':10} {'latest wp (spill)':>17} {'(dry)':>6} {'goal (spill)':>12} {'(dry)':>6}")
+    for n in wet_robots:
+        i = runs["spill"].names.index(n)
+        w, d = runs["spill"], runs["no spill"]
+        lw = float(np.nanmax(w.reach[i] - w.planned[i]))
+        ld = float(np.nanmax(d.reach[i] - d.planned[i]))
+        a, b = float(w.reach[i][-1]), float(d.reach[i][-1])
+        print(f"{n:10} {lw:>17.2f} {ld:>6.2f} {a:>12.2f} {b:>6.2f}")
 
 
 def agreement() -> None:

@@ -739,7 +739,7 @@ class MujocoPlant:
         self.samples_t.append(self.time)
         self.samples_p.append(self.positions())
 
-    def cause(self, robot: int, window: float = 20.0) -> str:
+    def cause(self, robot: int, window: float = 5.0) -> str:
         """The disturbance that acted on ``robot`` last within ``window`` seconds
         (``""``: none)."""
         recent = [(t, k) for k, t in self.causes[robot].items() if self.time - t <= window]

@@ -270,7 +270,8 @@ def statistics(
     schedule's), ``finished`` / ``unfinished`` robots (broken ones excepted: ``broken``),
     ``makespan`` (last arrival), ``lateness_max`` (latest way-point against the
     schedule), ``tracking_error_max`` / ``tracking_error_rms`` and per robot
-    ``tracking``, ``real_time_factor`` (simulated s per wall s), ``sim_time``, ``wall``."""
+    ``tracking``, ``real_time_factor`` (simulated s per wall s), ``sim_time``, ``wall``,
+    ``disturbed`` (robot -> the disturbance kinds that acted on it)."""
     K = len(reach)
     me = plant.measure
     finished = sum(1 for i in range(K) if len(reach[i]) and not np.isnan(reach[i][-1]))
@@ -310,6 +311,7 @@ def statistics(
         "wall": float(wall),
         "real_time_factor": sim / wall if wall > 0 else math.inf,
         "physics_steps": int(me.steps),
+        "disturbed": {plant.names[i]: sorted(plant.causes[i]) for i in range(K) if plant.causes[i]},
     }
 
 
