@@ -224,9 +224,10 @@ def spill(limit: float) -> None:
         st = run.statistics
         wet = [e for e in events if e.kind == "spill"]
         layers = sorted({e.layer for e in wet})
+        on = [n for n, c in st["disturbed"].items() if "spill" in c]
         print(
             f"{label:9} spill events {len(wet):>3} (layers {', '.join(layers) or '-'}), robots "
-            f"on the spill: {', '.join(n for n, c in st['disturbed'].items() if 'spill' in c) or '-'}"
+            f"on the spill: {', '.join(on) or '-'}"
             f", makespan {st['makespan']:.2f} s, contacts {st['contacts']}"
         )
     wet_robots = [n for n, c in runs["spill"].statistics["disturbed"].items() if "spill" in c]
