@@ -274,9 +274,14 @@ def closed_loop(
     # Arrival at the goal: the last way-point of the robot's last phase.
     reach = [fr.copy() for fr in first_reach]
     for jj, r in enumerate(phase.agents):
-        if phase.offset > 0 and len(phase.reach[jj]) >= len(phase.routes[jj]):
+        if phase.offset == 0:
+            break
+        stayed = bool(np.all(np.linalg.norm(phase.routes[jj] - goals_xy[r], axis=1) < 1e-6))
+        if stayed and not np.isnan(first_reach[r][-1]):
+            continue  # at its goal before the re-plan and kept there
+        if len(phase.reach[jj]) >= len(phase.routes[jj]):
             reach[r][-1] = phase.reach[jj][-1]
-        elif phase.offset > 0:
+        else:
             reach[r][-1] = np.nan
     planned = [np.asarray(schedule.waypoints[j].arrival, dtype=float) for j in range(K)]
     st_t, st_p = p.samples
@@ -379,8 +384,9 @@ def _waits_for(phase: _Phase, r: int, p: MujocoPlant) -> list[int]:
 
 
 def _frontier(phase: _Phase, p: MujocoPlant) -> dict[int, int]:
-    """Per working phase robot: the last vertex way-point it can reach with the broken
-    robots never moving again, closed under the gates (a fixpoint)."""
+    """Per working phase robot: the next vertex way-point ahead that it can reach with
+    the broken robots never moving again, closed under the gates (a fixpoint: a robot's
+    frontier never needs another robot's way-point beyond that one's frontier)."""
     n = len(phase.agents)
     reached = [p.reached(r) for r in phase.agents]
     broken = [bool(p.broken[r]) for r in phase.agents]
@@ -398,9 +404,9 @@ def _frontier(phase: _Phase, p: MujocoPlant) -> dict[int, int]:
                 if any(idx > front[rr] for rr, idx, _lb in phase.gates.preds[j][k]):
                     lim = k - 1
                     break
-            f = lim
-            while f > max(reached[j], 0) and kinds[j][f] != "vertex":
-                f -= 1
+            # The next vertex ahead (the robots stop soon and the re-plan starts early),
+            # else as far as it may go.
+            f = next((k for k in range(reached[j] + 1, lim + 1) if kinds[j][k] == "vertex"), lim)
             f = max(f, reached[j])
             if lim != limit[j] or f != front[j]:
                 limit[j], front[j] = lim, f
