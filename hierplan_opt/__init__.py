@@ -25,6 +25,8 @@ from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import Violation, validate
 
 if TYPE_CHECKING:  # the lazily loaded names below, for type checkers and readers
+    from hierplan_opt.execution import simulate
+    from hierplan_opt.execution.pipeline import run
     from hierplan_opt.formulations.verify import verify
     from hierplan_opt.io import load_instance, load_plan, save_instance, save_plan
     from hierplan_opt.schedule import Schedule, postprocess
@@ -44,6 +46,8 @@ _LAZY = {
     "refine": "hierplan_opt.trajectory",
     "Trajectories": "hierplan_opt.trajectory",
     "verify": "hierplan_opt.formulations.verify",
+    "run": "hierplan_opt.execution.pipeline",
+    "simulate": "hierplan_opt.execution",
 }
 
 
@@ -77,4 +81,6 @@ __all__ = [
     "postprocess",
     "Schedule",
     "verify",
+    "run",
+    "simulate",
 ]

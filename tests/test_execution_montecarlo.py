@@ -95,11 +95,15 @@ def test_monte_carlo_in_robot_mode(crossing):
     s = postprocess(inst, solve(inst, "cbs", time_limit=30).plan)
     delays = [RandomDelays(0.3, "constant", 1.0)]
     agent = monte_carlo(inst, s, delays, runs=8, workers=1, progress=False)
-    robot = monte_carlo(inst, s, delays, runs=8, workers=1, progress=False, mode="robot")
-    assert robot.collisions == 0 and all(st["mode"] == "robot" for st in robot.runs_stats)
+    robot = monte_carlo(inst, s, delays, runs=8, workers=1, progress=False, mode="replay")
+    assert robot.collisions == 0 and all(st["mode"] == "replay" for st in robot.runs_stats)
     assert all(st["acceleration_violations"] == 0 for st in robot.runs_stats)
     # Accelerating and taking corners at rest costs time: the robots are later.
     assert np.nanmean(robot.samples) > np.nanmean(agent.samples)
+    # Closed loop (its own delays, fed back into the layers): safe and within a_max.
+    loop = monte_carlo(inst, s, delays, runs=8, workers=1, progress=False, mode="robot")
+    assert loop.collisions == 0 and all(st["loop"] == "closed" for st in loop.runs_stats)
+    assert all(st["acceleration_violations"] == 0 for st in loop.runs_stats)
     assert robot.makespans.mean() > agent.makespans.mean()
 
 

@@ -58,9 +58,10 @@ def test_plain_tpg_structure() -> None:
     assert tpg.regime == "none"
     # Waits merged: agent1 has 3 nodes, not 4.
     assert tpg.agent_ptr.tolist() == [0, 3, 6]
-    # agent1 may enter (1, 1) once agent0 has left it.
-    assert type2(tpg) == [("agent0 at (1, 1)", "agent1 at (1, 1)")]
-    assert tpg.type2_predecessors(4).tolist() == [1]
+    # agent1 may enter (1, 1) once agent0 has left it: reached its next vertex (issue
+    # 30: the arc came from agent0's arrival at (1, 1), so both could be there at once).
+    assert type2(tpg) == [("agent0 at (2, 1)", "agent1 at (1, 1)")]
+    assert tpg.type2_predecessors(4).tolist() == [2]
 
 
 def test_markers_follow_the_radii() -> None:
@@ -100,24 +101,27 @@ def test_first_later_visit_suffices() -> None:
     )
     assert validate(inst, plan) == []
     assert type2(build_tpg(inst, plan)) == [
-        ("agent0 at (1, 0)", "agent2 at (1, 0)"),
-        ("agent0 at (2, 0)", "agent2 at (2, 0)"),
-        ("agent2 at (1, 1)", "agent1 at (1, 1)"),
+        ("agent0 at (2, 0)", "agent2 at (1, 0)"),
+        ("agent0 at (3, 0)", "agent2 at (2, 0)"),
+        ("agent2 at (1, 0)", "agent1 at (1, 1)"),
     ]
 
 
 # ---------------------------------------------------------------------- hand-computed
 def test_point_robots_enter_once_the_cell_is_left() -> None:
     inst, plan = plus_instance()
-    s = postprocess(inst, plan)
-    # agent0 at full speed: 0, 1, 2; it leaves (1, 1) at t = 1, so agent1 (creeping
-    # from (1, 0) since t = 0) may arrive there at 1: point robots may touch.
+    s = postprocess(inst, plan, margin=0)
+    # agent0 at full speed: 0, 1, 2; it has left (1, 1) once it reaches (2, 1) at
+    # t = 2, so agent1 (creeping from (1, 0) since t = 0) may arrive there at 2 (issue
+    # 30: it arrived at 1, when agent0 was still there).
     assert s.arrival_times("agent0").tolist() == [0.0, 1.0, 2.0]
-    assert s.arrival_times("agent1").tolist() == [0.0, 1.0, 2.0]
+    assert s.arrival_times("agent1").tolist() == [0.0, 2.0, 3.0]
     assert s.safety_distance == 0.0
+    rep = replay(s, inst, all_pairs=True)
+    assert rep.ok and rep.min_distance == pytest.approx(math.sqrt(0.2))  # at t = 1.2
     # A precedence lag epsilon keeps them apart in time.
-    s = postprocess(inst, plan, epsilon=0.5)
-    assert s.arrival_times("agent1").tolist() == [0.0, 1.5, 2.5]
+    s = postprocess(inst, plan, epsilon=0.5, margin=0)
+    assert s.arrival_times("agent1").tolist() == [0.0, 2.5, 3.5]
 
 
 def test_markers_schedule_by_hand() -> None:
@@ -171,7 +175,7 @@ def test_roadmap_lengths() -> None:
     )
     inst = Instance.mapf(g, ["A", "C"], ["D", "B"])
     plan = Plan.from_paths([[0, 1, 3], [2, 2, 2, 1]])  # C waits until A's robot left B
-    s = postprocess(inst, plan)
+    s = postprocess(inst, plan, margin=0)
     assert s.arrival_times("agent0").tolist() == [0.0, 5.0, 8.0]  # 5 m + 3 m at 1 m/s
     # agent1's edge is declared 10 long (longer than the 4 m segment: allowed).
     assert s.arrival_times("agent1").tolist() == [0.0, 10.0]
@@ -210,15 +214,17 @@ def test_a_turning_robot_leaves_after_its_turn() -> None:
     kin = [Kinematics("p", drive="differential", v_max=1.0, omega_max=math.pi / 4), Kinematics()]
     inst = Instance.mapf(g, [(1, 1), (1, 0)], [(1, 2), (1, 1)], kinematics=kin)
     plan = Plan.from_paths([[v((1, 1)), v((1, 2))], [v((1, 0)), v((1, 0)), v((1, 1))]])
-    s = postprocess(inst, plan)
+    s = postprocess(inst, plan, margin=0)
     assert s.arrival_times("agent1").tolist() == [0.0, 1.0]  # agent0 starts facing north
     s2 = postprocess(
         Instance.mapf(g, [(0, 1), (1, 0)], [(1, 2), (1, 1)], kinematics=kin),
         Plan.from_paths([[v((0, 1)), v((1, 1)), v((1, 2))], [v((1, 0)), v((1, 0)), v((1, 1))]]),
+        margin=0,
     )
-    # agent0: (1,1)@1, turns until 3, (1,2)@4; agent1 enters (1,1) at 3.
+    # agent0: (1,1)@1, turns until 3, (1,2)@4: it has left (1, 1) at 4, when agent1
+    # may arrive there.
     assert s2.arrival_times("agent0").tolist() == [0.0, 1.0, 3.0, 4.0]
-    assert s2.arrival_times("agent1").tolist() == [0.0, 3.0]
+    assert s2.arrival_times("agent1").tolist() == [0.0, 4.0]
 
 
 def test_u_turn_costs_pi() -> None:
@@ -431,12 +437,18 @@ def rotation() -> tuple[Instance, Plan]:
     return inst, plan
 
 
-def test_rotation_of_point_robots() -> None:
+def test_rotation_of_point_robots_refused() -> None:
     # Issue 9 item 4: the 2x2 four-robot rotation (what cbs, ecbs and cpsat return).
+    # Issue 30: each robot may arrive only once the one ahead has left (arrived at its
+    # next vertex), so around the ring each waits for the next: refused in one line,
+    # with margin 0 too (before, the schedule let a robot arrive while the one ahead
+    # was still there whenever that one was delayed).
     inst, plan = rotation()
-    s = postprocess(inst, plan)
-    assert s.makespan == 1.0
-    assert replay(s, inst, all_pairs=True).min_distance == pytest.approx(math.sqrt(0.5))
+    for margin in (0.0, None):
+        with pytest.raises(ClearanceError) as info:
+            postprocess(inst, plan, margin=margin)
+        msg = str(info.value)
+        assert "rotate" in msg and len(msg.splitlines()) == 1
 
 
 def test_rotation_needs_zero_clearance() -> None:

@@ -50,7 +50,12 @@ def test_round_trip(tmp_path: Path, ext: str) -> None:
 def test_yaml_layout(tmp_path: Path) -> None:
     s = plus_schedule(margin=0.25)
     data = yaml.safe_load(write_schedule(s, tmp_path / "s.yaml").read_text())
-    assert list(data) == ["statistics", "schedule"]
+    # Issue 30: the file carries what it came from (settings and the discrete plan).
+    assert list(data) == ["statistics", "settings", "plan", "schedule"]
+    assert data["plan"] == {"agent0": [[0, 1, 0], [1, 1, 1], [2, 1, 2]],
+                            "agent1": [[1, 0, 0], [1, 1, 2], [1, 2, 3]]}  # fmt: skip
+    assert data["settings"]["margin"] == 0.25 and data["settings"]["objective"] == "makespan"
+    assert set(data["settings"]["radii"]) == {"agent0", "agent1"}
     assert list(data["schedule"]) == ["agent0", "agent1"]
     assert list(data["schedule"]["agent0"][0]) == ["x", "y", "theta", "arrival"]
     for key in ("makespan", "safety_distance", "objective", "method", "tpg_nodes", "stn_arcs"):
@@ -192,7 +197,11 @@ def test_cli_post_refuses_a_rotation_with_clearance(
     assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert "robots of type r 0.4 m apart" in err and "cells of 1 m" in err and "rotate" in err
     assert not out.exists()
-    assert main([*args, "--no-clearance", "--out", str(out)]) == 0  # point robots: fine
+    # Issue 30: without clearance a robot still enters a cell only once the previous
+    # one has left it, which a rotation cannot do: refused too, in one line.
+    assert main([*args, "--no-clearance", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "rotate" in err and len(err.strip().splitlines()) == 1 and not out.exists()
 
 
 @pytest.mark.parametrize(

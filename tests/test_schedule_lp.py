@@ -122,17 +122,18 @@ def test_clearance_holds_in_replay(case: int) -> None:
 
 def test_replay_sees_the_closest_approach() -> None:
     # Two point robots meet at the centre of the plus map. agent1's wait is merged, so
-    # it creeps from (1, 0) at t = 0 to (1, 1) at t = 2 (agent0 leaves (1, 1) at t = 1,
-    # plus a lag epsilon = 1): it is at (1, t / 2). agent0 is at (t, 1) for t in [0, 2].
-    # Their squared distance (t - 1)^2 + (1 - t / 2)^2 is minimal at t = 1.2: sqrt(0.2).
+    # it creeps from (1, 0) at t = 0 to (1, 1) at t = 3 (agent0 has left (1, 1) when it
+    # reaches (2, 1) at t = 2, plus a lag epsilon = 1): it is at (1, t / 3). agent0 is
+    # at (t, 1) for t in [0, 2]. Their squared distance (t - 1)^2 + (1 - t / 3)^2 is
+    # minimal at t = 1.2: sqrt(0.4).
     g = Graph.grid(3, 3, obstacles=[(0, 0), (2, 0), (0, 2), (2, 2)])
     v = g.vertex
     inst = Instance.mapf(g, [(0, 1), (1, 0)], [(2, 1), (1, 1)])
     plan = Plan.from_paths([[v((0, 1)), v((1, 1)), v((2, 1))], [v((1, 0)), v((1, 0)), v((1, 1))]])
-    s = postprocess(inst, plan, epsilon=1.0)
+    s = postprocess(inst, plan, epsilon=1.0, margin=0)
     rep = replay(s)
-    assert s.arrival_times("agent1").tolist() == [0.0, 2.0]
-    assert rep.min_distance == pytest.approx(math.sqrt(0.2))
+    assert s.arrival_times("agent1").tolist() == [0.0, 3.0]
+    assert rep.min_distance == pytest.approx(math.sqrt(0.4))
     assert rep.time == pytest.approx(1.2)
     assert rep.agents == ("agent0", "agent1")
 

@@ -20,6 +20,11 @@ Three tables:
 5. **Delay-aware re-plan** (warehouse, random delays p = 0.2 of 1 s): the lowest on-time
    probability before and after ``monte_carlo(..., replan_below=0.9)``, the rounds and
    the planned makespans.
+6. **Re-plan layer against its MAPF solve** (MovingAI warehouse, 50 robots, point
+   robots and robots of radius 0.3; per seed three breakdowns, a stop and random
+   delays): for each re-plan the whole layer's time (frontier, solve, MAPF-POST,
+   hand-over) beside the solve's own time. Target: layer <= 2x solve and < 2 s.
+   ``--replan-only`` prints this table alone.
 
 Figures are medians over ``--repeats``; plans are made once per robot count.
 """
@@ -139,6 +144,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--w", type=float, default=1.5, help="ECBS suboptimality bound")
     ap.add_argument("--rates", default="0.05,0.1,0.2", help="delay probabilities of table 3")
     ap.add_argument("--layer-runs", type=int, default=50)
+    ap.add_argument("--replan-agents", type=int, default=50, help="robots of table 6")
+    ap.add_argument("--replan-seeds", type=int, default=4, help="seeds of table 6")
+    ap.add_argument("--replan-only", action="store_true", help="table 6 alone")
     args = ap.parse_args(argv)
     limit = time_limit(args.time_limit, False, full=120.0)
     if args.quick:
@@ -156,6 +164,10 @@ def main(argv: list[str] | None = None) -> int:
     graph = load_map(str(map_path))
     scen = str(scen_path)
     cache: dict[int, tuple] = {}
+    if args.replan_only:
+        inst = load_scen(scen, graph, agents=args.replan_agents)
+        replan_rows(inst, args.replan_seeds, limit)
+        return 0
 
     def setup(k: int) -> tuple:
         if k not in cache:
@@ -253,7 +265,64 @@ def main(argv: list[str] | None = None) -> int:
             f"{'after':>6} {new.result.on_time.min():>11.2f} {low:>6} "
             f"{new.schedule.makespan:>15.2f}s {new.rounds:>6}"
         )
+    inst = load_scen(scen, graph, agents=args.replan_agents)
+    replan_rows(inst, 2 if args.quick else args.replan_seeds, limit)
     return 0
+
+
+def replan_rows(instance: Instance, seeds: int, time_limit: float) -> list[dict]:
+    """Table 6: each re-plan's whole layer time beside its MAPF solve's own time."""
+    import dataclasses
+
+    from hierplan_opt.core.instance import Kinematics
+    from hierplan_opt.execution import Breakdown, RandomDelays, Stop, simulate
+    from hierplan_opt.execution.chain import plan_and_post
+
+    K = instance.num_agents
+    _say(
+        f"\n6. Re-plan layer against its MAPF solve ({instance.name}, {K} robots; per seed "
+        "3 breakdowns, a stop, random delays p=0.1 exp. mean 2 s; one warm process)"
+    )
+    _say(
+        f"{'radius':>6} {'seed':>4} {'t':>6} {'robots':>6} {'solver':>6} {'frontier':>9} "
+        f"{'solve s':>8} {'post s':>7} {'hand-over':>9} {'layer s':>8} {'layer/solve':>11} "
+        f"{'target':>6}"
+    )
+    rows = []
+    for radius in (0.0, 0.3):
+        kin = Kinematics(radius=radius)
+        inst = dataclasses.replace(
+            instance,
+            agents=tuple(dataclasses.replace(a, kinematics=kin) for a in instance.agents),
+        )
+        planned = plan_and_post(inst, "ecbs", time_limit=time_limit)
+        if planned.schedule is None:
+            _say(f"{radius:>6} {planned.why}")
+            continue
+        sched = planned.schedule
+        names = [a.name for a in inst.agents]
+        for seed in range(seeds):
+            rng = np.random.default_rng(seed)
+            who = rng.choice(K, size=4, replace=False)
+            dist = [
+                RandomDelays(0.1, "exponential", 2.0, seed=seed),
+                Stop(names[int(who[0])], 10.0, at_time=3.0),
+                Breakdown(names[int(who[1])], at_time=5.0),
+                Breakdown(names[int(who[2])], at_time=8.0),
+                Breakdown(names[int(who[3])], at_time=15.0),
+            ]
+            ex = simulate(inst, sched, disturbances=dist, seed=seed)
+            for r in ex.statistics["replan_runtime"]:
+                ratio = r["layer"] / max(r["solve"], 1e-9)
+                ok = r["layer"] <= 2 * r["solve"] and r["layer"] < 2.0
+                _say(
+                    f"{radius:>6g} {seed:>4} {r['time']:>6.1f} {r['robots']:>6} "
+                    f"{r['solver']:>6} {r['frontier'] * 1e3:>7.1f}ms {r['solve']:>8.3f} "
+                    f"{r['post']:>7.3f} {r['handover']:>9.3f} {r['layer']:>8.3f} "
+                    f"{ratio:>10.2f}x {'ok' if ok else 'MISS':>6}"
+                )
+                rows.append({"radius": radius, "seed": seed, **r})
+    return rows
 
 
 def robot_rows(instance: Instance, schedule, seeds: int) -> None:

@@ -26,6 +26,8 @@ PLAN_INVALID = 1
 BAD_INPUT = 2
 INFEASIBLE = 3
 LIMIT = 4
+#: An execution (``simulate``/``run``) left a working robot away from its goal.
+NOT_ARRIVED = 5
 INTERNAL = 70  # EX_SOFTWARE: a bug in hierplan, never a user error
 
 

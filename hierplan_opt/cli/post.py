@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 
 from hierplan_opt.cli.common import (
@@ -55,7 +56,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--margin",
         type=_metres,
         default=None,
-        help="extra clearance in metres: robots i, j keep r_i + r_j + margin apart (default 0)",
+        help="extra clearance in metres: robots i, j keep r_i + r_j + margin apart "
+        "(default: 0.1 x the shortest edge when two or more robots are points of radius 0, "
+        "else 0)",
     )
     p.add_argument("--delta", type=_metres, default=None, help=argparse.SUPPRESS)  # old name
     p.add_argument(
@@ -86,7 +89,7 @@ def _clearance(schedule) -> str:
 def run(args: argparse.Namespace) -> int:
     from hierplan_opt.cli.common import check_outputs, load_instance_from_args
     from hierplan_opt.core.errors import InputError
-    from hierplan_opt.io import load_plan
+    from hierplan_opt.io import read_plan
     from hierplan_opt.schedule import postprocess, replay, to_dot, write_schedule
     from hierplan_opt.schedule.output import FORMATS
     from hierplan_opt.schedule.replay import check_bounds
@@ -98,11 +101,11 @@ def run(args: argparse.Namespace) -> int:
         ("--gantt", args.gantt, FIGURE_SUFFIXES),
     )
     instance = load_instance_from_args(args)
-    plan = load_plan(args.plan, instance)
+    plan, plan_stats = read_plan(args.plan, instance)
     method = args.method or ("graph" if args.objective == "makespan" else "lp")
     if args.margin is not None and args.delta is not None:
         raise InputError("give --margin or its old name --delta, not both")
-    margin = args.margin if args.margin is not None else (args.delta or 0.0)
+    margin = args.margin if args.margin is not None else args.delta  # None: default
     with progress_of(args, f"post {method}"):
         schedule = postprocess(
             instance,
@@ -114,6 +117,9 @@ def run(args: argparse.Namespace) -> int:
             acceleration=not args.no_acceleration,
             lp_backend=args.lp_backend,
         )
+    solver = plan_stats.get("solver") or plan_stats.get("algorithm")
+    if isinstance(solver, str) and solver:
+        schedule = dataclasses.replace(schedule, settings={**schedule.settings, "solver": solver})
     write_schedule(schedule, args.out)
     if args.dot:
         assert schedule.stn is not None
@@ -139,7 +145,8 @@ def run(args: argparse.Namespace) -> int:
         gap = f"{rep.worst_gap:+.4g} m" if math.isfinite(rep.worst_gap) else "none close"
         line += (
             f"; replay min distance {rep.min_distance:.4g} m, worst pair vs required {gap} "
-            f"({'ok' if ok else 'FAILED'})"
+            f"(margin {schedule.margin:.4g} m), {rep.violations} pairs too close or on one "
+            f"point ({'ok' if ok else 'FAILED'})"
         )
         if bad:
             line += f"; bound violated: {bad[0]}"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hierplan_opt.cli.common import INFEASIBLE, LIMIT, add_instance_arguments, positive_float
-from hierplan_opt.cli.simulate import add_execution_arguments, check_execution_outputs, execute
+from hierplan_opt.cli.simulate import add_execution_arguments, check_execution_outputs
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
 
@@ -31,7 +31,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default="makespan",
         help="MAPF-POST objective (default makespan; safety/flowtime use the LP)",
     )
-    p.add_argument("--margin", type=float, default=0.0, help="extra clearance in metres")
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=None,
+        help="extra clearance in metres (default: MAPF-POST's, 0.1 x the shortest edge "
+        "for point robots, else 0)",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a planner option (repeatable), as in `hierplan solve --set`",
+    )
     p.add_argument(
         "--refine",
         action="store_true",
@@ -43,24 +56,48 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import hierplan_opt as hp
+    from hierplan_opt import registry
     from hierplan_opt.cli.common import load_instance_from_args
-    from hierplan_opt.schedule import postprocess
+    from hierplan_opt.cli.simulate import check_monte_carlo, disturbances_of, report_execution
+    from hierplan_opt.core.options import parse_pairs
 
     check_execution_outputs(args)
+    check_monte_carlo(args)
+    options = registry.get(args.solver).load().options.parse(parse_pairs(args.set), args.solver)
     instance = load_instance_from_args(args)
-    res = hp.solve(instance, args.solver, time_limit=args.time_limit, objective=args.objective)
+    dist = disturbances_of(args, instance)
+    infeasible: type[Exception] = _Never
+    if args.refine:
+        from hierplan_opt.trajectory import InfeasibleWindowsError  # heavy module (CasADi)
+
+        infeasible = InfeasibleWindowsError
+    try:
+        out = hp.run(
+            instance,
+            args.solver,
+            post=args.post_objective,
+            disturbances=dist,
+            policy=args.policy,
+            mode=args.mode,
+            time_limit=args.time_limit,
+            objective=args.objective,
+            margin=args.margin,
+            refine=args.refine,
+            seed=args.seed,
+            replan_solver=args.replan_solver or "auto",
+            solver_options=options,
+        )
+    except infeasible as exc:
+        print(f"refinement: infeasible: {exc}")
+        return INFEASIBLE
+    res = out.result
     if res.plan is None:
-        print(f"planning: {res.solver} found no plan ({res.status}) in {res.runtime:.3g} s")
+        print(f"planning: {res.solver} found no plan ({res.status.value}) in {res.runtime:.3g} s")
         return INFEASIBLE if res.status.value == "INFEASIBLE" else LIMIT
-    method = "graph" if args.post_objective == "makespan" else "lp"
-    schedule = postprocess(
-        instance,
-        res.plan,
-        args.post_objective,
-        margin=args.margin,
-        method=method,
-        check_plan=False,
-    )
+    schedule = out.schedule
+    if schedule is None or out.execution is None:
+        print(f"MAPF-POST: {out.why}")
+        return INFEASIBLE
     clear = ", ".join(
         f"{a}/{b} {c.required:.3g} m" for c in schedule.clearance for a, b in [c.types]
     )
@@ -70,18 +107,17 @@ def run(args: argparse.Namespace) -> int:
         f"MAPF-POST ({args.post_objective}): makespan {schedule.makespan:.4g} s, clearance "
         f"{clear or 'none'}, {schedule.stats['tpg_nodes']} TPG nodes"
     )
-    traj = None
-    if args.refine:
-        from hierplan_opt.trajectory import InfeasibleWindowsError, refine
-
-        try:
-            traj = refine(instance, schedule, stretch="auto")
-        except InfeasibleWindowsError as exc:
-            print(f"refinement: infeasible: {exc}")
-            return INFEASIBLE
+    traj = out.trajectories
+    if traj is not None:
         title += (
             f"\nrefined ({traj.mode} mode): makespan {traj.makespan:.4g} s, stretch "
             f"{traj.stretch:.4g}, guaranteed distance {traj.safety_distance:.3g} m, "
             f"{traj.stats.get('total_time', 0.0):.2f} s"
         )
-    return execute(args, instance, schedule, title, traj, plan_solver=args.solver)
+    return report_execution(
+        args, instance, schedule, out.execution, title, dist, traj, plan_solver=args.solver
+    )
+
+
+class _Never(Exception):
+    """Never raised (stands in for the refinement's error when there is no refinement)."""

@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from hierplan_opt.cli.common import OK, PLAN_INVALID, add_instance_arguments, fraction, positive_int
+from hierplan_opt.cli.common import (
+    NOT_ARRIVED,
+    OK,
+    PLAN_INVALID,
+    add_instance_arguments,
+    fraction,
+    positive_int,
+)
 
 HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
 
@@ -24,10 +31,12 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
     p.add_argument(
         "--mode",
-        choices=("agent", "robot", "physics"),
+        choices=("agent", "robot", "replay", "physics"),
         default="agent",
-        help="agent: constant velocity; robot: bounded acceleration, turning in place; "
-        "physics: robots in MuJoCo (docs/physics.md)",
+        help="agent: constant velocity; robot: closed loop over kinematic robots (bounded "
+        "acceleration, turning in place; their delays feed back into the layers); replay: "
+        "the same dynamics open loop on the agent run's event times; physics: the same "
+        "closed loop over robots in MuJoCo (docs/physics.md)",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
@@ -41,8 +50,8 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--replan-solver",
         metavar="NAME",
-        help="MAPF solver of re-plans (ecbs; of --replan-below: the plan's solver in 'run', "
-        "else ecbs, cbm for teams)",
+        help="MAPF solver of re-plans (default auto: ECBS up to 100 robots, else LaCAM; "
+        "of --replan-below: the plan's solver in 'run', else ecbs, cbm for teams)",
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
@@ -66,31 +75,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any, str]:
-    """The schedule to execute: MAPF-POST of a plan file, or of the plan recovered from
-    a schedule file (same objective and margin)."""
-    from hierplan_opt.core.errors import InputError
-    from hierplan_opt.execution.report import plan_from_schedule
+    """The schedule to execute: MAPF-POST of a plan file, or a schedule file read by the
+    one reader (its own plan, settings and times; ``--margin`` re-posts its plan)."""
     from hierplan_opt.io import load_plan
-    from hierplan_opt.io._yaml import read_yaml
-    from hierplan_opt.schedule import postprocess
+    from hierplan_opt.schedule import Schedule, postprocess
+    from hierplan_opt.schedule.files import is_schedule_file
 
-    data = read_yaml(args.plan)
-    rows = data.get("schedule") if isinstance(data, dict) else None
-    first = next(iter(rows.values()), None) if isinstance(rows, dict) and rows else None
-    if isinstance(first, list) and first and isinstance(first[0], dict) and "arrival" in first[0]:
-        stats = data.get("statistics") or {}
-        plan = plan_from_schedule(instance, args.plan, data)
-        margin = float(stats.get("margin", 0.0) or 0.0)
-        if args.margin is not None:
-            margin = args.margin
-        objective = str(stats.get("objective", "makespan"))
-        method = str(stats.get("method", "graph"))
-        try:
-            return postprocess(instance, plan, objective, margin=margin, method=method), "schedule"
-        except InputError as exc:
-            raise InputError(f"{args.plan}: {exc}") from None
+    if is_schedule_file(args.plan):
+        schedule = Schedule.load(args.plan, instance)
+        if args.margin is not None and args.margin != schedule.margin:
+            assert schedule.plan is not None
+            st = schedule.settings
+            schedule = postprocess(
+                instance,
+                schedule.plan,
+                str(st.get("objective", "makespan")),
+                margin=args.margin,
+                method=str(st.get("method", "graph")),
+                check_plan=False,
+            )
+        return schedule, "schedule"
     plan = load_plan(args.plan, instance)
-    return postprocess(instance, plan, margin=args.margin or 0.0), "plan"
+    return postprocess(instance, plan, margin=args.margin), "plan"
 
 
 def execute(
@@ -105,18 +111,10 @@ def execute(
 
     ``plan_solver`` makes the delay-aware re-plan of ``--replan-below`` (default: the
     re-plan solver)."""
-    from hierplan_opt.core.errors import OptionError
-    from hierplan_opt.execution import load_disturbances, simulate
-    from hierplan_opt.execution.report import text_report, write_report
+    from hierplan_opt.execution import simulate
 
-    if args.replan_below is not None and not args.runs:
-        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
-
-    dist = (
-        load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
-        if args.disturbances
-        else []
-    )
+    check_monte_carlo(args)
+    dist = disturbances_of(args, instance)
     ex = simulate(
         instance,
         schedule,
@@ -124,9 +122,43 @@ def execute(
         policy=args.policy,
         mode=args.mode,
         seed=args.seed,
-        solver=args.replan_solver or "ecbs",
+        solver=args.replan_solver or "auto",
         trajectories=trajectories,
     )
+    return report_execution(args, instance, schedule, ex, title, dist, trajectories, plan_solver)
+
+
+def check_monte_carlo(args: argparse.Namespace) -> None:
+    from hierplan_opt.core.errors import OptionError
+
+    if args.replan_below is not None and not args.runs:
+        raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
+
+
+def disturbances_of(args: argparse.Namespace, instance: Any) -> list[Any]:
+    """The ``--disturbances`` file's disturbances (checked against the robots' names)."""
+    from hierplan_opt.execution import load_disturbances
+
+    if not args.disturbances:
+        return []
+    return load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
+
+
+def report_execution(
+    args: argparse.Namespace,
+    instance: Any,
+    schedule: Any,
+    ex: Any,
+    title: str,
+    dist: list[Any],
+    trajectories: Any = None,
+    plan_solver: str | None = None,
+) -> int:
+    """Print the readable report of execution ``ex`` (and a Monte Carlo batch with
+    ``--runs``), write REPORT and pictures; the exit code: 0, 1 (collision or distance
+    not kept), 5 (a working robot not at its goal)."""
+    from hierplan_opt.execution.report import text_report, write_report
+
     report: dict[str, Any] = ex.report()
     print(text_report(ex, title))
     if args.runs:
@@ -177,7 +209,10 @@ def execute(
 
         animate(ex, instance, args.animate)
     st = ex.statistics
-    return OK if st["collisions"] == 0 and st["distance_kept"] else PLAN_INVALID
+    if st["collisions"] or not st["distance_kept"]:
+        return PLAN_INVALID
+    # Broken robots are listed apart and do not change the exit code.
+    return NOT_ARRIVED if st["stranded"] else OK
 
 
 def check_execution_outputs(args: argparse.Namespace) -> None:

@@ -11,7 +11,10 @@ from hierplan_opt.cli.common import (
     load_instance_from_args,
 )
 
-HELP = "check a plan file against an instance (prints 'valid' with costs, or the violations)"
+HELP = (
+    "check a plan or schedule file against an instance (prints 'valid' with costs, or the "
+    "violations)"
+)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -20,15 +23,50 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "plan",
         metavar="PLAN",
         help="plan file: libMultiRobotPlanning layout (YAML/JSON), EECBS / CBSH2-RTC paths, "
-        "LaCAM result or MAPF Tracker submission",
+        "LaCAM result or MAPF Tracker submission; or a schedule file of 'hierplan post' (its "
+        "plan, its times against every bound, and its continuous-time replay)",
     )
+
+
+def _schedule(args: argparse.Namespace, instance) -> int:
+    """A schedule file: its plan (validated by the reader), bounds and replay."""
+    from hierplan_opt.core.errors import InputError
+    from hierplan_opt.schedule import Schedule, replay
+
+    try:
+        schedule = Schedule.load(args.plan, instance)
+    except InputError as exc:
+        if "plan is invalid" not in str(exc):
+            raise
+        print(exc)
+        return PLAN_INVALID
+    plan = schedule.plan
+    assert plan is not None
+    rep = replay(schedule, instance)
+    line = (
+        f"soc={plan.sum_of_costs} makespan={plan.makespan} agents={plan.num_agents}; "
+        f"schedule makespan {schedule.makespan:.6g} s, replay min distance "
+        f"{rep.min_distance:.4g} m, margin {schedule.margin:.4g} m"
+    )
+    if not rep.ok:
+        a, b = rep.worst_pair or ("?", "?")
+        print(
+            f"{args.plan}: {line}: {rep.violations} pairs too close or on one point "
+            f"(worst {a} and {b}, {rep.worst_gap:+.4g} m vs required)"
+        )
+        return PLAN_INVALID
+    print(f"valid schedule: {line}")
+    return OK
 
 
 def run(args: argparse.Namespace) -> int:
     from hierplan_opt.core.validate import validate
     from hierplan_opt.io import load_plan
+    from hierplan_opt.schedule.files import is_schedule_file
 
     instance = load_instance_from_args(args)
+    if is_schedule_file(args.plan):
+        return _schedule(args, instance)
     plan = load_plan(args.plan, instance)
     violations = validate(instance, plan)
     if violations:

@@ -17,13 +17,15 @@ from hierplan_opt.execution.disturbances import (
     Stop,
     load_disturbances,
 )
-from hierplan_opt.execution.simulate import POLICIES, Event, Execution, Phase, simulate
+from hierplan_opt.execution.simulate import simulate
+from hierplan_opt.execution.state import POLICIES, Event, ExecState, Execution, Phase
 
 __all__ = [
     "POLICIES",
     "Breakdown",
     "Disturbance",
     "Event",
+    "ExecState",
     "Execution",
     "Phase",
     "RandomDelays",

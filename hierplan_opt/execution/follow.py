@@ -35,9 +35,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError, OptionError
+from hierplan_opt.execution.state import ExecState
 
 if TYPE_CHECKING:
-    from hierplan_opt.execution.simulate import _Sim
     from hierplan_opt.trajectory.result import Trajectories
 
 #: Largest sampling step of the executed motion (seconds).
@@ -72,7 +72,13 @@ def check_trajectories(schedule: Any, traj: Trajectories, mode: str = "agent") -
 
 
 def _clock(
-    sim: _Sim, g: int, e: np.ndarray, times: np.ndarray, rate: np.ndarray, first: int, end: float
+    sim: ExecState,
+    g: int,
+    e: np.ndarray,
+    times: np.ndarray,
+    rate: np.ndarray,
+    first: int,
+    end: float,
 ) -> list[tuple[float, float]]:
     """Breakpoints ``(t, tau)`` of robot ``g``'s trajectory clock until ``end``."""
     holds = sorted(sim.holds[g])
@@ -108,7 +114,7 @@ def _clock(
     return pts
 
 
-def follow_run(sim: _Sim, dt: float) -> tuple[list[np.ndarray], float]:
+def follow_run(sim: ExecState, dt: float) -> tuple[list[np.ndarray], float]:
     """Executed ``(time, coords...)`` per robot (instance coordinates) and the bound on
     how much closer two robots may come between samples than the samples show.
 
@@ -167,7 +173,7 @@ def follow_run(sim: _Sim, dt: float) -> tuple[list[np.ndarray], float]:
     return out, 2.0 * acc * h * h / 8.0
 
 
-def refined_position(sim: _Sim, j: int, now: float) -> np.ndarray:
+def refined_position(sim: ExecState, j: int, now: float) -> np.ndarray:
     """Where robot ``j`` (of the running phase) is at ``now`` on its refined trajectory
     (instance coordinates)."""
     traj = sim.follows[len(sim.phases) - 1]
@@ -180,7 +186,7 @@ def refined_position(sim: _Sim, j: int, now: float) -> np.ndarray:
     return r.state(np.array([tau]))["p"][0] / float(sim.schedule0.scale)
 
 
-def _records(sim: _Sim, g: int, t0: float, t1: float, *, closed: bool) -> np.ndarray:
+def _records(sim: ExecState, g: int, t0: float, t1: float, *, closed: bool) -> np.ndarray:
     """The event loop's way-points of robot ``g`` in ``[t0, t1]`` (open: ``(t0, t1)``)."""
     eps = 1e-12
     if closed:
@@ -192,7 +198,7 @@ def _records(sim: _Sim, g: int, t0: float, t1: float, *, closed: bool) -> np.nda
     return np.array([[t, *q] for t, q in pts], dtype=float)
 
 
-def required_distance(sim: _Sim) -> Any:
+def required_distance(sim: ExecState) -> Any:
     """``required(i, j)`` over every refined phase: the smallest of their distances."""
     follows = [(sim.phases[p].agents, t) for p, t in sorted(sim.follows.items())]
 

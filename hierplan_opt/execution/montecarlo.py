@@ -207,8 +207,8 @@ def monte_carlo(
         raise OptionError(f"runs must be a positive integer, got {runs!r}")
     if replan_below is not None and not 0 <= replan_below <= 1:
         raise OptionError(f"replan_below must be a probability, got {replan_below!r}")
-    if mode not in ("agent", "robot"):
-        raise OptionError(f"unknown mode {mode!r} (use agent, robot)")
+    if mode not in ("agent", "robot", "replay"):
+        raise OptionError(f"unknown mode {mode!r} (use agent, robot, replay)")
     if trajectories is not None:
         from hierplan_opt.execution.follow import check_trajectories
 
@@ -365,21 +365,17 @@ def delay_aware_replan(
     Raises :class:`~hierplan_opt.core.errors.HierplanError` when the solver finds no
     plan.
     """
-    from hierplan_opt import registry
     from hierplan_opt.core.errors import HierplanError
-    from hierplan_opt.core.validate import validate
+    from hierplan_opt.execution.chain import plan_and_post
     from hierplan_opt.execution.replan import rescheduled
-    from hierplan_opt.schedule.post import postprocess
 
     if solver == "auto":
         solver = "cbm" if instance.is_tapf else "ecbs"
-    res = registry.run(solver, instance, time_limit=time_limit)
-    if res.plan is None:
-        raise HierplanError(f"delay-aware re-plan: {solver} found no plan ({res.status})")
-    bad = validate(instance, res.plan)
-    if bad:
-        raise HierplanError(f"delay-aware re-plan: {solver}'s plan is invalid: {bad[0]}")
-    sched = postprocess(instance, res.plan, margin=schedule.margin, check_plan=False)
+    planned = plan_and_post(instance, solver, time_limit=time_limit, margin=schedule.margin)
+    if planned.schedule is None:
+        raise HierplanError(f"delay-aware re-plan: {planned.why}")
+    res, sched = planned.result, planned.schedule
+    assert res.plan is not None
     q = threshold + (1.0 - threshold) / 2
     est = _estimate(instance, sched, delay_model, runs, workers, seed, policy, progress, mode)
     rounds = 0

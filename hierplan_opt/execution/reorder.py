@@ -26,16 +26,13 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hierplan_opt.execution.state import ExecState
 from hierplan_opt.schedule.solve_graph import InconsistentSTNError, earliest_times
 from hierplan_opt.schedule.stn import PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import ENTER, LEAVE, TYPE2
-
-if TYPE_CHECKING:
-    from hierplan_opt.execution.simulate import _Sim
 
 log = logging.getLogger(__name__)
 
@@ -59,7 +56,7 @@ class _Pair:
     after: int  # arc B.leave -> C.enter (-1 if none)
 
 
-def _claim_ends(stn: STN, sim: _Sim, arc: int) -> _Pair | None:
+def _claim_ends(stn: STN, sim: ExecState, arc: int) -> _Pair | None:
     """The two adjacent claims joined by precedence ``arc`` (A leaves, B enters) and
     the arcs to their neighbours in the lock's order, from the arcs of that lock."""
     tpg = stn.tpg
@@ -104,19 +101,20 @@ def _claim_ends(stn: STN, sim: _Sim, arc: int) -> _Pair | None:
     return _Pair(arc, a_enter, u, w, b_leave, lock, before, after)
 
 
-def try_reorder(sim: _Sim, now: float) -> int:
-    """Choose and apply switches; returns how many were applied (0: none helps)."""
+def try_reorder(sim: ExecState, now: float) -> tuple[STN, np.ndarray, np.ndarray, int] | None:
+    """Choose switches of passing orders: ``(stn, locks, targets, switches)`` to install
+    (the event loop does), or None when none helps. The state is not changed."""
     stn = sim.stn
     tpg = stn.tpg
     if tpg.regime == "general":
-        return 0
+        return None
     happened = ~np.isnan(sim.t)
     T = np.where(happened, sim.t, sim.T)
     horizon = (~happened) & (now + HORIZON >= T)
     prec = np.flatnonzero((sim.locks >= 0) & horizon[stn.arc_dst] & ~happened[stn.arc_src])
     pairs = [p for k in prec.tolist() if (p := _claim_ends(stn, sim, k)) is not None]
     if not pairs:
-        return 0
+        return None
     nodes = set(np.flatnonzero(horizon).tolist())
     for p in pairs:
         nodes |= {p.a_enter, p.a_leave, p.b_enter, p.b_leave}
@@ -125,7 +123,7 @@ def try_reorder(sim: _Sim, now: float) -> int:
                 nodes |= {int(stn.arc_src[k]), int(stn.arc_dst[k])}
     chosen = _solve(sim, stn, T, happened, sorted(nodes), pairs, now)
     if not chosen:
-        return 0
+        return None
     new, locks = _switched(stn, sim.locks, pairs, chosen)
     if not new.topo.is_dag:
         # A cycle through events outside the horizon: keep the switches that stay
@@ -136,7 +134,7 @@ def try_reorder(sim: _Sim, now: float) -> int:
             if trial.topo.is_dag:
                 kept.append(i)
         if not kept:
-            return 0
+            return None
         chosen = kept
         new, locks = _switched(stn, sim.locks, pairs, chosen)
     release = np.array(new.release, dtype=float)
@@ -146,14 +144,12 @@ def try_reorder(sim: _Sim, now: float) -> int:
     try:
         times = earliest_times(new.with_bounds(release=release))
     except InconsistentSTNError:
-        return 0  # deadlines: leave it to the STN layer (and re-planning)
-    sim.install(new, locks, np.where(happened, sim.t, times), now)
-    sim.counts["reorders"] += len(chosen)
-    return len(chosen)
+        return None  # deadlines: leave it to the STN layer (and re-planning)
+    return new, locks, np.where(happened, sim.t, times), len(chosen)
 
 
 def _solve(
-    sim: _Sim,
+    sim: ExecState,
     stn: STN,
     T: np.ndarray,
     happened: np.ndarray,

@@ -7,13 +7,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
-from hierplan_opt.core.validate import validate
-from hierplan_opt.execution.simulate import Execution
+from hierplan_opt.execution.state import Execution
 
 
 def text_report(ex: Execution, title: str = "") -> str:
@@ -23,10 +19,9 @@ def text_report(ex: Execution, title: str = "") -> str:
     if title:
         lines.append(title)
     lines.append(
-        f"execution ({ex.policy}, {ex.mode} mode): makespan {_f(st['makespan'])} s "
+        f"execution ({ex.policy}, {ex.mode} mode): makespan {_makespan(st)} "
         f"(planned {_f(st['planned_makespan'])} s), arrivals avg {_f(st['arrival_avg'])} s "
-        f"max {_f(st['arrival_max'])} s, {st['finished']}/{len(ex.agent_names)} robots "
-        "at their goals"
+        f"max {_f(st['arrival_max'])} s"
     )
     kept = "kept" if st["distance_kept"] else "NOT kept"
     lines.append(
@@ -49,9 +44,10 @@ def text_report(ex: Execution, title: str = "") -> str:
     h = st["handled"]
     rt = st["runtime"]
     lines.append(
-        f"layers: {len(ex.log)} events; slack {h['slack']}, stn {h['stn']} "
-        f"({st['stn_resolves']} re-solves, {rt['stn'] * 1e3:.3g} ms), replan {h['replan']} "
-        f"({st['replans']} re-plans, {rt['replan']:.3g} s), unhandled {h['none']}"
+        f"layers: {st['disturbances']} disturbances; slack {h['slack']}, reorder "
+        f"{h['reorder']} ({st['reorders']} switches, {rt['reorder'] * 1e3:.3g} ms), stn "
+        f"{h['stn']} ({st['stn_resolves']} re-solves, {rt['stn'] * 1e3:.3g} ms), replan "
+        f"{h['replan']} ({st['replans']} re-plans, {rt['replan']:.3g} s), unhandled {h['none']}"
     )
     shown = [e for e in ex.log if e.kind != "random"][:12]
     randoms = sum(e.kind == "random" for e in ex.log)
@@ -62,9 +58,32 @@ def text_report(ex: Execution, title: str = "") -> str:
         )
     if randoms:
         lines.append(f"  ({randoms} random delays: see the report's events)")
-    if st["unfinished"]:
-        lines.append("not at goal: " + ", ".join(st["unfinished"]))
+    for name in st["unfinished"]:
+        lines.append(f"  not at its goal: {name}: {st['why_unfinished'][name]}")
+    lines.append(outcome_line(ex))
     return "\n".join(lines)
+
+
+def outcome_line(ex: Execution) -> str:
+    """The summary line: robots at their own goals, the broken ones apart, the working
+    robots that are not at their goals (a failed run), collisions."""
+    st = ex.statistics
+    K = len(ex.agent_names)
+    parts = [f"{st['finished']}/{K} robots at their own goals"]
+    if st["broken"]:
+        parts.append(f"{len(st['broken'])} broke down ({', '.join(st['broken'])})")
+    if st["stranded"]:
+        names = ", ".join(st["stranded"][:5]) + (" ..." if len(st["stranded"]) > 5 else "")
+        parts.append(f"FAILED: {len(st['stranded'])} working robot(s) not at their goals ({names})")
+    parts.append(f"{st['collisions']} collisions")
+    return "; ".join(parts)
+
+
+def _makespan(st: dict[str, Any]) -> str:
+    m = st["makespan"]
+    if isinstance(m, (int, float)) and math.isfinite(m):
+        return f"{m:.4g} s"
+    return f"not reached ({len(st['stranded'])} working robot(s) never at their goals)"
 
 
 def _f(x: Any) -> str:
@@ -81,11 +100,8 @@ def write_report(path: str | Path, data: dict[str, Any]) -> Path:
 
 
 def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any]) -> Plan:
-    """A discrete plan with the order of a ``hierplan post`` schedule file.
-
-    Way-points at vertices (integral coordinates on the map) are kept; every distinct
-    arrival time becomes a timestep, so each robot moves at most one edge per step and
-    every location keeps its order of visits. The plan must pass the validator.
+    """The discrete plan a ``hierplan post`` schedule file carries (read by the one
+    reader, :func:`hierplan_opt.schedule.files.load_schedule`; ``data`` is not used).
 
     Example
     -------
@@ -98,54 +114,10 @@ def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any
     >>> plan_from_schedule(inst, f, read_schedule(f)).paths
     ((1, 2, 3), (0, 1, 2))
     """
-    g = instance.graph
-    sched = data.get("schedule")
-    if not isinstance(sched, dict):
-        raise InputError(f"{path}: not a schedule file (no 'schedule' mapping)")
-    lookup = {tuple(round(float(x), 6) for x in c): v for v, c in enumerate(g.coords.tolist())}
-    visits: list[list[tuple[float, int]]] = []
-    for a in instance.agents:
-        rows = sched.get(a.name)
-        if not isinstance(rows, list) or not rows:
-            raise InputError(f"{path}: the schedule has no way-points for robot {a.name!r}")
-        seq: list[tuple[float, int]] = []
-        for row in rows:
-            try:
-                coords = [row["x"], row["y"]] + ([row["z"]] if "z" in row else [])
-                t = float(row["arrival"])
-            except (KeyError, TypeError, ValueError):
-                raise InputError(
-                    f"{path}: a way-point of {a.name!r} lacks x, y or arrival"
-                ) from None
-            if g.kind == "roadmap":  # vertices by their coordinates; other points are markers
-                v = lookup.get(tuple(round(float(c), 6) for c in coords))
-                if v is None:
-                    continue
-            else:  # grid cells have whole coordinates; markers lie between them
-                if not all(float(c) == int(float(c)) for c in coords):
-                    continue
-                try:
-                    v = g.vertex(tuple(int(float(c)) for c in coords))
-                except InputError:
-                    raise InputError(
-                        f"{path}: {a.name} passes {coords}, not a vertex of the map"
-                    ) from None
-            if not seq or seq[-1][1] != v:
-                seq.append((t, v))
-        visits.append(seq)
-    stamps = np.unique(np.array([t for seq in visits for t, _ in seq]))
-    paths = []
-    for seq in visits:
-        times = np.array([t for t, _ in seq])
-        verts = [v for _, v in seq]
-        idx = np.searchsorted(times, stamps, side="right") - 1
-        paths.append([verts[max(int(i), 0)] for i in idx])
-    plan = Plan.from_paths(paths).trimmed()
-    bad = validate(instance, plan)
-    if bad:
-        raise InputError(
-            f"{path}: the schedule's order is not a valid plan ({bad[0]}); give the plan"
-        )
+    from hierplan_opt.schedule.files import load_schedule
+
+    plan = load_schedule(path, instance).plan
+    assert plan is not None
     return plan
 
 

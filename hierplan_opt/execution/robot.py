@@ -39,14 +39,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
-
-if TYPE_CHECKING:
-    from hierplan_opt.execution.simulate import _Sim
+from hierplan_opt.execution.state import ExecState
 
 #: Distance tolerance (metres).
 EPS = 1e-9
@@ -82,7 +80,7 @@ class RobotRun:
     event_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
-def _paths(sim: _Sim) -> tuple[list[_Path], list[list[tuple[int, float]]], int]:
+def _paths(sim: ExecState) -> tuple[list[_Path], list[list[tuple[int, float]]], int]:
     """Every robot's points across the phases, and the predecessors of every global node
     (Type-2 arcs, hand-over waits, broken robots before a re-planned start)."""
     K = sim.K
@@ -202,7 +200,7 @@ def _brake(d_stop: float, v0: float, a: float, dt: float) -> float:
     return best
 
 
-def robot_run(sim: _Sim, instance: Instance, dt: float) -> RobotRun:
+def robot_run(sim: ExecState, instance: Instance, dt: float) -> RobotRun:
     """Drive every robot with bounded acceleration along its executed way (module text)."""
     K = sim.K
     scale = float(sim.scale)

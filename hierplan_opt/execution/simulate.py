@@ -41,322 +41,63 @@ import logging
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.execution.disturbances import (
-    Breakdown,
-    Disturbance,
-    RandomDelays,
-    Slow,
-    Stop,
-    as_dict,
+from hierplan_opt.execution import layers
+from hierplan_opt.execution.closedloop import ClosedLoop
+from hierplan_opt.execution.disturbances import Breakdown, Disturbance, Stop, as_dict
+from hierplan_opt.execution.follow import check_trajectories, refined_position
+from hierplan_opt.execution.kinematic import kinematic_plant
+from hierplan_opt.execution.reorder import arc_locks, try_reorder
+from hierplan_opt.execution.replan import replan, restrict_to_frontier
+from hierplan_opt.execution.state import (
+    DISTURBANCE_KINDS,
+    LAYERS,
+    MAX_REPLANS,
+    MODES,
+    POLICIES,
+    TOL,
+    Event,
+    ExecState,
+    Execution,
+    Phase,
+    Structure,
+    descendants,
+    rebound,
+    segment_distance,
 )
+from hierplan_opt.execution.statistics import finish
 from hierplan_opt.schedule.output import Schedule
-from hierplan_opt.schedule.solve_graph import InconsistentSTNError, fix_and_propagate
-from hierplan_opt.schedule.stn import PIECE, STN
-from hierplan_opt.schedule.tpg import VERTEX, WAIT
+from hierplan_opt.schedule.solve_graph import InconsistentSTNError
+from hierplan_opt.schedule.stn import STN
 
 if TYPE_CHECKING:
     from hierplan_opt.trajectory.result import Trajectories
 
 log = logging.getLogger(__name__)
 
-POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
-MODES = ("agent", "robot", "physics")
-LAYERS = {
-    "slack": ("slack",),
-    "stn": ("slack", "stn"),
-    "replan": ("slack", "stn", "replan"),
-    "reorder": ("slack", "reorder", "stn", "replan"),
-    "adg": ("slack",),
-    "naive": ("slack",),
-}
-#: Time tolerance (seconds).
-TOL = 1e-9
-#: At most this many MAPF re-plans per run.
-MAX_REPLANS = 8
+__all__ = [
+    "DISTURBANCE_KINDS",
+    "LAYERS",
+    "MODES",
+    "POLICIES",
+    "Event",
+    "ExecState",
+    "Execution",
+    "Phase",
+    "Simulation",
+    "rebound",
+    "simulate",
+]
 
 
-@dataclass(frozen=True)
-class Event:
-    """One disturbance (or escalation) and the layer that handled it.
+class Simulation(ExecState):
+    """The event loop over the phases of one run (it advances an :class:`ExecState`)."""
 
-    ``layer``: ``slack`` (absorbed, nothing re-computed), ``stn`` (STN re-solved),
-    ``replan`` (MAPF re-plan), ``none`` (no layer could handle it, or nothing to
-    handle: ``detail`` says which). ``delay`` is how late the robot's next event
-    became against its target (seconds).
-    """
-
-    time: float
-    agent: str
-    kind: str
-    layer: str
-    delay: float = 0.0
-    detail: str = ""
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "time": round(self.time, 6),
-            "agent": self.agent,
-            "kind": self.kind,
-            "layer": self.layer,
-            "delay": round(self.delay, 6),
-            "detail": self.detail,
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class Phase:
-    """One schedule that was executed: the original one, or one after a re-plan.
-
-    ``agents`` maps the phase's robots to the instance's indices; ``times`` is the
-    executed time of every node of ``schedule.stn`` (NaN when it never happened);
-    ``targets`` the last target times (the schedule, or after STN re-solves).
-    """
-
-    schedule: Schedule
-    agents: tuple[int, ...]
-    start: float
-    times: np.ndarray
-    targets: np.ndarray
-    stn: STN
-
-
-@dataclass(frozen=True, eq=False)
-class Execution:
-    """Result of :func:`simulate` (read-only).
-
-    Attributes
-    ----------
-    policy, mode : str
-    seed : int
-    agent_names : tuple of str
-    trajectories : tuple of (n, 1 + dim) arrays
-        Per robot the executed way-points ``(time, x, y[, z])`` in instance coordinates;
-        the robot moves in a straight line at constant speed between them and stays
-        at the last one.
-    schedule : Schedule
-        The executed way-points as a schedule (``hierplan post`` layout, replayable).
-    phases : tuple of :class:`Phase`
-        Executed event times per TPG node of each schedule run.
-    log : tuple of :class:`Event`
-    arrival : (K,) float
-        When each robot reached its goal (NaN: never).
-    replans : tuple of (Instance, Plan)
-        The MAPF instances (broken robots as obstacles) and plans of the re-plans.
-    robot_times : (N,) float or None
-        Robot mode: when each robot passed each node of the first schedule's TPG.
-    statistics : dict
-        ``collisions``, ``min_distance``, ``guaranteed_distance``, ``distance_kept``,
-        ``makespan``, ``arrival_avg``, ``arrival_max``, ``arrival_sum``, ``finished``,
-        ``unfinished``, ``stn_resolves``, ``reorders``, ``replans``, ``runtime`` per
-        layer, ``handled`` (events per layer).
-    """
-
-    policy: str
-    mode: str
-    seed: int
-    agent_names: tuple[str, ...]
-    trajectories: tuple[np.ndarray, ...]
-    schedule: Schedule
-    phases: tuple[Phase, ...]
-    log: tuple[Event, ...]
-    statistics: dict[str, Any] = field(default_factory=dict)
-    arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    replans: tuple[tuple[Instance, Any], ...] = ()
-    robot_times: np.ndarray | None = None
-
-    @property
-    def event_times(self) -> np.ndarray:
-        """Executed time of every node of the first schedule's TPG (NaN: never); in
-        robot mode when the robot passed it (the agent run's times are in ``phases``)."""
-        return self.phases[0].times if self.robot_times is None else self.robot_times
-
-    def report(self) -> dict[str, Any]:
-        """``{statistics, events, schedule}``: the YAML report (plain values)."""
-        d = self.schedule.to_dict()
-        return {
-            "statistics": _plain(self.statistics),
-            "events": [e.as_dict() for e in self.log],
-            "schedule": d["schedule"],
-        }
-
-
-def _plain(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        f = float(x)
-        return round(f, 9) if math.isfinite(f) else None
-    return x
-
-
-# ---------------------------------------------------------------------- helpers
-def rebound(
-    stn: STN, *, release: np.ndarray | None = None, deadline: np.ndarray | None = None
-) -> STN:
-    """``stn.with_bounds(...)`` that keeps the cached topological order and CSR arcs
-    (node bounds do not change the graph), so an incremental re-solve stays cheap."""
-    new = stn.with_bounds(release=release, deadline=deadline)
-    for key in ("topo", "_in", "_out"):
-        if key in stn.__dict__:
-            new.__dict__[key] = stn.__dict__[key]
-    return new
-
-
-class _Structure:
-    """Per-node data of one phase's STN needed by the event loop."""
-
-    def __init__(self, stn: STN, instance: Instance, slows: Sequence[Slow]) -> None:
-        tpg = stn.tpg
-        self.stn = stn
-        self.tpg = tpg
-        n = tpg.num_nodes
-        agent = tpg.node_agent
-        src, dst = stn.arc_src, stn.arc_dst
-        cross = agent[src] != agent[dst]
-        self.cross_count = np.bincount(dst[cross], minlength=n).astype(np.int64)
-        order = np.argsort(src, kind="stable")
-        self.out_ptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(src, minlength=n), out=self.out_ptr[1:])
-        self.out_arcs = order
-        order_in = np.argsort(dst, kind="stable")
-        self.in_ptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(np.bincount(dst, minlength=n), out=self.in_ptr[1:])
-        self.in_arcs = order_in
-        self.cross = cross
-        self.is_piece = stn.arc_kind == PIECE
-        self.final = np.zeros(n, dtype=bool)
-        self.final[tpg.final_nodes()] = True
-        self.first = np.zeros(n, dtype=bool)
-        self.first[tpg.start_nodes()] = True
-        kind = tpg.node_kind
-        self.is_vertex = (kind == VERTEX) | (kind == WAIT)
-        # The move each piece (v-1 -> v) belongs to: from the last vertex node before v
-        # to the first vertex node at or after v.
-        idx = np.arange(n)
-        last_v = np.where(self.is_vertex, idx, -1)
-        last_v = np.maximum.accumulate(last_v)
-        next_v = np.where(self.is_vertex, idx, n)
-        next_v = np.minimum.accumulate(next_v[::-1])[::-1]
-        self.last_vertex = last_v
-        self.next_vertex = next_v
-        vert = tpg.node_vertex
-        self.move_from = np.where(idx > 0, vert[last_v[np.maximum(idx - 1, 0)]], vert)
-        self.move_to = vert[np.minimum(next_v, n - 1)]
-        # Slow factor lookup per (vertex pair).
-        g = instance.graph
-        self.slows: list[tuple[Slow, set[int], set[tuple[int, int]]]] = []
-        for s in slows:
-            cells = {g.vertex(c) for c in s.cells if _on_map(g, c)}
-            edges = {
-                (g.vertex(a), g.vertex(b)) for a, b in s.edges if _on_map(g, a) and _on_map(g, b)
-            }
-            edges |= {(b, a) for a, b in edges}
-            self.slows.append((s, cells, edges))
-
-    def slow_factor(self, v: int, t_depart: float) -> tuple[float, Slow | None]:
-        """Speed factor of the piece into ``v`` started at ``t_depart``."""
-        best, which = 1.0, None
-        a, b = int(self.move_from[v]), int(self.move_to[v])
-        for s, cells, edges in self.slows:
-            hit = a in cells or b in cells or (a, b) in edges
-            if hit and s.start <= t_depart < s.end and s.factor < best:
-                best, which = s.factor, s
-        return best, which
-
-
-def _on_map(g: Any, c: tuple[int, ...]) -> bool:
-    try:
-        g.vertex(c)
-    except InputError:
-        return False
-    return True
-
-
-# ---------------------------------------------------------------------- simulation
-class _Sim:
-    """The event loop over the phases of one run."""
-
-    def __init__(
-        self,
-        instance: Instance,
-        schedule: Schedule,
-        disturbances: Sequence[Disturbance],
-        policy: str,
-        seed: int,
-        solver: str,
-        replan_time_limit: float,
-        follow: Any = None,
-    ) -> None:
-        self.instance = instance
-        #: Refined trajectories followed in the first phase (None: constant velocity).
-        self.follow = follow
-        self.holds: list[list[tuple[float, float]]] = [[] for _ in range(len(schedule.agent_names))]
-        self.rate0: np.ndarray | None = None
-        #: Refined trajectories followed per phase (0: ``follow``; later: refined again
-        #: after a re-plan), and the slow factors of their pieces.
-        self.follows: dict[int, Any] = {0: follow} if follow is not None else {}
-        self.rates: dict[int, np.ndarray] = {}
-        self.schedule0 = schedule
-        self.policy = policy
-        self.layers = LAYERS[policy]
-        self.solver = solver
-        self.replan_time_limit = replan_time_limit
-        self.names = schedule.agent_names
-        self.K = len(self.names)
-        self.index = {n: i for i, n in enumerate(self.names)}
-        for d in disturbances:
-            if isinstance(d, (Stop, Breakdown)) and d.agent not in self.index:
-                raise InputError(f"disturbance names robot {d.agent!r}, not in the schedule")
-        self.slows = [d for d in disturbances if isinstance(d, Slow)]
-        self.randoms = [
-            (d, np.random.default_rng(d.seed if d.seed is not None else [seed, k]))
-            for k, d in enumerate(disturbances)
-            if isinstance(d, RandomDelays)
-        ]
-        self.timed: list[Stop | Breakdown] = [
-            d for d in disturbances if isinstance(d, (Stop, Breakdown)) and _timed(d)
-        ]
-        self.at_wp: dict[int, list[Stop]] = {}
-        for d in disturbances:
-            if isinstance(d, Stop) and d.at_waypoint is not None:
-                self.at_wp.setdefault(self.index[d.agent], []).append(d)
-        self.scale = schedule.scale
-        self.traj: list[list[tuple[float, np.ndarray]]] = [[] for _ in range(self.K)]
-        self.broken = np.zeros(self.K, dtype=bool)
-        self.arrival = np.full(self.K, np.nan)
-        self.log: list[Event] = []
-        self.runtime = {
-            "slack": 0.0,
-            "reorder": 0.0,
-            "stn": 0.0,
-            "replan": 0.0,
-            "simulation": 0.0,
-        }
-        self.counts = {"stn_resolves": 0, "replans": 0, "reorders": 0}
-        self.phases: list[Phase] = []
-        self.replan_at: float | None = None
-        self.replan_reason = ""
-        self.pending: list[Stop | Breakdown] = []
-        self.seq = 0
-        self.replans: list[Any] = []
-        self.front: list[int] = []
-        #: Hand-over waits of each re-planned phase (robot mode keeps them as events):
-        #: ``("depart", g, -1, g_a)``: ``g`` leaves its held place after ``g_a`` reached
-        #: its new start; ``("node", g, v, g_a)``: node ``v`` of the new STN after that.
-        self.handover: dict[int, list[tuple[str, int, int, int]]] = {}
-
-    # ------------------------------------------------------------ phases
     def run(self) -> None:
         t0 = time.perf_counter()
         sched = self.schedule0
@@ -365,14 +106,11 @@ class _Sim:
         targets = np.array(sched.times, dtype=float)
         if self.follow is not None:
             targets = np.concatenate([r.event_times for r in self.follow.robots]).astype(float)
-        if self.policy == "adg":
-            targets = np.zeros_like(targets)
+        targets = layers.initial_targets(self.policy, targets)
         stn = sched.stn
         self._phase(sched, stn, gid, targets, 0.0)
         attempts = 0
         while self.replan_at is not None and attempts < MAX_REPLANS:
-            from hierplan_opt.execution.replan import replan
-
             attempts += 1
             t_r = self.replan_at
             tr = time.perf_counter()
@@ -407,47 +145,15 @@ class _Sim:
         else:
             why = f"the re-planned schedule is refined again (stretch {out.stretch:.3g})"
         self.runtime["refine"] = self.runtime.get("refine", 0.0) + time.perf_counter() - t0
-        self._log(t_r, "*", "trajectories", "replan", 0.0, why)
+        self.log_event(t_r, "*", "trajectories", "replan", 0.0, why)
         return out
 
     def _phase(
         self, sched: Schedule, stn: STN, gid: tuple[int, ...], targets: np.ndarray, start: float
     ) -> None:
-        S = _Structure(stn, self.instance, self.slows)
-        self.S = S
-        self.stn = stn
-        self.gid = gid
-        n = stn.num_nodes
-        self.T = targets.copy()
-        self.T0 = targets.copy()
-        from hierplan_opt.execution.reorder import arc_locks
-
-        self.locks = arc_locks(stn)
-        self.latest = (
-            np.maximum(sched.latest, self.T) if self.policy != "adg" else np.full(n, np.inf)
-        )
-        self.t = np.full(n, np.nan)
-        self.phys = np.full(n, np.nan)
-        self.seg_start = np.full(n, np.nan)  # when the robot set off towards the node
-        self.piece_lb = np.zeros(n)
-        self.rate = np.ones(n)  # slow factor of each piece (trajectory following)
-        # Duration of each piece on the refined trajectory (first phase only).
-        self.piece_dur: np.ndarray | None = None
-        follow = self.follows.get(len(self.phases))
-        if follow is not None:
-            self.piece_dur = np.zeros(n)
-            ev = np.concatenate([r.event_times for r in follow.robots]).astype(float)
-            self.piece_dur[1:] = np.diff(ev)
-            self.rates[len(self.phases)] = self.rate
-            if not self.phases:
-                self.rate0 = self.rate
-        self.remaining = S.cross_count.copy()
-        self.version = np.zeros(n, dtype=np.int64)
-        self.in_heap = np.zeros(n, dtype=bool)
-        self.active = np.ones(n, dtype=bool)
-        self.heap: list[tuple[float, int, int, int, int]] = []
-        phase = Phase(sched, gid, start, self.t, self.T, stn)
-        self.phases.append(phase)
+        latest = layers.latest_times(self.policy, sched.latest, targets)
+        self.start_phase(sched, stn, gid, targets, start, arc_locks(stn), latest)
+        S = self.S
         # Start nodes: robots are at their starts (targets = release).
         for j in range(len(gid)):
             v = int(S.tpg.agent_ptr[j])
@@ -468,6 +174,7 @@ class _Sim:
         wait for a broken robot wait for good)."""
         S = self.S
         self.active[:] = True
+        self._hold_before(self.geo_block)  # nobody drives into a broken robot
         for j, g in enumerate(self.gid):
             nodes = S.tpg.agent_nodes(j)
             if self.broken[g]:
@@ -494,16 +201,14 @@ class _Sim:
                     continue
                 self._happen(key, when)
             else:
-                self._disturb(self._dist[key], when)
+                self._disturb(self.dist_queue[key], when)
 
     # ------------------------------------------------------------ heap
     def _push_disturbance(self, d: Stop | Breakdown) -> None:
-        if not hasattr(self, "_dist"):
-            self._dist: list[Stop | Breakdown] = []
-        self._dist.append(d)
+        self.dist_queue.append(d)
         self.seq += 1
         assert d.at_time is not None
-        heapq.heappush(self.heap, (float(d.at_time), 1, self.seq, len(self._dist) - 1, 0))
+        heapq.heappush(self.heap, (float(d.at_time), 1, self.seq, len(self.dist_queue) - 1, 0))
 
     def _ready_time(self, v: int) -> float:
         when = float(self.phys[v])
@@ -526,30 +231,18 @@ class _Sim:
         heapq.heappush(self.heap, (self._ready_time(v), 0, self.seq, v, int(self.version[v])))
 
     # ------------------------------------------------------------ node events
-    def _agent_of(self, v: int) -> int:
-        return int(self.S.tpg.node_agent[v])
-
-    def _pos(self, v: int) -> np.ndarray:
-        return self.S.tpg.node_coord[v]
-
-    def _record(self, g: int, when: float, pos: np.ndarray) -> None:
-        tr = self.traj[g]
-        if tr and when < tr[-1][0] - TOL:
-            when = tr[-1][0]
-        tr.append((float(when), np.array(pos, dtype=float)))
-
     def _happen(self, v: int, when: float) -> None:
         S = self.S
-        j = self._agent_of(v)
+        j = self.agent_of(v)
         g = self.gid[j]
         if self.broken[g]:
             return
         self.in_heap[v] = False
         self.t[v] = when
-        pos = self._pos(v)
+        pos = self.pos(v)
         if self.phys[v] < when - TOL:
-            self._record(g, float(self.phys[v]), pos)
-        self._record(g, when, pos)
+            self.record(g, float(self.phys[v]), pos)
+        self.record(g, when, pos)
         # Type-2 successors.
         arcs = S.out_arcs[S.out_ptr[v] : S.out_ptr[v + 1]]
         for k in arcs[S.cross[arcs]].tolist():
@@ -580,7 +273,7 @@ class _Sim:
         self._depart(v + 1, when, extra)
         if np.isnan(self.phys[v + 1]):  # beyond a re-planning frontier
             for kind, detail in events:
-                self._log(
+                self.log_event(
                     when, self.names[g], kind, "replan", extra, detail + "; re-plan under way"
                 )
             return
@@ -624,11 +317,11 @@ class _Sim:
         self.seg_start[n] = when + extra
         self.phys[n] = max(float(target), base)
         if extra > 0:
-            g = self.gid[self._agent_of(n)]
-            self._record(g, when + extra, self._pos(n - 1))
+            g = self.gid[self.agent_of(n)]
+            self.record(g, when + extra, self.pos(n - 1))
             self.holds[g].append((when, when + extra))
         if slow_hit is not None:
-            g = self.gid[self._agent_of(n)]
+            g = self.gid[self.agent_of(n)]
             self._react(
                 g, n, "slow", f"slowed to {slow_hit.factor:g} of its speed", when, quiet=True
             )
@@ -640,31 +333,25 @@ class _Sim:
     ) -> None:
         """Robot ``g``'s next node ``n`` may now be late: pick the layer that handles it."""
         t0 = time.perf_counter()
-        late = float(self.phys[n] - self.T[n])
-        slack = float(self.latest[n] - self.T[n])
         name = self.names[g]
-        if late <= TOL * max(1.0, abs(self.T[n])):
-            if not quiet:
-                self._log(now, name, kind, "slack", 0.0, detail + "; on time")
-            self.runtime["slack"] += time.perf_counter() - t0
-            return
-        if self.policy in ("adg", "naive") or late <= slack + TOL or "stn" not in self.layers:
-            ok = late <= slack + TOL
-            note = "absorbed by slack" if ok else f"not absorbed ({late - slack:.3g} s past slack)"
-            if self.policy in ("adg", "naive"):
-                note = "no schedule to repair" if self.policy == "adg" else "clock followed"
-            self._log(now, name, kind, "slack", late, f"{detail}; {note}")
+        verdict, late, note = layers.slack_decision(self, n)
+        if verdict != "escalate":
+            if verdict == "absorbed" or not quiet:
+                self.log_event(now, name, kind, "slack", late, f"{detail}; {note}")
             self.runtime["slack"] += time.perf_counter() - t0
             return
         self.runtime["slack"] += time.perf_counter() - t0
         if "reorder" in self.layers:
-            from hierplan_opt.execution.reorder import try_reorder
-
             t1 = time.perf_counter()
-            switched = try_reorder(self, now)
+            out = try_reorder(self, now)
+            switched = 0
+            if out is not None:
+                stn, locks, targets, switched = out
+                self.install(stn, locks, targets, now)
+                self.counts["reorders"] += switched
             self.runtime["reorder"] += time.perf_counter() - t1
             if switched:
-                self._log(
+                self.log_event(
                     now,
                     name,
                     kind,
@@ -679,37 +366,21 @@ class _Sim:
         except InconsistentSTNError as exc:
             self.runtime["stn"] += time.perf_counter() - t1
             if "replan" in self.layers:
-                self._log(now, name, kind, "replan", late, f"{detail}; STN inconsistent: {exc}")
+                self.log_event(
+                    now, name, kind, "replan", late, f"{detail}; STN inconsistent: {exc}"
+                )
                 self._request_replan(now, f"STN inconsistent after {name} {detail}")
             else:
-                self._log(now, name, kind, "none", late, f"{detail}; STN inconsistent: {exc}")
+                self.log_event(now, name, kind, "none", late, f"{detail}; STN inconsistent: {exc}")
             return
         self.runtime["stn"] += time.perf_counter() - t1
-        self._log(now, name, kind, "stn", late, f"{detail}; STN re-solved")
+        self.log_event(now, name, kind, "stn", late, f"{detail}; STN re-solved")
 
     def _resolve(self, n: int, now: float) -> None:
-        """Incremental STN re-solve: ``n``'s release raised to when the robot can be
-        there, executed events fixed, successors pushed (topological order)."""
-        stn = self.stn
-        release = np.array(stn.release, dtype=float)
-        release[n] = max(release[n], float(self.phys[n]))
-        new_stn = rebound(stn, release=release)
-        times = np.where(np.isnan(self.t), self.T, self.t)
-        fixed = {n - 1: float(self.t[n - 1])} if not np.isnan(self.t[n - 1]) else {}
-        new_T = fix_and_propagate(new_stn, times, fixed, changed=[n])
-        self.counts["stn_resolves"] += 1
-        changed = np.flatnonzero((new_T > self.T + TOL) & np.isnan(self.t))
-        self.stn = new_stn
-        self.T = np.where(np.isnan(self.t), new_T, self.T)
-        # Robots heading to a node whose target moved slow down from now on.
-        for v in changed.tolist():
-            if not np.isnan(self.phys[v]) and self.T[v] > self.phys[v]:
-                g = self.gid[self._agent_of(v)]
-                if self.traj[g] and self.traj[g][-1][0] < now < self.phys[v]:
-                    self._record(g, now, self.traj_pos(g, now, v))
-                self.phys[v] = float(self.T[v])
-                if self.in_heap[v]:
-                    self._try_push(v)
+        """The STN layer (:func:`.layers.stn_resolve`); robots whose next target moved
+        are queued again."""
+        for v in layers.stn_resolve(self, n, now):
+            self._try_push(v)
 
     def install(self, stn: STN, locks: np.ndarray, targets: np.ndarray, now: float) -> None:
         """Run on with another STN of the same nodes (switched passing orders) and new
@@ -717,7 +388,7 @@ class _Sim:
         their way change speed from ``now`` on."""
         self.stn = stn
         self.locks = locks
-        self.S = _Structure(stn, self.instance, self.slows)
+        self.S = Structure(stn, self.instance, self.slows)
         happened = ~np.isnan(self.t)
         cross = self.S.cross & ~happened[stn.arc_src]
         self.remaining = np.bincount(stn.arc_dst[cross], minlength=stn.num_nodes).astype(np.int64)
@@ -726,14 +397,14 @@ class _Sim:
         for v in np.flatnonzero(~happened & ~np.isnan(self.phys)).tolist():
             arrive = float(self.phys[v])
             if now < arrive and self.T[v] != old_T[v]:
-                g = self.gid[self._agent_of(v)]
+                g = self.gid[self.agent_of(v)]
                 t_last = self.traj[g][-1][0] if self.traj[g] else now
                 depart = max(now, t_last)
                 here = self.traj_pos(g, depart, v)
                 if now > t_last:
-                    self._record(g, now, here)
-                piece = float(np.linalg.norm(self._pos(v) - self._pos(v - 1)))
-                left = float(np.linalg.norm(self._pos(v) - here))
+                    self.record(g, now, here)
+                piece = float(np.linalg.norm(self.pos(v) - self.pos(v - 1)))
+                left = float(np.linalg.norm(self.pos(v) - here))
                 rest = left / piece if piece > 0 else 0.0
                 fastest = depart + rest * float(self.piece_lb[v])
                 self.phys[v] = max(float(self.T[v]), fastest)
@@ -745,48 +416,16 @@ class _Sim:
         if self.replan_at is None:
             self.replan_at = now
             self.replan_reason = reason
-            from hierplan_opt.execution.replan import restrict_to_frontier
-
+            t0 = time.perf_counter()
             restrict_to_frontier(self, now)
-
-    def _log(
-        self, when: float, agent: str, kind: str, layer: str, delay: float, detail: str
-    ) -> None:
-        self.log.append(Event(float(when), agent, kind, layer, float(delay), detail))
+            self.frontier_time = time.perf_counter() - t0
+            self.runtime["replan"] += self.frontier_time
 
     # ------------------------------------------------------------ timed disturbances
-    def position(self, j: int, now: float) -> tuple[np.ndarray, int]:
-        """Robot ``j``'s (phase index) position at ``now`` and its next node (or -1)."""
-        S = self.S
-        nodes = S.tpg.agent_nodes(j)
-        done = np.flatnonzero(~np.isnan(self.t[nodes.start : nodes.stop]))
-        g = self.gid[j]
-        if not len(done):
-            return self.traj_pos(g, now), nodes.start
-        last = nodes.start + int(done[-1])
-        if last == nodes.stop - 1:
-            return self._pos(last), -1
-        n = last + 1
-        return self.traj_pos(g, now, n), n
-
-    def traj_pos(self, g: int, now: float, n: int | None = None) -> np.ndarray:
-        tr = self.traj[g]
-        if not tr:
-            j = self.gid.index(g)
-            return self._pos(int(self.S.tpg.agent_ptr[j]))
-        t_last, p_last = tr[-1]
-        if n is None or np.isnan(self.phys[n]) or now <= t_last:
-            return p_last
-        arrive = float(self.phys[n])
-        if now >= arrive:
-            return self._pos(n)
-        f = (now - t_last) / max(arrive - t_last, 1e-12)
-        return p_last + f * (self._pos(n) - p_last)
-
     def _disturb(self, d: Stop | Breakdown, now: float) -> None:
         g = self.index[d.agent]
         if self.broken[g] or g not in self.gid:
-            self._log(now, d.agent, _kind(d), "none", 0.0, "robot already broken down")
+            self.log_event(now, d.agent, _kind(d), "none", 0.0, "robot already broken down")
             return
         j = self.gid.index(g)
         pos, n = self.position(j, now)
@@ -795,10 +434,8 @@ class _Sim:
             return
         if isinstance(d, Breakdown):
             if self.piece_dur is not None:  # where its refined trajectory has got to
-                from hierplan_opt.execution.follow import refined_position
-
                 pos = refined_position(self, j, now)
-            self._record(g, now, pos)
+            self.record(g, now, pos)
             self.broken[g] = True
             if n >= 0:
                 self.version[n] += 1
@@ -806,14 +443,14 @@ class _Sim:
             self._breakdown(g, j, now)
             return
         if n < 0:
-            self._log(now, d.agent, "stop", "none", 0.0, "robot already at its goal")
+            self.log_event(now, d.agent, "stop", "none", 0.0, "robot already at its goal")
             return
         arrive = float(self.phys[n])
         if now < arrive:
             t_last = self.traj[g][-1][0] if self.traj[g] else now
             frac = (arrive - now) / max(arrive - t_last, 1e-12)
-            self._record(g, now, pos)
-            self._record(g, now + d.duration, pos)
+            self.record(g, now, pos)
+            self.record(g, now + d.duration, pos)
             self.holds[g].append((now, now + d.duration))
             rest = frac * float(self.piece_lb[n] or 0.0)
             self.phys[n] = max(arrive, now + d.duration + rest)
@@ -823,23 +460,64 @@ class _Sim:
             self._try_push(n)
         self._react(g, n, "stop", f"halts {d.duration:g} s", now)
 
+    def _footprint_blocked(self, g: int, now: float) -> dict[int, int]:
+        """Robots (phase index) whose way ahead passes the broken robot ``g``'s
+        footprint (closer than ``r_g + r_j + margin``; point robots: through its point),
+        and the first of their nodes they may not reach."""
+        S = self.S
+        tpg = S.tpg
+        p = self.traj[g][-1][1] * self.scale
+        radius = self.radius
+        out: dict[int, int] = {}
+        for j, g2 in enumerate(self.gid):
+            if g2 == g or self.broken[g2]:
+                continue
+            nodes = tpg.agent_nodes(j)
+            done = np.flatnonzero(~np.isnan(self.t[nodes.start : nodes.stop]))
+            first = nodes.start + (int(done[-1]) + 1 if len(done) else 0)
+            if first >= nodes.stop or not len(done):
+                continue
+            here = self.traj_pos(g2, now, first) * self.scale
+            ends = tpg.node_pos[first : nodes.stop]
+            starts = np.vstack([here[None, :], ends[:-1]])
+            need = float(radius[g] + radius[g2] + self.margin)
+            d = segment_distance(starts, ends, p)
+            hit = np.flatnonzero((d < need - 1e-9 * max(1.0, need)) | (d <= 1e-9))
+            if len(hit):
+                out[j] = first + int(hit[0])
+        return out
+
+    def _hold_before(self, blocked: dict[int, int]) -> None:
+        """Robots never set off towards their blocked nodes (they stay where they were)."""
+        ends = self.S.tpg.agent_ptr
+        for j, v in blocked.items():
+            self.version[v : int(ends[j + 1])] += 1
+            self.active[v : int(ends[j + 1])] = False
+            self.in_heap[v : int(ends[j + 1])] = False
+
     def _breakdown(self, g: int, j: int, now: float) -> None:
         name = self.names[g]
         S = self.S
         nodes = S.tpg.agent_nodes(j)
         pending = [v for v in nodes if np.isnan(self.t[v])]
-        blocked = _descendants(self.stn, pending) - set(pending)
+        blocked = descendants(self.stn, pending) - set(pending)
         others = {self.gid[int(S.tpg.node_agent[v])] for v in blocked}
+        # Whoever would drive into the broken robot (whatever the TPG says) holds.
+        geo = self._footprint_blocked(g, now)
+        for j2, v in geo.items():
+            self.geo_block[j2] = min(v, self.geo_block.get(j2, v))
+        self._hold_before(geo)
+        others |= {self.gid[j2] for j2 in geo}
         if not others:
-            self._log(now, name, "breakdown", "none", math.inf, "no other robot depends on it")
+            self.log_event(now, name, "breakdown", "none", math.inf, "no other robot depends on it")
             return
         who = ", ".join(self.names[x] for x in sorted(others)[:3])
         more = f" and {len(others) - 3} more" if len(others) > 3 else ""
         if "replan" in self.layers:
-            self._log(now, name, "breakdown", "replan", math.inf, f"blocks {who}{more}")
+            self.log_event(now, name, "breakdown", "replan", math.inf, f"blocks {who}{more}")
             self._request_replan(now, f"{name} broke down")
         else:
-            self._log(now, name, "breakdown", "none", math.inf, f"blocks {who}{more} for good")
+            self.log_event(now, name, "breakdown", "none", math.inf, f"blocks {who}{more} for good")
 
 
 def _timed(d: Stop | Breakdown) -> bool:
@@ -854,19 +532,6 @@ def _shift(d: Stop | Breakdown, now: float) -> Stop | Breakdown:
     return d
 
 
-def _descendants(stn: STN, roots: Sequence[int]) -> set[int]:
-    seen = set(int(r) for r in roots)
-    stack = list(seen)
-    while stack:
-        v = stack.pop()
-        for w in stn.arc_dst[stn.out_arcs(v)].tolist():
-            if w not in seen:
-                seen.add(w)
-                stack.append(w)
-    return seen
-
-
-# ---------------------------------------------------------------------- front door
 def simulate(
     instance: Instance,
     schedule: Schedule,
@@ -876,7 +541,7 @@ def simulate(
     mode: str = "agent",
     seed: int = 0,
     dt: float = 0.1,
-    solver: str = "ecbs",
+    solver: str = "auto",
     replan_time_limit: float = 30.0,
     trajectories: Trajectories | None = None,
 ) -> Execution:
@@ -893,15 +558,21 @@ def simulate(
         :class:`~.disturbances.Slow`, :class:`~.disturbances.RandomDelays`.
     policy : {"slack", "stn", "replan", "reorder", "adg", "naive"}
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
-    mode : {"agent", "robot"}
-        ``agent``: constant velocity between way-points; ``robot``: bounded
-        acceleration and turning in place (see :mod:`.robot`).
+    mode : {"agent", "robot", "replay"}
+        ``agent``: constant velocity between way-points (the discrete-event
+        simulation); ``robot``: closed loop (:class:`.closedloop.ClosedLoop`) over a
+        :class:`.kinematic.KinematicPlant` - bounded acceleration, turning in place,
+        slippery regions; the robots' lateness feeds back into slack, STN re-solve,
+        re-ordering and re-planning; ``replay``: the same dynamics open loop on the
+        agent run's event times (:mod:`.robot`; also what ``robot`` does when
+        following refined ``trajectories`` or under the ``naive`` policy).
     seed : int
         Seeds random delays that give no seed of their own.
     dt : float
         Sampling step of ``robot`` mode trajectories (seconds).
     solver : str
-        Registered MAPF solver for re-plans (default ECBS).
+        Registered MAPF solver for re-plans; ``auto`` (default): ECBS up to 100
+        robots, LaCAM beyond, LaCAM when ECBS fails.
     trajectories : Trajectories, optional
         Refined trajectories of this schedule (:func:`hierplan_opt.trajectory.refine`):
         every robot follows its refined timing instead of constant velocity, holding
@@ -917,17 +588,15 @@ def simulate(
     >>> from hierplan_opt.schedule import postprocess
     >>> from hierplan_opt.execution.disturbances import Stop
     >>> inst = Instance.mapf(Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
-    >>> s = postprocess(inst, Plan.from_paths([[1, 2, 3], [0, 1, 2]]))
+    >>> s = postprocess(inst, Plan.from_paths([[1, 2, 3], [0, 1, 2]]), margin=0)
     >>> ex = simulate(inst, s, disturbances=[Stop("agent0", 1.5, at_time=0.5)])
     >>> ex.arrival.tolist(), ex.statistics["collisions"], [e.layer for e in ex.log]
-    ([3.5, 2.5], 0, ['stn'])
+    ([3.5, 3.5], 0, ['stn'])
     """
     if policy not in POLICIES:
         raise OptionError(f"unknown policy {policy!r} (use {', '.join(POLICIES)})")
     if mode not in MODES:
         raise OptionError(f"unknown mode {mode!r} (use {', '.join(MODES)})")
-    if mode == "physics":
-        return _physics(instance, schedule, disturbances, policy, seed, solver, replan_time_limit)
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
         raise OptionError(f"dt must be a positive number of seconds, got {dt!r}")
     if schedule.stn is None:
@@ -937,16 +606,31 @@ def simulate(
             f"the schedule has {schedule.num_agents} robots, the instance {instance.num_agents}"
         )
     if trajectories is not None:
-        from hierplan_opt.execution.follow import check_trajectories
-
         check_trajectories(schedule, trajectories, mode)
-    sim = _Sim(
+    if mode == "physics":
+        return _physics(
+            instance, schedule, disturbances, policy, seed, solver, replan_time_limit, dt
+        )
+    if mode == "robot" and trajectories is None and policy != "naive":
+        plant = kinematic_plant(instance, schedule, disturbances)
+        loop = ClosedLoop(
+            instance,
+            schedule,
+            plant,
+            disturbances=disturbances,
+            policy=policy,
+            seed=seed,
+            solver=solver,
+            replan_time_limit=replan_time_limit,
+            dt=dt,
+        )
+        return loop.run()
+    sim = Simulation(
         instance, schedule, disturbances, policy, seed, solver, replan_time_limit, trajectories
     )
     sim.run()
-    from hierplan_opt.execution.statistics import finish
-
-    return finish(sim, instance, schedule, policy, mode, seed, dt)
+    ex = finish(sim, instance, schedule, policy, mode, seed, dt)
+    return ex
 
 
 def _physics(
@@ -957,36 +641,49 @@ def _physics(
     seed: int,
     solver: str,
     replan_time_limit: float,
+    dt: float,
 ) -> Execution:
-    """``mode="physics"``: the run in MuJoCo (:func:`hierplan_opt.physics.loop.closed_loop`)
-    as an :class:`Execution` (trajectories sampled every control step)."""
+    """``mode="physics"``: the robots in MuJoCo, closed loop with slack -> STN re-solve
+    -> re-plan (:func:`hierplan_opt.physics.loop.closed_loop`; ``reorder`` runs as
+    ``replan``, ``adg``/``naive`` are refused), as an :class:`Execution` with the
+    physics' measurements (engine contacts, every pair at every physics step, tracking
+    error, real-time factor) in its statistics."""
     from hierplan_opt.physics.loop import closed_loop  # heavy module (MuJoCo)
 
-    pol = {"slack": "slack", "stn": "stn"}.get(policy, "replan")
-    if policy not in ("slack", "stn", "replan"):
-        log.warning("physics mode runs policy %s as %s", policy, pol)
+    if policy in ("adg", "naive"):
+        raise OptionError(f"physics mode runs slack, stn, replan and reorder, not {policy!r}")
+    pol = "replan" if policy == "reorder" else policy
     run, events = closed_loop(
         instance,
         schedule,
         disturbances,
         policy=pol,
         seed=seed,
-        solver="auto" if solver == "ecbs" else solver,
+        dt=dt,
+        solver=solver,
         replan_time_limit=replan_time_limit,
     )
     st = dict(run.statistics)
     names = run.names
     arrival = np.array([r[-1] if len(r) else np.nan for r in run.reach])
     ok = arrival[~np.isnan(arrival)]
-    handled = {"slack": 0, "stn": 0, "replan": 0, "none": 0, **st["handled"]}
+    broken = [n for n, c in st["disturbed"].items() if "breakdown" in c]
+    stranded = [n for n, a in zip(names, arrival, strict=True) if np.isnan(a) and n not in broken]
+    why = {n: "broke down" for n in broken}
+    why.update({n: "never at its goal" for n in stranded})
+    handled = {"slack": 0, "reorder": 0, "stn": 0, "replan": 0, "none": 0, **st["handled"]}
     st.update(
-        collisions=st["contacts"],
+        collisions=len(st["contact_pairs"]),
         arrival_avg=float(ok.mean()) if len(ok) else math.nan,
         arrival_max=float(ok.max()) if len(ok) else math.nan,
         arrival_sum=float(ok.sum()),
-        unfinished=[n for n, a in zip(names, arrival, strict=True) if np.isnan(a)],
+        broken=broken,
+        stranded=stranded,
+        unfinished=broken + stranded,
+        why_unfinished=why,
         handled=handled,
-        runtime={"stn": 0.0, "replan": 0.0, "simulation": st["wall"]},
+        disturbances=len(events),
+        runtime={"slack": 0.0, "reorder": 0.0, "stn": 0.0, "replan": 0.0, "simulation": st["wall"]},
         reorders=0,
     )
     scale = float(schedule.scale)

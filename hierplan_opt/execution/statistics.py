@@ -3,24 +3,23 @@
 The executed trajectories are piecewise linear in time, so the minimum distance of two
 robots is exact (the closed form of :mod:`hierplan_opt.schedule.replay`, with its
 exact pruning of pairs that stay far apart). ``collisions`` counts pairs whose centres
-came closer than ``r_i + r_j`` (their footprints overlapped); ``distance_kept`` says
-whether every pair kept the guaranteed ``r_i + r_j + margin``.
+came closer than ``r_i + r_j`` (their footprints overlapped) or onto one point (any
+radius, 0 included): :func:`hierplan_opt.schedule.replay.collides`, the one
+definition; ``distance_kept`` says whether every pair kept the guaranteed ``r_i + r_j + margin``.
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.execution.state import DISTURBANCE_KINDS, ExecState, Execution
 from hierplan_opt.schedule.output import Schedule, Waypoints
-from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min
-
-if TYPE_CHECKING:
-    from hierplan_opt.execution.simulate import Execution, _Sim
+from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min, collides
 
 #: Distance tolerance (metres, relative).
 TOL = 1e-9
@@ -84,7 +83,7 @@ def distances(
     >>> from hierplan_opt import Graph, Plan
     >>> from hierplan_opt.schedule import postprocess
     >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (0, 1)], [(2, 0), (2, 1)])
-    >>> distances(postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]])), inst)
+    >>> distances(postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]]), margin=0), inst)
     (1.0, 0, True, 1.0)
     """
     K = schedule.num_agents
@@ -106,18 +105,77 @@ def distances(
         body = radius[a] + radius[b]
         need = body + m if required is None else float(required(a, b))
         worst = min(worst, float(d - need))
-        if d < body - TOL * max(1.0, body):
+        if collides(d, body):
             collisions += 1
     kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
     return float(best), collisions, kept, float(worst)
 
 
-def finish(
-    sim: _Sim, instance: Instance, schedule: Schedule, policy: str, mode: str, seed: int, dt: float
-) -> Execution:
-    """Build the :class:`Execution` of a finished simulation."""
-    from hierplan_opt.execution.simulate import Execution
+def outcomes(
+    instance: Instance, sim: ExecState, arrival: np.ndarray, finals: list[np.ndarray]
+) -> tuple[np.ndarray, dict[str, str], list[str]]:
+    """``(at_goal, why, stranded)``: which robots ended at a goal of their own (or of
+    their team), why each other one did not, and the working robots among them (those
+    that did not break down).
 
+    ``finals`` are the robots' last positions (instance coordinates).
+    """
+    g = instance.graph
+    K = len(sim.names)
+    at_goal = np.zeros(K, dtype=bool)
+    why: dict[str, str] = {}
+    stranded: list[str] = []
+    for k in range(K):
+        a = instance.agents[k]
+        if a.goal is not None:
+            goals = [a.goal]
+        elif a.team is not None and instance.teams:
+            goals = list(instance.teams[a.team].targets)
+        else:
+            goals = []
+        p = np.asarray(finals[k], dtype=float)
+        here = [v for v in goals if float(np.linalg.norm(g.coords[v] - p)) <= 1e-6]
+        if here and not np.isnan(arrival[k]):
+            at_goal[k] = True
+            continue
+        name = sim.names[k]
+        where = _where(g, p)
+        if sim.broken[k]:
+            why[name] = f"broke down at {where}"
+            continue
+        stranded.append(name)
+        if k in sim.substituted:
+            goal, sub = sim.substituted[k]
+            why[name] = (
+                f"its goal {g.location(goal)} was blocked or cut off: substituted "
+                f"{g.location(sub)}, ended at {where}"
+            )
+        elif np.isnan(arrival[k]):
+            why[name] = f"blocked: never arrived, stopped at {where}"
+        else:
+            why[name] = f"ended at {where}, not a goal of its own"
+    return at_goal, why, stranded
+
+
+def _where(g: Any, p: np.ndarray) -> str:
+    r = np.round(p, 3)
+    if np.allclose(r, np.round(r)):
+        return str(tuple(int(x) for x in np.round(r)))
+    return "(" + ", ".join(f"{x:g}" for x in r.tolist()) + ")"
+
+
+def finish(
+    sim: ExecState,
+    instance: Instance,
+    schedule: Schedule,
+    policy: str,
+    mode: str,
+    seed: int,
+    dt: float,
+    plant: Any = None,
+) -> Execution:
+    """Build the :class:`Execution` of a finished simulation (``plant``: the closed
+    loop's plant, whose sampled motion is in ``sim.traj``)."""
     traj = []
     for g in range(sim.K):
         pts = sim.traj[g]
@@ -136,7 +194,7 @@ def finish(
         required = required_distance(sim)
         guaranteed = min(t.safety_distance for t in sim.follows.values())
     robot = None
-    if mode == "robot":
+    if mode in ("robot", "replay") and plant is None:
         from hierplan_opt.execution.robot import robot_run
 
         robot = robot_run(sim, instance, dt)
@@ -147,8 +205,10 @@ def finish(
         tr.setflags(write=False)
     exe = executed_schedule(sim.names, traj, schedule, policy)
     d_min, collisions, kept, worst = distances(exe, instance, required, slack)
-    done = ~np.isnan(arrival)
-    handled = Counter(e.layer for e in sim.log)
+    done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj])
+    events = [e for e in sim.log if e.kind in DISTURBANCE_KINDS]
+    handled = Counter(e.layer for e in events)
+    replans = sum(e.kind == "replan" and e.layer == "replan" for e in sim.log)
     stats: dict[str, Any] = {
         "policy": policy,
         "mode": mode,
@@ -159,21 +219,30 @@ def finish(
         "distance_bound": slack,
         "distance_kept": bool(kept),
         "worst_gap": worst,
-        "makespan": float(arrival[done].max()) if done.any() else math.nan,
+        # Not reached while a working robot is away from its goal (never hidden).
+        "makespan": float(arrival[done].max()) if done.any() and not stranded else math.nan,
         "planned_makespan": schedule.makespan,
         "arrival_avg": float(arrival[done].mean()) if done.any() else math.nan,
         "arrival_max": float(arrival[done].max()) if done.any() else math.nan,
         "arrival_sum": float(arrival[done].sum()),
         "finished": int(done.sum()),
         "unfinished": [sim.names[g] for g in np.flatnonzero(~done).tolist()],
+        "why_unfinished": why,
+        "stranded": stranded,
         "broken": [sim.names[g] for g in np.flatnonzero(sim.broken).tolist()],
-        "disturbances": len(sim.log),
+        "substituted": [sim.names[g] for g in sorted(sim.substituted)],
+        "disturbances": len(events),
         "stn_resolves": sim.counts["stn_resolves"],
         "reorders": sim.counts["reorders"],
-        "replans": sim.counts["replans"],
+        "replans": replans,
         "handled": {k: handled.get(k, 0) for k in ("slack", "stn", "replan", "reorder", "none")},
         "runtime": dict(sim.runtime),
+        "replan_runtime": [dict(r) for r in sim.replan_timing],
     }
+    if plant is not None:
+        stats["acceleration_violations"] = int(getattr(plant, "violations", 0))
+        stats["max_acceleration_ratio"] = float(getattr(plant, "max_ratio", math.nan))
+        stats["loop"] = "closed"
     if robot is not None:
         stats["acceleration_violations"] = len(robot.violations)
         stats["max_acceleration_ratio"] = robot.max_ratio
@@ -193,5 +262,9 @@ def finish(
         statistics=stats,
         arrival=arrival,
         replans=tuple(sim.replans),
-        robot_times=robot.event_times if robot is not None else None,
+        robot_times=(
+            robot.event_times
+            if robot is not None
+            else (sim.phases[0].times if plant is not None and sim.phases else None)
+        ),
     )

@@ -16,7 +16,7 @@ import logging
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -53,11 +53,14 @@ def make_plant(
     disturbances: Sequence[Any] = (),
     *,
     seed: int = 0,
+    monitor: bool = False,
     **options: Any,
 ) -> MujocoPlant:
     """A plant with one robot per schedule robot (models from the instance's robot
-    types), at its first way-point facing its first move; execution disturbances are
-    turned into physical ones (:func:`~.disturbances.from_execution`).
+    types; speeds and accelerations times the map's cell size), at its first way-point
+    facing its first move; execution disturbances are turned into physical ones
+    (:func:`~.disturbances.from_execution`). ``monitor``: the execution monitor imposes
+    stops, breakdowns and random delays itself, the plant only the physical ones.
 
     Example
     -------
@@ -77,6 +80,10 @@ def make_plant(
     by_name = {a.name: a for a in instance.agents}
     kins = [by_name[n].kinematics if n in by_name else instance.agents[i].kinematics
             for i, n in enumerate(names)]  # fmt: skip
+    scale = float(schedule.scale)
+    kins = [
+        replace(k, v_max=k.v_max * scale, a_max=k.a_max * scale if k.a_max else None) for k in kins
+    ]
     models = [robot_model(k, dim) for k in kins]
     starts = np.array([waypoints_m(schedule, i)[0] for i in range(len(names))]).reshape(-1, 3)
     headings = np.array(
@@ -85,7 +92,11 @@ def make_plant(
     )  # fmt: skip
     radius = np.array([m.radius for m in models])
     clearance = radius[:, None] + radius[None, :] + float(schedule.margin)
-    phys: list[PhysicalDisturbance] = from_execution(disturbances, float(schedule.scale))
+    if monitor:
+        disturbances = [
+            d for d in disturbances if type(d).__name__ not in ("Stop", "Breakdown", "RandomDelays")
+        ]
+    phys: list[PhysicalDisturbance] = from_execution(disturbances, scale)
     return MujocoPlant(
         models,
         starts,
@@ -326,3 +337,28 @@ def _plain(x: Any) -> Any:
         f = float(x)
         return round(f, 6) if math.isfinite(f) else None
     return x
+
+
+def measured(plant: MujocoPlant, schedule: Schedule, wall: float) -> dict[str, Any]:
+    """What the plant measured, for an execution report: ``contacts`` (physics steps
+    with a robot-robot contact) and ``contact_pairs``, ``measured_min_distance`` and
+    ``measured_min_margin`` (every pair, every physics step), ``tracking_error_max`` /
+    ``tracking_error_rms`` (against the first schedule), ``real_time_factor``,
+    ``physics_steps``, ``disturbed``."""
+    me = plant.measure
+    st_t, st_p = plant.samples
+    err = np.linalg.norm(st_p - scheduled_positions(schedule, st_t), axis=2)
+    sim = float(plant.time)
+    return {
+        "contacts": int(me.contacts),
+        "contact_pairs": sorted([plant.names[a], plant.names[b]] for a, b in me.contact_pairs),
+        "measured_min_distance": float(me.min_distance),
+        "measured_min_margin": float(me.min_margin),
+        "tracking_error_max": float(err.max()) if err.size else 0.0,
+        "tracking_error_rms": float(np.sqrt(np.mean(err**2))) if err.size else 0.0,
+        "real_time_factor": sim / wall if wall > 0 else math.inf,
+        "physics_steps": int(me.steps),
+        "disturbed": {
+            plant.names[i]: sorted(plant.causes[i]) for i in range(plant.n) if plant.causes[i]
+        },
+    }

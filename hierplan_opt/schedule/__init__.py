@@ -10,6 +10,7 @@ times by graph algorithms (:mod:`.solve_graph`) or an LP (:mod:`.solve_lp`) ->
 from __future__ import annotations
 
 from hierplan_opt.schedule.clearance import ClearanceError, PairClearance, Requirement
+from hierplan_opt.schedule.files import load_schedule, plan_from_tree, plan_tree
 from hierplan_opt.schedule.output import (
     Schedule,
     Waypoints,
@@ -19,7 +20,15 @@ from hierplan_opt.schedule.output import (
     write_schedule,
 )
 from hierplan_opt.schedule.post import postprocess
-from hierplan_opt.schedule.replay import ReplayReport, check_bounds, replay
+from hierplan_opt.schedule.replay import (
+    PairSeparations,
+    ReplayReport,
+    check_bounds,
+    collides,
+    pair_separations,
+    replay,
+    required_separation,
+)
 from hierplan_opt.schedule.solve_graph import (
     GraphSolution,
     InconsistentSTNError,
@@ -44,6 +53,7 @@ __all__ = [
     "LPError",
     "LPSolution",
     "PairClearance",
+    "PairSeparations",
     "ReplayReport",
     "Requirement",
     "Schedule",
@@ -53,14 +63,20 @@ __all__ = [
     "build_stn",
     "build_tpg",
     "check_bounds",
+    "collides",
     "critical_path",
     "earliest_times",
     "fix_and_propagate",
     "latest_times",
+    "load_schedule",
+    "pair_separations",
+    "plan_from_tree",
+    "plan_tree",
     "postprocess",
     "reach_time",
     "read_schedule",
     "replay",
+    "required_separation",
     "schedule_text",
     "solve_graph",
     "solve_lp",

@@ -80,6 +80,50 @@ def finite_nonnegative(value: object, message: str) -> float:
     return float(value)
 
 
+#: Default margin for point robots, as a fraction of the shortest edge.
+DEFAULT_MARGIN_FRACTION = 0.1
+
+
+def shortest_edge(graph) -> float:
+    """The shortest straight edge of a map in metres (grids: the cell size).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> shortest_edge(Graph.grid(3, 2, cell_size=0.5))
+    0.5
+    """
+    if graph.kind == "grid":
+        return float(graph.cell_size)
+    src = np.repeat(np.arange(graph.n), np.diff(graph.indptr))
+    dst = np.asarray(graph.indices)
+    if not len(src):
+        return 1.0
+    d = np.linalg.norm((graph.coords[dst] - graph.coords[src]) * graph.scale, axis=1)
+    d = d[d > 0]
+    return float(d.min()) if len(d) else 1.0
+
+
+def default_margin(instance: Instance) -> float:
+    """The margin :func:`~hierplan_opt.schedule.postprocess` uses when none is given.
+
+    ``0.1 x`` the shortest edge (:func:`shortest_edge`) when at least two robots are
+    points (radius 0), so that every pair has a stated positive separation; else 0 (the
+    radii already separate every pair: robots with a size keep ``r_i + r_j``).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(4, 1, cell_size=2.0)
+    >>> default_margin(Instance.mapf(g, [(0, 0), (3, 0)], [(1, 0), (2, 0)]))
+    0.2
+    """
+    points = sum(1 for a in instance.agents if a.kinematics.radius <= 0)
+    if points < 2:
+        return 0.0
+    return float(round(DEFAULT_MARGIN_FRACTION * shortest_edge(instance.graph), 12))
+
+
 @dataclass(frozen=True)
 class PairClearance:
     """The contract for one pair of robot types: required distance, and whether the

@@ -7,11 +7,17 @@ speed. Way-points are the STN's nodes (vertices and the safety markers that carr
 precedence) plus, for differential-drive robots, a "turn" way-point at the vertex
 where the robot has finished turning in place.
 
-YAML layout (JSON is the same tree; CSV has one row per way-point)::
+YAML layout (JSON is the same tree; CSV has one row per way-point, and the
+``statistics``, ``settings`` and ``plan`` blocks as ``# key: json`` lines)::
 
     statistics: {makespan: 4.0, safety_distance: 0.25, objective: makespan, ...}
+    settings: {objective: makespan, method: graph, margin: 0.25, radii: {...}, ...}
+    plan: {agent0: [[0, 0, 0], [1, 0, 1], ...]}               # the discrete plan
     schedule:
       agent0: [{x: 0, y: 0, theta: 0.0, arrival: 0.0}, ...]   # z: on 3D maps
+
+``settings`` and ``plan`` say what the schedule came from; they are read back by
+:func:`hierplan_opt.schedule.files.load_schedule` (``Schedule.load``).
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.plan import Plan
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
@@ -97,6 +104,14 @@ class Schedule:
     clearance : tuple of PairClearance
         Per pair of robot types: the required distance ``r_a + r_b + margin`` and
         whether the schedule guarantees it.
+    plan : Plan or None
+        The discrete plan the schedule was made from.
+    settings : dict
+        What made it: ``objective``, ``method``, ``margin``, ``clearance``,
+        ``acceleration``, ``epsilon``, ``deadlines``, ``radii`` (per robot) and the
+        ``solver`` of the plan when known.
+    plan_rows : dict or None
+        The plan as its file carries it (:func:`~hierplan_opt.schedule.files.plan_tree`).
     """
 
     agent_names: tuple[str, ...]
@@ -116,6 +131,18 @@ class Schedule:
     stn: STN | None = field(default=None, repr=False)
     margin: float = 0.0
     clearance: tuple[PairClearance, ...] = ()
+    plan: Plan | None = field(default=None, repr=False)
+    settings: dict[str, Any] = field(default_factory=dict)
+    plan_rows: dict[str, list[list[Any]]] | None = field(default=None, repr=False)
+
+    @classmethod
+    def load(cls, path: str | Path, instance: Any) -> Schedule:
+        """Read a schedule file for ``instance``: the one reader of schedule files
+        (:func:`hierplan_opt.schedule.files.load_schedule`, which see)."""
+        # files.py builds on this module (and on post.py, which imports it).
+        from hierplan_opt.schedule.files import load_schedule
+
+        return load_schedule(path, instance)
 
     @property
     def slack(self) -> np.ndarray:
@@ -179,7 +206,19 @@ class Schedule:
                 row["arrival"] = round(float(wp.arrival[k]), 9)
                 rows.append(row)
             sched[name] = rows
-        return {"statistics": self.statistics(), "schedule": sched}
+        out: dict[str, Any] = {"statistics": self.statistics()}
+        out.update(self.provenance())
+        out["schedule"] = sched
+        return out
+
+    def provenance(self) -> dict[str, Any]:
+        """The ``settings`` and ``plan`` blocks of the files (those known)."""
+        out: dict[str, Any] = {}
+        if self.settings:
+            out["settings"] = _finite(_plain(self.settings))
+        if self.plan_rows is not None:
+            out["plan"] = self.plan_rows
+        return out
 
 
 def _num(x: float) -> float | int:
@@ -231,6 +270,9 @@ def build_schedule(
     margin: float = 0.0,
     clearance: tuple[PairClearance, ...] = (),
     stats: dict[str, Any] | None = None,
+    plan: Plan | None = None,
+    settings: dict[str, Any] | None = None,
+    plan_rows: dict[str, list[list[Any]]] | None = None,
 ) -> Schedule:
     """Way-points of every robot from STN node times (adds turn way-points).
 
@@ -313,6 +355,9 @@ def build_schedule(
         stn=stn,
         margin=float(margin),
         clearance=tuple(clearance),
+        plan=plan,
+        settings=dict(settings or {}),
+        plan_rows=plan_rows,
     )
 
 
@@ -332,6 +377,8 @@ def schedule_text(schedule: Schedule, fmt: str = "yaml") -> str:
         buf = io.StringIO()
         for k, v in schedule.statistics().items():
             buf.write(f"# {k}: {json.dumps(v)}\n")
+        for k, v in schedule.provenance().items():
+            buf.write(f"# {k}: {json.dumps(v, separators=(',', ':'))}\n")
         axes = ["x", "y", "z"][: schedule.dim]
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(
@@ -410,7 +457,11 @@ def read_schedule(path: str | Path) -> dict[str, Any]:
             rec: dict[str, Any] = {k: float(v) for k, v in row.items()}
             rec["kind"] = kind
             sched.setdefault(name, []).append(rec)
-        data = {"statistics": stats, "schedule": sched}
+        data = {"statistics": stats}
+        for key in ("settings", "plan"):  # blocks of their own in YAML and JSON
+            if key in stats:
+                data[key] = stats.pop(key)
+        data["schedule"] = sched
     else:
         data = read_yaml(path, text)  # nesting and alias limits
     if not isinstance(data, dict) or "schedule" not in data:

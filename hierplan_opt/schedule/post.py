@@ -23,7 +23,8 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import tick
 from hierplan_opt.core.validate import validate
-from hierplan_opt.schedule.clearance import finite_nonnegative
+from hierplan_opt.schedule.clearance import default_margin, finite_nonnegative
+from hierplan_opt.schedule.files import plan_tree
 from hierplan_opt.schedule.output import Schedule, build_schedule
 from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 from hierplan_opt.schedule.solve_lp import BACKENDS, solve_lp
@@ -41,7 +42,7 @@ def postprocess(
     plan: Plan,
     objective: str = "makespan",
     *,
-    margin: float = 0.0,
+    margin: float | None = None,
     clearance: bool = True,
     method: str = "graph",
     epsilon: float = 0.0,
@@ -70,8 +71,11 @@ def postprocess(
         ``makespan`` works with both methods; ``safety`` (maximise the slowest speed,
         then minimise makespan) and ``flowtime`` (sum of arrival times) need
         ``method="lp"``.
-    margin : float
-        Extra clearance in metres on top of the two radii.
+    margin : float, optional
+        Extra clearance in metres on top of the two radii. Default
+        (:func:`~hierplan_opt.schedule.clearance.default_margin`): 0.1 x the shortest
+        edge when at least two robots are points (radius 0), else 0; pass 0 for
+        point robots that may come arbitrarily close (but never onto one point).
     clearance : bool
         False: order of the plan only (plain temporal plan graph), no distance
         guarantee; :attr:`Schedule.clearance` then says which robot types lose it.
@@ -104,6 +108,8 @@ def postprocess(
     """
     t_start = time.perf_counter()
     margin = _check_arguments(instance, plan, objective, method, lp_backend, margin, delta)
+    if margin is None:
+        margin = default_margin(instance)
     _check_plan(instance, plan, check_plan)
     t0 = time.perf_counter()
     tpg = build_tpg(instance, plan, margin, clearance=clearance)
@@ -131,6 +137,22 @@ def postprocess(
     )
     g = instance.graph
     req = tpg.requirement
+    settings: dict[str, Any] = {
+        "objective": objective,
+        "method": method,
+        "margin": req.margin,
+        "clearance": bool(clearance),
+        "acceleration": bool(acceleration),
+        "epsilon": float(epsilon),
+        "radii": {a.name: float(a.kinematics.radius) for a in instance.agents},
+    }
+    if deadlines:
+        settings["deadlines"] = {
+            (instance.agents[k].name if isinstance(k, int) else str(k)): float(v)
+            for k, v in deadlines.items()
+        }
+    if method == "lp":
+        settings["lp_backend"] = lp_stats.get("lp_backend", lp_backend)
     return build_schedule(
         stn,
         times,
@@ -144,6 +166,9 @@ def postprocess(
         margin=req.margin,
         clearance=req.report(),
         stats=stats,
+        plan=plan,
+        settings=settings,
+        plan_rows=plan_tree(instance, plan),
     )
 
 
@@ -154,10 +179,11 @@ def _check_arguments(
     objective: str,
     method: str,
     lp_backend: str,
-    margin: float,
+    margin: float | None,
     delta: float | None,
-) -> float:
-    """Validate the arguments; returns the margin (``delta`` is its old name)."""
+) -> float | None:
+    """Validate the arguments; returns the margin (``delta`` is its old name; None:
+    the default)."""
     if not isinstance(instance, Instance):
         raise InputError(f"postprocess needs an Instance, got {type(instance).__name__}")
     if not isinstance(plan, Plan):
@@ -183,6 +209,8 @@ def _check_arguments(
         if margin:
             raise OptionError("give margin or its old name delta, not both")
         margin = delta
+    if margin is None:
+        return None
     return finite_nonnegative(
         margin, f"margin must be a finite number >= 0 (metres), got {margin!r}"
     )

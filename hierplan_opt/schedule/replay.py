@@ -8,6 +8,15 @@ closest approach on each piece has a closed form; the minimum over all pieces is
 exact minimum centre distance of the pair. The contract checked is
 ``distance >= r_i + r_j + margin`` for every pair.
 
+**One definition of a violation** (:func:`collides`), used by the replay,
+``hierplan post --check``, ``hierplan verify`` and the execution's collision count: a
+pair violates a required separation ``D`` when its exact minimum centre distance is
+below ``D`` (beyond a relative tolerance of 1e-9), **or when the two robots are ever on
+one point** (distance ``<= 1e-9`` m), whatever ``D`` is, 0 included.
+:func:`required_separation` gives ``D_ij = r_i + r_j + margin``;
+:func:`pair_separations` computes every pair's exact minimum distance of
+piecewise-linear trajectories (the replay's closed form and exact pruning).
+
 Pairs are pruned exactly: time is cut into windows, every robot's positions in a window
 lie in an axis-aligned box, and two robots whose boxes, widened by their radii, half
 the margin and half of ``watch``, never overlap in the same window stay farther apart
@@ -32,6 +41,116 @@ TOL = 1e-9
 BOUND_TOL = 1e-6
 
 
+def required_separation(r_i: float, r_j: float, margin: float = 0.0) -> float:
+    """The distance robots ``i`` and ``j`` must keep between their centres:
+    ``r_i + r_j + margin`` (metres).
+
+    Example
+    -------
+    >>> required_separation(0.2, 0.3, 0.1)
+    0.6
+    """
+    return float(round(r_i + r_j + margin, 12))
+
+
+def collides(distance: float | np.ndarray, required: float | np.ndarray) -> np.ndarray | bool:
+    """Whether a pair whose smallest centre distance is ``distance`` violates its
+    required separation ``required``: closer than ``required`` (beyond a relative
+    tolerance :data:`TOL`), or on one point (``distance <= TOL`` metres), whatever
+    ``required`` is. This is the one definition every check uses.
+
+    Example
+    -------
+    >>> collides(0.0, 0.0), collides(0.05, 0.0), collides(0.55, 0.6), collides(0.6, 0.6)
+    (True, False, True, False)
+    """
+    d = np.asarray(distance, dtype=float)
+    need = np.asarray(required, dtype=float)
+    out = (d < need - TOL * np.maximum(1.0, need)) | (d <= TOL)
+    return bool(out) if out.ndim == 0 else out
+
+
+@dataclass(frozen=True)
+class PairSeparations:
+    """Exact minimum centre distances of the pairs of robots checked.
+
+    ``pairs`` (P, 2) robot indices ``i < j``; ``distance`` and ``time`` (P,): the
+    smallest distance and when it happens; ``required`` (P,): ``D_ij``; ``violated``
+    (P,): :func:`collides`. Pairs not listed provably stay at least ``skipped_bound``
+    apart (``pairs_skipped`` of them).
+    """
+
+    pairs: np.ndarray
+    distance: np.ndarray
+    time: np.ndarray
+    required: np.ndarray
+    pairs_skipped: int
+    skipped_bound: float
+
+    @property
+    def violated(self) -> np.ndarray:
+        out = collides(self.distance, self.required)
+        return np.asarray(out, dtype=bool).reshape(len(self.distance))
+
+    @property
+    def violations(self) -> int:
+        """Number of pairs that violate their required separation."""
+        return int(np.count_nonzero(self.violated))
+
+
+def pair_separations(
+    times: list[np.ndarray],
+    positions: list[np.ndarray],
+    radius: np.ndarray,
+    margin: float = 0.0,
+    *,
+    all_pairs: bool = False,
+    watch: float = 1.0,
+    slack: float = 0.0,
+) -> PairSeparations:
+    """Exact minimum distance of every pair of piecewise-linear trajectories.
+
+    Robot ``j`` is at ``positions[j][k]`` (metres) at ``times[j][k]`` (increasing),
+    moves in straight lines in between and stays at its last point. ``slack`` is
+    subtracted from every distance (a sampling bound of the caller). Pairs whose boxes
+    never come within ``D_ij + watch`` are skipped exactly (``all_pairs`` checks all).
+
+    Example
+    -------
+    >>> t = [np.array([0.0, 1.0]), np.array([0.0, 1.0])]
+    >>> p = [np.array([[0.0, 0.0], [1.0, 0.0]]), np.array([[1.0, 0.0], [0.0, 0.0]])]
+    >>> sep = pair_separations(t, p, np.zeros(2))  # head-on: they meet at t = 0.5
+    >>> sep.distance.tolist(), sep.time.tolist(), sep.violations
+    ([0.0], [0.5], 1)
+    """
+    K = len(times)
+    radius = np.asarray(radius, dtype=float)
+    m = float(margin)
+    if K < 2:
+        z = np.zeros(0)
+        return PairSeparations(np.zeros((0, 2), np.int64), z, z, z, 0, math.inf)
+    if all_pairs:
+        ii, jj = np.triu_indices(K, 1)
+        pairs = np.stack([ii, jj], axis=1)
+    else:
+        horizon = max(float(max(t[-1] for t in times)), 1e-9)
+        n_win = int(min(4096, max(1, sum(len(t) for t in times) // K)))
+        lo, hi = _boxes(times, positions, n_win, horizon / n_win * (1 + 1e-12))
+        pairs = _candidate_pairs(lo, hi, radius + m / 2 + watch / 2 + slack / 2)
+    dist = np.empty(len(pairs))
+    when = np.empty(len(pairs))
+    for k, (a, b) in enumerate(pairs.tolist()):
+        dist[k], when[k] = _pair_min(times[a], positions[a], times[b], positions[b])
+    dist -= slack
+    need = radius[pairs[:, 0]] + radius[pairs[:, 1]] + m if len(pairs) else np.zeros(0)
+    skipped = K * (K - 1) // 2 - len(pairs)
+    bound = math.inf
+    if skipped:
+        r = np.sort(radius)
+        bound = float(r[0] + r[1] + m + watch)
+    return PairSeparations(pairs.astype(np.int64).reshape(-1, 2), dist, when, need, skipped, bound)
+
+
 @dataclass(frozen=True)
 class ReplayReport:
     """Result of :func:`replay`.
@@ -41,6 +160,8 @@ class ReplayReport:
     its required distance ``r_i + r_j + margin``; ``worst_gap`` is the smallest
     ``distance - required`` (for ``worst_pair``). ``by_type`` maps each pair of robot
     types to ``(smallest distance, required distance)`` over its pairs checked.
+    ``violations`` counts the pairs that violate it (:func:`collides`: too close, or
+    ever on one point).
     Skipped pairs stay at least ``skipped_bound`` apart (their required distance plus
     ``watch``).
     """
@@ -55,6 +176,7 @@ class ReplayReport:
     worst_gap: float = math.inf
     worst_pair: tuple[str, str] | None = None
     by_type: dict[tuple[str, str], tuple[float, float]] = field(default_factory=dict)
+    violations: int = 0
 
 
 def _pair_min(ta: np.ndarray, pa: np.ndarray, tb: np.ndarray, pb: np.ndarray):
@@ -189,42 +311,36 @@ def replay(
     watch = float(schedule.scale if watch is None else watch)
     times = [np.asarray(wp.arrival, dtype=float) for wp in schedule.waypoints]
     pos = [np.asarray(wp.coords, dtype=float) * schedule.scale for wp in schedule.waypoints]
-    total = K * (K - 1) // 2
     if K < 2:
         return ReplayReport(math.inf, None, None, 0, 0, math.inf)
-    if all_pairs:
-        ii, jj = np.triu_indices(K, 1)
-        pairs = np.stack([ii, jj], axis=1)
-    else:
-        horizon = max(float(max(t[-1] for t in times)), 1e-9)
-        n_win = int(min(4096, max(1, sum(len(t) for t in times) // K)))
-        lo, hi = _boxes(times, pos, n_win, horizon / n_win * (1 + 1e-12))
-        pairs = _candidate_pairs(lo, hi, radius + m / 2 + watch / 2)
+    sep = pair_separations(times, pos, radius, m, all_pairs=bool(all_pairs), watch=watch)
     best = (math.inf, None, None)
     worst = (math.inf, None)
     by_type: dict[tuple[str, str], tuple[float, float]] = {}
-    ok = True
-    for a, b in pairs.tolist():
-        d, t = _pair_min(times[a], pos[a], times[b], pos[b])
-        need = float(radius[a] + radius[b] + m)
+    violated = sep.violated
+    for k, (a, b) in enumerate(sep.pairs.tolist()):
+        d, t, need = float(sep.distance[k]), float(sep.time[k]), float(sep.required[k])
         names = (schedule.agent_names[a], schedule.agent_names[b])
         if d < best[0]:
             best = (d, names, t)
         if d - need < worst[0]:
             worst = (d - need, names)
-        if d < need - TOL * max(1.0, need):
-            ok = False
         key = (min(types[a], types[b]), max(types[a], types[b]))
         old = by_type.get(key, (math.inf, 0.0))
         by_type[key] = (min(old[0], d), max(old[1], need))
-    skipped = total - len(pairs)
-    if skipped:
-        r = np.sort(radius)
-        bound = float(r[0] + r[1] + m + watch)
-    else:
-        bound = math.inf
+    ok = not bool(violated.any())
     return ReplayReport(
-        best[0], best[1], best[2], len(pairs), skipped, bound, ok, worst[0], worst[1], by_type
+        best[0],
+        best[1],
+        best[2],
+        len(sep.pairs),
+        sep.pairs_skipped,
+        sep.skipped_bound,
+        ok,
+        worst[0],
+        worst[1],
+        by_type,
+        int(np.count_nonzero(violated)),
     )
 
 

@@ -26,7 +26,9 @@ the fly:
   the robot turns (a robot starts facing its first move).
 
 Type-2 arcs get ``[epsilon + turn, inf)``: the later robot may pass its point once the
-earlier one has *left* its point (at a vertex where it turns in place, after the turn).
+earlier one has *left* its point (at a vertex where it turns in place, after the turn;
+in the plain TPG of point robots the earlier point is the robot's next vertex, and
+reaching it means it has left the shared one: no turn is added).
 Upper bounds come from deadlines (arrival of a robot at its final node) or from any
 ``ub`` set by the caller (:meth:`STN.with_bounds`).
 """
@@ -304,7 +306,9 @@ def build_stn(
     is2 = tpg.arc_type == TYPE2
     src2 = tpg.arc_src[is2]
     dst2 = tpg.arc_dst[is2]
-    turn2 = turn_time[src2]
+    # Plain TPG: the source is the earlier robot's next vertex, reached after it left
+    # the shared one; its turn there does not matter.
+    turn2 = turn_time[src2] if tpg.regime != "none" else np.zeros(len(src2))
     lb2 = float(epsilon) + turn2
 
     arc_src = np.concatenate([src1, src2, src3])

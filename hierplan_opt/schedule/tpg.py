@@ -8,12 +8,14 @@ turning).
 
 * **Point robots** (every radius and the margin 0, or ``clearance=False``): the plain
   TPG. For every location the visits are sorted by their entry timestep; for two
-  *consecutive* visits by different robots (A before B) an arc from A's visit to B's
-  visit: B may enter once A has left. Later visitors follow transitively through the
-  Type-1 chains in between, so the arcs are built from per-location visit lists with
-  one ``lexsort`` (near-linear in the plan size, never a scan over pairs of robots).
-  Robots that rotate along a cycle (each entering the cell the next one leaves at the
-  same step) are fine: each waits only for the next one to *leave*.
+  *consecutive* visits by different robots (A before B) of location v an arc from A's
+  *next* visit (A has reached the vertex after v, so it has left v) to B's visit of v:
+  B may reach v only once A has left it. Later visitors follow transitively through
+  the Type-1 chains in between, so the arcs are built from per-location visit lists
+  with one ``lexsort`` (near-linear in the plan size, never a scan over pairs of
+  robots). Robots that rotate along a cycle (each entering the vertex the next one
+  leaves at the same step) would each wait for the next one to arrive first: a cycle,
+  refused with one line (:class:`~hierplan_opt.schedule.clearance.ClearanceError`).
 * **Robots with a size** (``r_i + r_j + margin > 0``): markers from the clearance claims
   of :mod:`hierplan_opt.schedule.clearance`. A robot claims a vertex while its centre is
   within ``lambda`` of it; the claims of one vertex are ordered as in the plan, and a
@@ -175,8 +177,8 @@ class TPG:
         >>> from hierplan_opt import Graph
         >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0), (1, 0)], [(1, 0), (2, 0)])
         >>> tpg = build_tpg(inst, Plan.from_paths([[0, 1], [1, 2]]))  # agent0 follows
-        >>> [tpg.label(int(u)) for u in tpg.type2_predecessors(1)]
-        ['agent1 at (1, 0)']
+        >>> [tpg.label(int(u)) for u in tpg.type2_predecessors(1)]  # agent1 left (1, 0)
+        ['agent1 at (2, 0)']
         """
         arcs, ptr = self._type2_in
         return self.arc_src[arcs[ptr[v] : ptr[v + 1]]]
@@ -345,7 +347,7 @@ def build_tpg(
     (6, 5, 1)
     >>> [tpg.label(int(u)) + " -> " + tpg.label(int(w))
     ...  for u, w, t in zip(tpg.arc_src, tpg.arc_dst, tpg.arc_type) if t == 2]
-    ['agent0 at (1, 1) -> agent1 at (1, 1)']
+    ['agent0 at (2, 1) -> agent1 at (1, 1)']
     >>> wide = build_tpg(inst, plan, margin=0.2)  # markers 0.6 m from (1, 1)
     >>> [wide.label(int(u)) + " -> " + wide.label(int(w))
     ...  for u, w, t in zip(wide.arc_src, wide.arc_dst, wide.arc_type) if t == 2]
@@ -368,7 +370,8 @@ def build_tpg(
 
 
 def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
-    """Plain TPG: consecutive visitors of a location, "left" -> "enters"."""
+    """Plain TPG: for consecutive visitors A, B of a location v, an arc from A's *next*
+    visit (A has reached the vertex after v, so it has left v) to B's visit of v."""
     g = instance.graph
     order = np.lexsort((vis.T, vis.V))
     same_loc = vis.V[order[1:]] == vis.V[order[:-1]]
@@ -381,7 +384,7 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
     t1 = np.flatnonzero(~vis.is_last)
     nvis = len(vis.V)
     coords = g.coords[vis.V].astype(float)
-    return TPG(
+    tpg = TPG(
         agent_ptr=vis.ptr,
         node_agent=vis.A,
         node_kind=np.zeros(nvis, dtype=np.int8),
@@ -392,7 +395,7 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
         node_s=vis.s,
         node_turn=vis.turn,
         node_heading=vis.heading,
-        arc_src=np.concatenate([t1, prev_vis]),
+        arc_src=np.concatenate([t1, prev_vis + 1]),
         arc_dst=np.concatenate([t1 + 1, next_vis]),
         arc_type=np.concatenate(
             [np.full(len(t1), TYPE1, np.int8), np.full(len(prev_vis), TYPE2, np.int8)]
@@ -403,6 +406,8 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
         agent_names=tuple(a.name for a in instance.agents),
         location_names=_LocationNames(g),
     )
+    _check_acyclic(tpg, g, _room(g, np.linalg.norm(vis.pos[vis.mv + 1] - vis.pos[vis.mv], axis=1)))
+    return tpg
 
 
 def _segments(vis: _Visits) -> Segments:
@@ -704,6 +709,14 @@ def _check_acyclic(tpg: TPG, g, room: str) -> None:
     names = [tpg.agent_names[a] for a in robots]
     ring = " -> ".join([*names, names[0]]) if names else "?"
     where = ", ".join(dict.fromkeys(locs))
+    if tpg.regime == "none":
+        at = f" at step {min(steps) - 1}" if steps else ""
+        raise ClearanceError(
+            f"robots {ring} rotate{at} around {where}: each moves into the vertex that "
+            "the next one leaves in the same step, so each would have to wait for the "
+            "next to arrive first; MAPF-POST cannot schedule a rotation without two "
+            "robots meeting, replan without rotations"
+        )
     why = (
         f"they rotate at step {steps.pop()}: each enters the cell that the next one leaves, "
         "so with any clearance > 0 one of them would have to move first"

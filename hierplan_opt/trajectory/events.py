@@ -9,22 +9,15 @@ parts of a :class:`~hierplan_opt.schedule.Schedule` (its ``stn``, ``times``, win
 ``earliest``/``latest`` for the schedule returned, and way-points), so the rest of
 :mod:`hierplan_opt.trajectory` never reads the temporal plan graph's internals.
 
-A schedule *file* holds way-points and arrival times but not the STN. :func:`from_file`
-rebuilds it: the order in which robots visit every location is the order of their
-arrival times there (a precedence makes the later robot arrive strictly later), which
-is all the temporal plan graph uses. A discrete plan with these visit orders follows
-from the difference constraints "one step per move" and "a robot enters a location no
-earlier than the previous visitor enters its next one", solved by longest paths. The
-plan is validated and post-processed again with the file's ``margin`` (and without
-clearance if the file says it had none); the file's arrival times then replace the
-recomputed ones, after a check that the way-points match and that the times respect
-every precedence.
+A schedule *file* holds way-points and arrival times, and the discrete plan and
+settings they came from, but not the STN. :func:`from_file` reads it with the one
+reader of schedule files (:func:`hierplan_opt.schedule.files.load_schedule`), which
+rebuilds the STN from the file's plan and settings and keeps the file's times.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,9 +29,6 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 
 log = logging.getLogger(__name__)
-
-#: Tolerance (seconds, metres) for matching a file against the rebuilt schedule.
-MATCH_TOL = 1e-5
 
 
 @dataclass(frozen=True, eq=False)
@@ -233,178 +223,15 @@ def _from_stn(
 
 
 # ---------------------------------------------------------------------- files
-def _margin_of(stats: dict, path: Path) -> float:
-    """The file's margin (``delta`` in files of earlier versions)."""
-    margin = stats.get("margin", stats.get("delta"))
-    if (
-        margin is None
-        or isinstance(margin, bool)
-        or not isinstance(margin, (int, float))
-        or not math.isfinite(margin)
-        or margin < 0
-    ):
-        raise InputError(f"{path}: statistics.margin is missing (write it with hierplan post)")
-    return float(margin)
-
-
-def _clearance_of(stats: dict) -> bool:
-    """False when the file says a pair needing a distance had no guarantee."""
-    rows = stats.get("clearance")
-    if not isinstance(rows, list):
-        return True
-    return not any(isinstance(row, dict) and row.get("guaranteed") is False for row in rows)
-
-
-def _read_rows(
-    path: Path, sched: Any, names: list[str], dim: int
-) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    if not isinstance(sched, dict):
-        raise InputError(f"{path}: 'schedule' must map agent names to way-point lists")
-    missing = [n for n in names if n not in sched]
-    extra = [n for n in sched if n not in names]
-    if missing or extra:
-        what = f"no way-points for {missing[0]!r}" if missing else f"unknown agent {extra[0]!r}"
-        raise InputError(f"{path}: {what} (the schedule does not belong to this instance)")
-    axes = ("x", "y", "z")[:dim]
-    rows: list[np.ndarray] = []
-    arrivals: list[np.ndarray] = []
-    for name in names:
-        wps = sched[name]
-        if not isinstance(wps, list) or not wps:
-            raise InputError(f"{path}: agent {name!r} has no way-points")
-        try:
-            c = np.array([[float(w[a]) for a in axes] for w in wps], dtype=float)
-            t = np.array([float(w["arrival"]) for w in wps], dtype=float)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"{path}: agent {name!r}: bad way-point ({exc})") from None
-        if not (np.isfinite(c).all() and np.isfinite(t).all()):
-            raise InputError(f"{path}: agent {name!r}: non-finite coordinate or time")
-        rows.append(c)
-        arrivals.append(t)
-    return rows, arrivals
-
-
 def from_file(instance: Instance, path: str | Path) -> EventNetwork:
     """The events of a schedule file written by ``hierplan post`` (YAML, JSON or CSV).
 
-    Raises :class:`InputError` with one line naming the file when the schedule does
-    not belong to ``instance`` or its times break a precedence.
+    Read by the one reader of schedule files,
+    :func:`hierplan_opt.schedule.files.load_schedule` (the file's own plan and settings,
+    its times checked against every bound). Raises :class:`InputError` with one line
+    naming the file when the schedule does not belong to ``instance`` or its times
+    break a bound.
     """
-    from hierplan_opt.core.plan import Plan
-    from hierplan_opt.schedule import postprocess, read_schedule, windows
-    from hierplan_opt.schedule.stn import PRECEDENCE
+    from hierplan_opt.schedule.files import load_schedule
 
-    path = Path(path)
-    data = read_schedule(path)
-    stats = data.get("statistics") or {}
-    g = instance.graph
-    names = [a.name for a in instance.agents]
-    rows, arrivals = _read_rows(path, data["schedule"], names, g.dim)
-    lookup = {tuple(np.round(c, 6).tolist()): v for v, c in enumerate(g.coords)}
-
-    # ---- the discrete plan: visit orders from arrival times, steps by longest paths ----
-    visits: list[list[tuple[int, float]]] = []
-    for name, c, t in zip(names, rows, arrivals, strict=True):
-        if lookup.get(tuple(np.round(c[0], 6).tolist())) is None:
-            raise InputError(
-                f"{path}: the first way-point of {name!r} is not a vertex of the map "
-                "(the schedule does not belong to this instance)"
-            )
-        seq: list[tuple[int, float]] = []
-        for k in range(len(t)):
-            v = lookup.get(tuple(np.round(c[k], 6).tolist()))
-            if v is None:
-                continue  # a marker between two vertices
-            if seq and seq[-1][0] == v:
-                continue  # the end of a turn in place, or where a robot sets off
-            seq.append((v, float(t[k])))
-        visits.append(seq)
-    paths = _plan_from_visits(visits, names, path)
-    horizon = max(len(p) for p in paths)
-    for p in paths:
-        p.extend([p[-1]] * (horizon - len(p)))
-    plan = Plan.from_paths(paths)
-    margin = _margin_of(stats, path)
-    try:
-        rebuilt = postprocess(
-            instance, plan, "makespan", margin=margin, clearance=_clearance_of(stats)
-        )
-    except InputError as exc:
-        raise InputError(f"{path}: the way-points do not form a valid plan: {exc}") from None
-    stn = rebuilt.stn
-    assert stn is not None
-    tpg = stn.tpg
-
-    # ---- the file's times on the rebuilt events ----------------------------------------
-    times = np.zeros(tpg.num_nodes)
-    waypoint = np.zeros(tpg.num_nodes, dtype=np.int64)
-    for name, c, t, wp in zip(names, rows, arrivals, rebuilt.waypoints, strict=True):
-        if len(c) != len(wp) or not np.allclose(c, wp.coords, atol=MATCH_TOL):
-            raise InputError(
-                f"{path}: the way-points of {name!r} do not match the plan rebuilt from "
-                f"them with margin {margin:g} (was the file written by hierplan post "
-                "for this instance?)"
-            )
-        node = np.asarray(wp.node)
-        keep = np.flatnonzero(node >= 0)
-        times[node[keep]] = t[keep]
-        waypoint[node[keep]] = keep
-    prec = np.asarray(stn.arc_kind) == PRECEDENCE
-    gap = times[stn.arc_dst] - times[stn.arc_src]
-    bad = prec & (gap < stn.lb - MATCH_TOL)
-    if np.any(bad):
-        k = int(np.flatnonzero(bad)[0])
-        raise InputError(
-            f"{path}: the times break the precedence {tpg.label(int(stn.arc_src[k]))} -> "
-            f"{tpg.label(int(stn.arc_dst[k]))}"
-        )
-    early, late = windows(stn, times)
-    return _from_stn(
-        stn, times, early, late, waypoint, scale=float(rebuilt.scale), names=tuple(names)
-    )
-
-
-def _plan_from_visits(
-    visits: list[list[tuple[int, float]]], names: list[str], path: Path
-) -> list[list[int]]:
-    """Paths (one vertex per step) whose visit orders are those of the arrival times."""
-    import networkx as nx
-
-    G = nx.DiGraph()
-    for j, seq in enumerate(visits):
-        G.add_node((j, 0))
-        for i in range(1, len(seq)):
-            G.add_edge((j, i - 1), (j, i), w=1)
-    at: dict[int, list[tuple[float, int, int]]] = {}
-    for j, seq in enumerate(visits):
-        for i, (v, t) in enumerate(seq):
-            at.setdefault(v, []).append((t, j, i))
-    for v, lst in at.items():
-        lst.sort()
-        for (_, j, i), (_, k, i2) in zip(lst[:-1], lst[1:], strict=True):
-            if j == k:
-                continue
-            if i + 1 >= len(visits[j]):
-                raise InputError(
-                    f"{path}: {names[k]!r} reaches the goal of {names[j]!r} after it parked "
-                    f"there (vertex {v})"
-                )
-            G.add_edge((j, i + 1), (k, i2), w=0)
-    try:
-        order = list(nx.topological_sort(G))
-    except nx.NetworkXUnfeasible:
-        raise InputError(f"{path}: the arrival times order the robots in a cycle") from None
-    step = dict.fromkeys(G.nodes, 0)
-    for u in order:
-        for _, w, d in G.out_edges(u, data=True):
-            step[w] = max(step[w], step[u] + d["w"])
-    paths = []
-    for j, seq in enumerate(visits):
-        p: list[int] = []
-        for i, (v, _) in enumerate(seq):
-            st = step[(j, i)]
-            while len(p) < st:
-                p.append(p[-1] if p else v)
-            p.append(v)
-        paths.append(p)
-    return paths
+    return from_schedule(load_schedule(path, instance))
