@@ -147,3 +147,17 @@ def test_simulate_physics_mode_and_cli(tmp_path):
     assert rc == 0
     rep = yaml.safe_load(out.read_text())
     assert rep["statistics"]["collisions"] == 0 and rep["statistics"]["finished"] == 2
+
+
+def test_physics_run_animation(tmp_path):
+    # The animation of a physics run (the viz module's, on the Execution).
+    from hierplan_opt.execution import simulate
+    from hierplan_opt.viz.animation import animate
+
+    g = Graph.grid(4, 2)
+    inst = Instance.mapf(g, [(0, 0), (3, 1)], [(3, 0), (0, 1)], kinematics=YOUBOT)
+    sched = postprocess(inst, solve(inst, "cbs", time_limit=10).plan)
+    ex = simulate(inst, sched, mode="physics")
+    out = animate(ex, inst, tmp_path / "run.gif", max_frames=12)
+    data = out.read_bytes()
+    assert data[:6] in (b"GIF89a", b"GIF87a") and len(data) > 1000
