@@ -147,6 +147,11 @@ def test_simulate_physics_mode_and_cli(tmp_path):
     assert rc == 0
     rep = yaml.safe_load(out.read_text())
     assert rep["statistics"]["collisions"] == 0 and rep["statistics"]["finished"] == 2
+    # Monte Carlo has no physics mode: refused in one line, nothing written.
+    out2 = tmp_path / "mc.yaml"
+    argv = ["simulate", str(inst_path), str(plan_path), "--mode", "physics", "--runs", "2"]
+    assert main([*argv, "--out", str(out2)]) == 2
+    assert not out2.exists()
 
 
 def test_physics_run_animation(tmp_path):

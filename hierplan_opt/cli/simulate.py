@@ -133,6 +133,8 @@ def check_monte_carlo(args: argparse.Namespace) -> None:
 
     if args.replan_below is not None and not args.runs:
         raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
+    if args.mode == "physics" and args.runs:
+        raise OptionError("--runs (Monte Carlo) has no physics mode: use agent, robot or replay")
 
 
 def disturbances_of(args: argparse.Namespace, instance: Any) -> list[Any]:
