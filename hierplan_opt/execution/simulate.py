@@ -605,12 +605,16 @@ def simulate(
         raise InputError(
             f"the schedule has {schedule.num_agents} robots, the instance {instance.num_agents}"
         )
-    if trajectories is not None:
-        check_trajectories(schedule, trajectories, mode)
     if mode == "physics":
+        if trajectories is not None:
+            raise OptionError(
+                "physics mode follows the schedule's way-points, not refined trajectories"
+            )
         return _physics(
             instance, schedule, disturbances, policy, seed, solver, replan_time_limit, dt
         )
+    if trajectories is not None:
+        check_trajectories(schedule, trajectories, mode)
     if mode == "robot" and trajectories is None and policy != "naive":
         plant = kinematic_plant(instance, schedule, disturbances)
         loop = ClosedLoop(
