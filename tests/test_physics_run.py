@@ -166,3 +166,28 @@ def test_physics_run_animation(tmp_path):
     out = animate(ex, inst, tmp_path / "run.gif", max_frames=12)
     data = out.read_bytes()
     assert data[:6] in (b"GIF89a", b"GIF87a") and len(data) > 1000
+
+
+def test_closed_loop_identical_for_identical_seeds():
+    from hierplan_opt.execution.disturbances import RandomDelays
+    from hierplan_opt.physics.loop import closed_loop
+
+    inst, sched = _swap2d(YOUBOT)
+    dist = [RandomDelays(0.3, "exponential", 1.5)]
+    a, ea = closed_loop(inst, sched, dist, seed=5)
+    b, eb = closed_loop(inst, sched, dist, seed=5)
+    c, _ec = closed_loop(inst, sched, dist, seed=6)
+    assert ea == eb and np.array_equal(a.samples_p, b.samples_p)
+    assert not np.array_equal(a.samples_p, c.samples_p)
+    assert a.statistics["contacts"] == 0 and a.statistics["distance_kept"]
+
+
+def test_random_delays_with_their_own_seed_ignore_the_run_seed():
+    from hierplan_opt.execution.disturbances import RandomDelays
+    from hierplan_opt.physics.loop import closed_loop
+
+    inst, sched = _swap2d(YOUBOT)
+    dist = [RandomDelays(0.3, "exponential", 1.5, seed=11)]
+    a, ea = closed_loop(inst, sched, dist, seed=5)
+    b, eb = closed_loop(inst, sched, dist, seed=6)
+    assert ea == eb and np.array_equal(a.samples_p, b.samples_p)

@@ -149,7 +149,7 @@ class MujocoPlant:
         self.spills: list[Spill] = []
         self.winds: list[tuple[Wind, np.ndarray]] = []
         self.stops: list[tuple[int, RobotStop]] = []
-        self.randoms: list[RandomStops] = []
+        self.randoms: list[tuple[RandomStops, np.random.Generator]] = []
         for d in disturbances:
             if isinstance(d, (Payload, WeakMotor, RobotStop)) and d.agent not in index:
                 raise KeyError(f"physical disturbance names robot {d.agent!r}, not in the run")
@@ -169,7 +169,9 @@ class MujocoPlant:
             elif isinstance(d, RobotStop):
                 self.stops.append((index[d.agent], d))
             elif isinstance(d, RandomStops):
-                self.randoms.append(d)
+                # Its own seed if it gives one, else the plant's.
+                key = d.seed if d.seed is not None else [seed, 1, len(self.randoms)]
+                self.randoms.append((d, np.random.default_rng(key)))
         self.models = list(models)
         self.kind = np.array([m.kind for m in models])
         self.is_quad = self.kind == "quad"
@@ -198,7 +200,6 @@ class MujocoPlant:
         self.early = early
         self.noise = noise
         self.rng = np.random.default_rng(seed)
-        self.stop_rng = np.random.default_rng([seed, 1])
         self.z0 = np.where(self.is_quad, 0.0, 0.5 * CHASSIS_HEIGHT)
         self._build(starts, headings)
         # Routes and progress.
@@ -525,9 +526,9 @@ class MujocoPlant:
                 k = int(self._reached[i])
                 self.reach_log[i].append((k, self.time))
                 self.hold[i] = self.routes[i][k]
-                for r in self.randoms:
-                    if self.stop_rng.random() < r.probability:
-                        self.pause_until[i] = self.time + float(r.delays.draw(self.stop_rng))
+                for r, rng in self.randoms:
+                    if rng.random() < r.probability:
+                        self.pause_until[i] = self.time + float(r.delays.draw(rng))
                         self.causes[i]["random"] = self.time
                 self._refresh(i)
                 if not self.active[i] or self.time < self.pause_until[i]:
