@@ -1,4 +1,4 @@
-"""``hierplan bench physics``: robots in MuJoCo under the execution hierarchy (issue 33).
+"""``hierplan bench physics``: robots in MuJoCo under the execution hierarchy.
 
 Five tables, every run in one process, one after the other:
 
@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.bench import BenchParser, time_limit
+from hierplan_opt.core.errors import InputError
 
 log = logging.getLogger(__name__)
 
@@ -292,11 +293,13 @@ def agreement() -> None:
 def main(argv: list[str] | None = None) -> int:
     p = BenchParser(
         "physics",
-        "robots in MuJoCo physics under the execution hierarchy (issue 33)",
+        "robots in MuJoCo physics under the execution hierarchy",
         instance="not used (the tables' instances are fixed)",
         quick="50 robots in table 3 instead of 200",
     )
     args = p.parse_args(argv)
+    if args.instance:
+        raise InputError("bench physics: --instance is not used (its instances are fixed)")
     limit = time_limit(args.time_limit, args.quick, full=60.0, small=10.0)
     from hierplan_opt.physics.plant import mujoco  # heavy module
 
