@@ -12,7 +12,7 @@ import pytest
 import hierplan_opt as hp
 from hierplan_opt.core.instance import Kinematics
 from hierplan_opt.execution import Slow, load_disturbances, simulate
-from hierplan_opt.execution.closedloop import ClosedLoop
+from hierplan_opt.execution.closed_loop import ClosedLoop
 from hierplan_opt.execution.kinematic import KinematicPlant
 from hierplan_opt.execution.plant import Plant
 from hierplan_opt.schedule import postprocess

@@ -62,7 +62,7 @@ def random_case(seed: int, robots: int) -> tuple[hp.Instance, list, bool]:
     """A grid with ~12 % obstacles, ``robots`` robots (point robots or mixed types), a
     random-delay model and one or two breakdowns."""
     rng = np.random.default_rng(seed)
-    side = int(max(12, np.ceil(np.sqrt(robots * 5))))
+    side = int(max(12, np.ceil(np.sqrt(robots * 30))))
     while True:
         blocked = rng.random((side, side)) < 0.12
         g = hp.Graph.grid(side, side, blocked=blocked)

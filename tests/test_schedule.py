@@ -437,18 +437,22 @@ def rotation() -> tuple[Instance, Plan]:
     return inst, plan
 
 
-def test_rotation_of_point_robots_refused() -> None:
+def test_rotation_of_point_robots() -> None:
     # Issue 9 item 4: the 2x2 four-robot rotation (what cbs, ecbs and cpsat return).
-    # Issue 30: each robot may arrive only once the one ahead has left (arrived at its
-    # next vertex), so around the ring each waits for the next: refused in one line,
-    # with margin 0 too (before, the schedule let a robot arrive while the one ahead
-    # was still there whenever that one was delayed).
+    # Issue 30: each robot may arrive only once the one ahead has left. In a rotation
+    # each would wait for the next to arrive first, so their arcs go through markers a
+    # tenth of the move past a vertex: a robot reaches the next vertex once the one
+    # there is 0.1 past it. Margin 0: never on one point; a margin > 0 is refused.
     inst, plan = rotation()
-    for margin in (0.0, None):
-        with pytest.raises(ClearanceError) as info:
-            postprocess(inst, plan, margin=margin)
-        msg = str(info.value)
-        assert "rotate" in msg and len(msg.splitlines()) == 1
+    s = postprocess(inst, plan, margin=0)
+    assert s.makespan == pytest.approx(1.0)
+    rep = replay(s, inst, all_pairs=True)
+    assert rep.ok and rep.min_distance > 0.05
+    assert all("leave" in w.kind for w in s.waypoints)
+    with pytest.raises(ClearanceError) as info:
+        postprocess(inst, plan)  # point robots: default margin 0.1
+    msg = str(info.value)
+    assert "rotate" in msg and "margin 0" in msg and len(msg.splitlines()) == 1
 
 
 def test_rotation_needs_zero_clearance() -> None:

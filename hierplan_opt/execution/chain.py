@@ -69,8 +69,8 @@ def plan_and_post(
     >>> from hierplan_opt import Graph
     >>> inst = Instance.mapf(Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
     >>> p = plan_and_post(inst, "cbs")
-    >>> p.ok, p.result.cost, p.schedule.makespan
-    (True, 4, 2.0)
+    >>> p.ok, p.result.cost, round(p.schedule.makespan, 6)  # margin 0.1: markers
+    (True, 4, 2.1)
     """
     if post is not None and post not in POST_OBJECTIVES:
         raise HierplanError(

@@ -45,19 +45,16 @@ Slippery = tuple[np.ndarray, float, float, float, float]
 class KinematicPlant:
     """Robots with bounded acceleration on way-point routes (see the module text).
 
-        Example
-        -------
-        >>> from hierplan_opt.core.errors import InputError
-    from hierplan_opt.core.instance import Instance, Kinematics
-    from hierplan_opt.execution.disturbances import Disturbance, Slow
-    from hierplan_opt.schedule.output import Schedule
-        >>> p = KinematicPlant([Kinematics(v_max=1.0, a_max=1.0)], np.zeros((1, 3)))
-        >>> p.assign(0, np.array([[2.0, 0, 0]]), np.array([0.0]))
-        >>> p.release(0, 0)
-        >>> for _ in range(40):
-        ...     p.step(0.1)
-        >>> p.reached(0), p.positions()[0].round(6).tolist(), p.violations
-        (0, [2.0, 0.0, 0.0], 0)
+    Example
+    -------
+    >>> from hierplan_opt.core.instance import Kinematics
+    >>> p = KinematicPlant([Kinematics(v_max=1.0, a_max=1.0)], np.zeros((1, 3)))
+    >>> p.assign(0, np.array([[2.0, 0, 0]]), np.array([0.0]))
+    >>> p.release(0, 0)
+    >>> for _ in range(40):
+    ...     p.step(0.1)
+    >>> p.reached(0), p.positions()[0].round(6).tolist(), p.violations
+    (0, [2.0, 0.0, 0.0], 0)
     """
 
     def __init__(

@@ -16,7 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from hierplan_opt.execution.state import TOL, ExecState, rebound
-from hierplan_opt.schedule.solve_graph import fix_and_propagate
+from hierplan_opt.schedule.solve_graph import earliest_times, fix_and_propagate
+
+#: STNs with at least this many nodes are re-solved by one vectorised pass.
+FULL_PASS_NODES = 20_000
 
 
 def lateness(state: ExecState, n: int) -> tuple[float, float]:
@@ -50,34 +53,45 @@ def slack_decision(state: ExecState, n: int) -> tuple[str, float, str]:
     return "escalate", late, ""
 
 
-def stn_resolve(state: ExecState, n: int, now: float) -> list[int]:
-    """Incremental STN re-solve: ``n``'s release raised to when the robot can be there,
-    executed events fixed, successors pushed (topological order). Updates the state's
-    STN and targets; robots on their way to a node whose target moved slow down from
-    ``now`` on. Returns the queued nodes whose time changed (to queue again).
+def stn_resolve(state: ExecState, n: int | list[int], now: float) -> list[int]:
+    """Incremental STN re-solve: the release of node ``n`` (or of each node of a list)
+    raised to when the robot can be there, executed events fixed, successors pushed
+    (topological order). Updates the state's STN and targets; robots on their way to a
+    node whose target moved slow down from ``now`` on. Returns the queued nodes whose
+    time changed (to queue again).
 
     Raises :class:`~hierplan_opt.schedule.solve_graph.InconsistentSTNError` (deadlines).
     """
+    nodes = [n] if isinstance(n, int) else list(n)
     stn = state.stn
     release = np.array(stn.release, dtype=float)
-    release[n] = max(release[n], float(state.phys[n]))
+    fixed: dict[int, float] = {}
+    for v in nodes:
+        release[v] = max(release[v], float(state.phys[v]))
+        if v > 0 and not np.isnan(state.t[v - 1]):
+            fixed[v - 1] = float(state.t[v - 1])
     new_stn = rebound(stn, release=release)
     times = np.where(np.isnan(state.t), state.T, state.t)
-    fixed = {n - 1: float(state.t[n - 1])} if not np.isnan(state.t[n - 1]) else {}
-    new_T = fix_and_propagate(new_stn, times, fixed, changed=[n])
+    if stn.num_nodes >= FULL_PASS_NODES:
+        # Large STNs: one vectorised earliest-times pass from the current times (the
+        # same answer as pushing the successors; cheaper when many are pushed).
+        floor = rebound(new_stn, release=np.maximum(new_stn.release, times))
+        new_T = earliest_times(floor)
+    else:
+        new_T = fix_and_propagate(new_stn, times, fixed, changed=nodes)
     state.counts["stn_resolves"] += 1
     changed = np.flatnonzero((new_T > state.T + TOL) & np.isnan(state.t))
     state.stn = new_stn
     state.T = np.where(np.isnan(state.t), new_T, state.T)
     again = []
-    for v in changed.tolist():
-        if not np.isnan(state.phys[v]) and state.T[v] > state.phys[v]:
-            g = state.gid[state.agent_of(v)]
-            if state.traj[g] and state.traj[g][-1][0] < now < state.phys[v]:
-                state.record(g, now, state.traj_pos(g, now, v))
-            state.phys[v] = float(state.T[v])
-            if state.in_heap[v]:
-                again.append(v)
+    moving = changed[~np.isnan(state.phys[changed])]  # robots on their way there
+    for v in moving[state.T[moving] > state.phys[moving]].tolist():
+        g = state.gid[state.agent_of(v)]
+        if state.traj[g] and state.traj[g][-1][0] < now < state.phys[v]:
+            state.record(g, now, state.traj_pos(g, now, v))
+        state.phys[v] = float(state.T[v])
+        if state.in_heap[v]:
+            again.append(v)
     return again
 
 

@@ -76,7 +76,13 @@ def _claim_ends(stn: STN, sim: ExecState, arc: int) -> _Pair | None:
     out_b = (src >= w) & (src < b1) & (tpg.node_agent[dst] != jb)
     after = int(same[out_b][np.argmin(src[out_b])]) if out_b.any() else -1
     if plain:
-        a_enter, b_leave = u, w
+        # Plain TPG: the arc runs from A's arrival at its next vertex (u: it has left
+        # the shared vertex) to B's arrival at the shared vertex (w). Switched, B must
+        # have reached its next vertex before A reaches the shared one.
+        a_enter = int(S.last_vertex[u - 1]) if u - 1 >= a0 else -1
+        b_leave = int(S.next_vertex[w + 1]) if w + 1 < b1 else -1
+        if a_enter < a0 or b_leave < 0 or b_leave >= b1:
+            return None
     elif int(tpg.node_kind[u]) != LEAVE or int(tpg.node_kind[w]) != ENTER:
         return None  # an arc of an earlier switch (vertex to vertex): not a claim's ends
     else:
@@ -93,7 +99,7 @@ def _claim_ends(stn: STN, sim: ExecState, arc: int) -> _Pair | None:
             return None
     va, vb = int(S.last_vertex[u]), int(S.next_vertex[w]) if not plain else w
     if plain:
-        va = u
+        va = a_enter
     if S.first[va] or S.final[vb] or S.first[vb] or S.final[va] or a_enter == a0:
         return None  # start and goal claims stay where they are
     if not (np.isnan(sim.t[a_enter]) and np.isnan(sim.t[w])):

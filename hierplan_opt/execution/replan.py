@@ -177,6 +177,10 @@ def _start_vertex(sim: ExecState, h: int) -> int:
 
 #: ``solver="auto"`` re-plans with ECBS up to this many robots, LaCAM beyond.
 AUTO_ECBS_ROBOTS = 100
+#: ``auto`` then tries LaCAM with this many seeds when the first solver fails ...
+FALLBACK_SEEDS = 4
+#: ... each fallback with at most this many seconds.
+FALLBACK_TIME_LIMIT = 5.0
 
 
 def replan_solver(name: str, robots: int) -> str:
@@ -196,17 +200,29 @@ def replan_solver(name: str, robots: int) -> str:
 def _solve(sim: ExecState, inst2: Instance, margin: float) -> Planned:
     """The re-plan instance through the checked chain (:func:`.chain.plan_and_post`:
     solve, validate, MAPF-POST with the running schedule's margin); ``auto`` falls
-    back to LaCAM when ECBS finds no plan."""
+    back to ECBS (after LaCAM) and LaCAM with other seeds when the first plan fails or
+    MAPF-POST refuses it (robots that rotate through a cycle of cells cannot keep any
+    clearance)."""
     first = replan_solver(sim.solver, inst2.num_agents)
-    tries = [first] + (["lacam"] if sim.solver == "auto" and first != "lacam" else [])
+    tries = [(first, 0)]
+    if sim.solver == "auto":  # other plans (one MAPF-POST refuses: rotations)
+        if first == "lacam":
+            tries.append(("ecbs", 0))
+        tries += [
+            ("lacam", seed) for seed in range(FALLBACK_SEEDS) if (first, seed) != ("lacam", 0)
+        ]
     planned: Planned | None = None
-    for name in tries:
+    for name, seed in tries:
         options: dict[str, Any] = {"anytime": 0} if name == "lacam" else {}
         try:
+            limit = sim.replan_time_limit
+            if (name, seed) != (first, 0):
+                limit = min(limit, FALLBACK_TIME_LIMIT)
             planned = plan_and_post(
                 inst2,
                 name,
-                time_limit=sim.replan_time_limit,
+                time_limit=limit,
+                seed=seed,
                 objective="soc",
                 margin=margin,
                 **options,

@@ -48,7 +48,7 @@ import numpy as np
 from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.execution import layers
-from hierplan_opt.execution.closedloop import ClosedLoop
+from hierplan_opt.execution.closed_loop import ClosedLoop
 from hierplan_opt.execution.disturbances import Breakdown, Disturbance, Stop, as_dict
 from hierplan_opt.execution.follow import check_trajectories, refined_position
 from hierplan_opt.execution.kinematic import kinematic_plant
@@ -79,6 +79,11 @@ if TYPE_CHECKING:
     from hierplan_opt.trajectory.result import Trajectories
 
 log = logging.getLogger(__name__)
+
+#: STNs with at least this many nodes batch their re-solves ...
+BATCH_NODES = 20_000
+#: ... over this many simulated seconds (one re-solve for every delay in the window).
+STN_BATCH = 1.0
 
 __all__ = [
     "DISTURBANCE_KINDS",
@@ -200,8 +205,10 @@ class Simulation(ExecState):
                 if ver != self.version[key] or not self.active[key]:
                     continue
                 self._happen(key, when)
-            else:
+            elif order == 1:
                 self._disturb(self.dist_queue[key], when)
+            else:
+                self._flush_stn(when)
 
     # ------------------------------------------------------------ heap
     def _push_disturbance(self, d: Stop | Breakdown) -> None:
@@ -360,27 +367,50 @@ class Simulation(ExecState):
                     f"{detail}; {switched} passing order(s) switched",
                 )
                 return
+        if self.stn.num_nodes >= BATCH_NODES:
+            # Large STNs: the delays of the next STN_BATCH seconds share one re-solve
+            # (the TPG keeps the robots apart meanwhile; only targets wait).
+            self.stn_pending.append((g, n, kind, detail, late, now))
+            if not self.stn_flush_queued:
+                self.stn_flush_queued = True
+                self.seq += 1
+                heapq.heappush(self.heap, (now + STN_BATCH, 2, self.seq, 0, 0))
+            return
+        self._stn_layer([(g, n, kind, detail, late, now)], now)
+
+    def _flush_stn(self, when: float) -> None:
+        pending, self.stn_pending = self.stn_pending, []
+        self.stn_flush_queued = False
+        if pending:
+            self._stn_layer(pending, when)
+
+    def _stn_layer(self, items: list[tuple[int, int, str, str, float, float]], now: float) -> None:
+        """One STN re-solve for the late nodes of ``items`` (robot, node, kind, detail,
+        lateness, when); each gets its event (``stn``, or ``replan`` / ``none`` when the
+        STN is inconsistent)."""
+        nodes = [n for _, n, *_ in items if self.active[n] and np.isnan(self.t[n])]
         t1 = time.perf_counter()
+        batch = f" ({len(items)} delays in one re-solve)" if len(items) > 1 else ""
         try:
-            self._resolve(n, now)
+            if nodes:
+                for v in layers.stn_resolve(self, nodes, now):
+                    self._try_push(v)
         except InconsistentSTNError as exc:
             self.runtime["stn"] += time.perf_counter() - t1
-            if "replan" in self.layers:
-                self.log_event(
-                    now, name, kind, "replan", late, f"{detail}; STN inconsistent: {exc}"
-                )
-                self._request_replan(now, f"STN inconsistent after {name} {detail}")
-            else:
-                self.log_event(now, name, kind, "none", late, f"{detail}; STN inconsistent: {exc}")
+            for g, _, kind, detail, late, when in items:
+                name = self.names[g]
+                why = f"{detail}; STN inconsistent: {exc}"
+                if "replan" in self.layers:
+                    self.log_event(when, name, kind, "replan", late, why)
+                    self._request_replan(now, f"STN inconsistent after {name} {detail}")
+                else:
+                    self.log_event(when, name, kind, "none", late, why)
             return
         self.runtime["stn"] += time.perf_counter() - t1
-        self.log_event(now, name, kind, "stn", late, f"{detail}; STN re-solved")
-
-    def _resolve(self, n: int, now: float) -> None:
-        """The STN layer (:func:`.layers.stn_resolve`); robots whose next target moved
-        are queued again."""
-        for v in layers.stn_resolve(self, n, now):
-            self._try_push(v)
+        for g, _, kind, detail, late, when in items:
+            self.log_event(
+                when, self.names[g], kind, "stn", late, f"{detail}; STN re-solved{batch}"
+            )
 
     def install(self, stn: STN, locks: np.ndarray, targets: np.ndarray, now: float) -> None:
         """Run on with another STN of the same nodes (switched passing orders) and new
@@ -560,7 +590,7 @@ def simulate(
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
     mode : {"agent", "robot", "replay"}
         ``agent``: constant velocity between way-points (the discrete-event
-        simulation); ``robot``: closed loop (:class:`.closedloop.ClosedLoop`) over a
+        simulation); ``robot``: closed loop (:class:`.closed_loop.ClosedLoop`) over a
         :class:`.kinematic.KinematicPlant` - bounded acceleration, turning in place,
         slippery regions; the robots' lateness feeds back into slack, STN re-solve,
         re-ordering and re-planning; ``replay``: the same dynamics open loop on the

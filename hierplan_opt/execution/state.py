@@ -367,6 +367,10 @@ class ExecState:
         self.active = np.zeros(0, dtype=bool)
         self.heap: list[tuple[float, int, int, int, int]] = []
         self.dist_queue: list[Stop | Breakdown] = []
+        #: Late nodes waiting for a batched STN re-solve (large STNs), and whether the
+        #: re-solve is queued: ``(robot, node, kind, detail, lateness, when)``.
+        self.stn_pending: list[tuple[int, int, str, str, float, float]] = []
+        self.stn_flush_queued = False
 
     def start_phase(
         self,

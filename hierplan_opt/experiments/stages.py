@@ -58,10 +58,9 @@ def post(
     >>> from hierplan_opt.core.graph import Graph
     >>> inst = Instance.mapf(Graph.grid(4, 1), [(1, 0), (0, 0)], [(3, 0), (2, 0)])
     >>> r = post(inst, method="graph")
-    >>> r.cost, r.stats["post_tpg_nodes"], round(r.stats["post_makespan"], 6)
-    (4, 10, 2.1)
-    >>> r.stats["post_replay_ok"]  # point robots: 0.1 m margin by default
-    True
+    >>> st = r.stats  # point robots: default margin 0.1 x cell, markers 0.55 past a vertex
+    >>> r.cost, st["post_tpg_nodes"], round(st["post_makespan"], 6), st["post_replay_ok"]
+    (4, 10, 2.1, True)
     """
     from hierplan_opt import registry
     from hierplan_opt.core.errors import HierplanError

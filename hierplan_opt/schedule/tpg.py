@@ -14,8 +14,9 @@ turning).
   the Type-1 chains in between, so the arcs are built from per-location visit lists
   with one ``lexsort`` (near-linear in the plan size, never a scan over pairs of
   robots). Robots that rotate along a cycle (each entering the vertex the next one
-  leaves at the same step) would each wait for the next one to arrive first: a cycle,
-  refused with one line (:class:`~hierplan_opt.schedule.clearance.ClearanceError`).
+  leaves at the same step) would each wait for the next one to arrive first; their
+  arcs go through markers a tenth of the move past the vertex instead (B may reach v
+  once A is that far past it, and pass that far past v once A has reached w).
 * **Robots with a size** (``r_i + r_j + margin > 0``): markers from the clearance claims
   of :mod:`hierplan_opt.schedule.clearance`. A robot claims a vertex while its centre is
   within ``lambda`` of it; the claims of one vertex are ordered as in the plan, and a
@@ -369,9 +370,15 @@ def build_tpg(
     return _freeze(tpg)
 
 
+#: Point robots in a rotation: the markers sit this fraction of the move past a vertex.
+ROTATION_MARK = 0.1
+
+
 def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
     """Plain TPG: for consecutive visitors A, B of a location v, an arc from A's *next*
-    visit (A has reached the vertex after v, so it has left v) to B's visit of v."""
+    visit (A has reached the vertex after v, so it has left v) to B's visit of v.
+    Rotations (robots that each enter, in one step, the vertex the next one leaves)
+    get markers instead: see :func:`_rotation_arcs`."""
     g = instance.graph
     order = np.lexsort((vis.T, vis.V))
     same_loc = vis.V[order[1:]] == vis.V[order[:-1]]
@@ -381,13 +388,124 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
     next_vis = order[sel + 1]
     if np.any(vis.is_last[prev_vis]):
         raise InputError("the plan has a vertex conflict (validate it first)")
-    t1 = np.flatnonzero(~vis.is_last)
+    src, dst = prev_vis + 1, next_vis
     nvis = len(vis.V)
+    # Arcs between visits that happen in one step can only close a cycle among
+    # themselves (every other arc goes forward in the plan's steps): a rotation.
+    same = np.flatnonzero(vis.T[src] == vis.T[dst])
+    rot = np.zeros(0, dtype=np.int64)
+    if len(same):
+        topo = topo_order(nvis, src[same], dst[same])
+        on_cycle = np.zeros(nvis, dtype=bool)
+        on_cycle[topo.cyclic] = True
+        rot = same[on_cycle[src[same]] & on_cycle[dst[same]]]
+    keep = np.ones(len(src), dtype=bool)
+    keep[rot] = False
     coords = g.coords[vis.V].astype(float)
+    names = tuple(a.name for a in instance.agents)
+    if not len(rot):
+        t1 = np.flatnonzero(~vis.is_last)
+        return _plain_tpg(
+            vis, req, g, names, coords, t1, src, dst, vis.V[dst], np.zeros(nvis, np.int8)
+        )
+    return _rotation_arcs(vis, req, g, names, coords, src[keep], dst[keep], src[rot], dst[rot])
+
+
+def _rotation_arcs(
+    vis: _Visits,
+    req: Requirement,
+    g,
+    names: tuple[str, ...],
+    coords: np.ndarray,
+    src: np.ndarray,
+    dst: np.ndarray,
+    rot_src: np.ndarray,
+    rot_dst: np.ndarray,
+) -> TPG:
+    """The plain TPG with rotations: for each rotation arc (A enters w in the step B
+    enters v, the vertex A leaves) two arcs through markers ``ROTATION_MARK`` of the
+    move past a vertex: B may reach v once A is that far past v (it has left v), and B
+    may pass that far past v on its next move once A has reached w (so B never catches
+    A on the edge v -> w). Both go forward in the plan's steps: acyclic. Point robots
+    are then never on one point (docs/post.md)."""
+    f = ROTATION_MARK
+    a_origin = rot_src - 1  # A's visit of v: its move v -> w carries A's marker
+    b_next = ~vis.is_last[rot_dst]  # B moves on after v: its marker on that move
+    b_origin = rot_dst[b_next]
+    origins, inv = np.unique(np.concatenate([a_origin, b_origin]), return_inverse=True)
+    inv = inv.ravel()
+    role = np.zeros(len(origins), dtype=np.int8)
+    np.bitwise_or.at(role, inv[: len(a_origin)], np.int8(LEAVE))
+    np.bitwise_or.at(role, inv[len(a_origin) :], np.int8(ENTER))
+    m_kind = np.where(role == LEAVE | ENTER, MARKER, role).astype(np.int8)
+    nvis = len(vis.V)
+    nm = len(origins)
+    key = np.concatenate([np.arange(nvis, dtype=float), origins + f])
+    order = np.argsort(key, kind="stable")
+    newid = np.empty(nvis + nm, dtype=np.int64)
+    newid[order] = np.arange(nvis + nm)
+    vis_node, mark_node = newid[:nvis], newid[nvis:]
+    move = np.searchsorted(vis.mv, origins)
+    step_len = vis.s[origins + 1] - vis.s[origins]
+
+    def arrange(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([x, y])[order]
+
+    node_agent = arrange(vis.A, vis.A[origins])
+    agent_ptr = np.zeros(len(vis.ptr), dtype=np.int64)
+    agent_ptr[1:] = np.cumsum(np.bincount(node_agent, minlength=len(vis.ptr) - 1))
+    last = np.zeros(nvis + nm, dtype=bool)
+    last[agent_ptr[1:] - 1] = True
+    arc_src = np.concatenate(
+        [vis_node[src], mark_node[inv[: len(a_origin)]], vis_node[rot_src[b_next]]]
+    )
+    arc_dst = np.concatenate([vis_node[dst], vis_node[rot_dst], mark_node[inv[len(a_origin) :]]])
+    lock = np.concatenate([vis.V[dst], vis.V[rot_dst], vis.V[rot_dst[b_next]]])
+    t1 = np.flatnonzero(~last)
+    kinds = arrange(np.zeros(nvis, np.int8), m_kind)
     tpg = TPG(
+        agent_ptr=agent_ptr,
+        node_agent=node_agent,
+        node_kind=kinds,
+        node_vertex=arrange(vis.V, vis.V[origins]),
+        node_step=arrange(vis.T, vis.T[origins + 1] - 1),
+        node_pos=arrange(vis.pos, vis.pos[origins] + f * (vis.pos[origins + 1] - vis.pos[origins])),
+        node_coord=arrange(coords, coords[origins] + f * (coords[origins + 1] - coords[origins])),
+        node_s=arrange(vis.s, vis.s[origins] + f * step_len),
+        node_turn=arrange(vis.turn, np.zeros(nm)),
+        node_heading=arrange(vis.heading, vis.head[move]),
+        arc_src=np.concatenate([t1, arc_src]),
+        arc_dst=np.concatenate([t1 + 1, arc_dst]),
+        arc_type=np.concatenate(
+            [np.full(len(t1), TYPE1, np.int8), np.full(len(arc_src), TYPE2, np.int8)]
+        ),
+        arc_lock=np.concatenate([np.full(len(t1), -1, np.int64), lock]),
+        requirement=req,
+        regime="none",
+        agent_names=names,
+        location_names=_LocationNames(g),
+    )
+    _check_acyclic(tpg, g, "")
+    return tpg
+
+
+def _plain_tpg(
+    vis: _Visits,
+    req: Requirement,
+    g,
+    names: tuple[str, ...],
+    coords: np.ndarray,
+    t1: np.ndarray,
+    src: np.ndarray,
+    dst: np.ndarray,
+    lock: np.ndarray,
+    kinds: np.ndarray,
+) -> TPG:
+    """A plain TPG of vertex nodes only."""
+    return TPG(
         agent_ptr=vis.ptr,
         node_agent=vis.A,
-        node_kind=np.zeros(nvis, dtype=np.int8),
+        node_kind=kinds,
         node_vertex=vis.V,
         node_step=vis.T,
         node_pos=vis.pos,
@@ -395,19 +513,17 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
         node_s=vis.s,
         node_turn=vis.turn,
         node_heading=vis.heading,
-        arc_src=np.concatenate([t1, prev_vis + 1]),
-        arc_dst=np.concatenate([t1 + 1, next_vis]),
+        arc_src=np.concatenate([t1, src]),
+        arc_dst=np.concatenate([t1 + 1, dst]),
         arc_type=np.concatenate(
-            [np.full(len(t1), TYPE1, np.int8), np.full(len(prev_vis), TYPE2, np.int8)]
+            [np.full(len(t1), TYPE1, np.int8), np.full(len(src), TYPE2, np.int8)]
         ),
-        arc_lock=np.concatenate([np.full(len(t1), -1, np.int64), vis.V[next_vis]]),
+        arc_lock=np.concatenate([np.full(len(t1), -1, np.int64), lock]),
         requirement=req,
         regime="none",
-        agent_names=tuple(a.name for a in instance.agents),
+        agent_names=names,
         location_names=_LocationNames(g),
     )
-    _check_acyclic(tpg, g, _room(g, np.linalg.norm(vis.pos[vis.mv + 1] - vis.pos[vis.mv], axis=1)))
-    return tpg
 
 
 def _segments(vis: _Visits) -> Segments:
@@ -723,10 +839,15 @@ def _check_acyclic(tpg: TPG, g, room: str) -> None:
         if len(steps) == 1
         else "each holds the surroundings of a cell that the next one needs"
     )
+    hint = (
+        "margin 0 (point robots then rotate, never on one point)"
+        if len(steps) <= 1 and not np.any(req.radius[robots] > 0)
+        else "smaller radii, a smaller margin or larger cells"
+    )
     raise ClearanceError(
         f"no schedule keeps robots of {describe_types(req, robots)} {need:g} m apart "
         f"(r_i + r_j + margin {req.margin:g}) on {room}: {ring} wait for each other around "
-        f"{where} ({why}); replan, or use smaller radii, a smaller margin or larger cells"
+        f"{where} ({why}); replan, or use {hint}"
     )
 
 
