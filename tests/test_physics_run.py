@@ -147,6 +147,11 @@ def test_simulate_physics_mode_and_cli(tmp_path):
     assert rc == 0
     rep = yaml.safe_load(out.read_text())
     assert rep["statistics"]["collisions"] == 0 and rep["statistics"]["finished"] == 2
+    # `hierplan run` (plan -> post -> execute) in physics mode.
+    out3 = tmp_path / "run.yaml"
+    assert main(["run", str(inst_path), "--mode", "physics", "--out", str(out3)]) == 0
+    rep = yaml.safe_load(out3.read_text())
+    assert rep["statistics"]["collisions"] == 0 and rep["statistics"]["finished"] == 2
     # Monte Carlo has no physics mode: refused in one line, nothing written.
     out2 = tmp_path / "mc.yaml"
     argv = ["simulate", str(inst_path), str(plan_path), "--mode", "physics", "--runs", "2"]
