@@ -26,6 +26,7 @@ AREAS = {
     "trajectory": "trajectory refinement (CasADi): formation and 200 robots, IPOPT vs fatrop",
     "lacam": "PIBT and LaCAM* on large fleets, side by side with lacam3 and the Python ports",
     "highways": "ECBS/CBS with user, crisscross and learned highways (Kiva, corridor)",
+    "physics": "robots in MuJoCo: paper warehouse, formation, 200 robots, spill, agreement",
 }
 
 

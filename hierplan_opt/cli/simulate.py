@@ -31,11 +31,12 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--policy", choices=POLICIES, default="replan", help=POLICY_HELP)
     p.add_argument(
         "--mode",
-        choices=("agent", "robot", "replay"),
+        choices=("agent", "robot", "replay", "physics"),
         default="agent",
         help="agent: constant velocity; robot: closed loop over kinematic robots (bounded "
         "acceleration, turning in place; their delays feed back into the layers); replay: "
-        "the same dynamics open loop on the agent run's event times",
+        "the same dynamics open loop on the agent run's event times; physics: the same "
+        "closed loop over robots in MuJoCo (docs/physics.md)",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
@@ -132,6 +133,8 @@ def check_monte_carlo(args: argparse.Namespace) -> None:
 
     if args.replan_below is not None and not args.runs:
         raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
+    if args.mode == "physics" and args.runs:
+        raise OptionError("--runs (Monte Carlo) has no physics mode: use agent, robot or replay")
 
 
 def disturbances_of(args: argparse.Namespace, instance: Any) -> list[Any]:

@@ -15,7 +15,7 @@ from hierplan_opt.core.result import Result
 from hierplan_opt.execution.chain import plan_and_post
 from hierplan_opt.execution.disturbances import Disturbance
 from hierplan_opt.execution.simulate import simulate
-from hierplan_opt.execution.state import Execution
+from hierplan_opt.execution.state import MODES, Execution
 from hierplan_opt.schedule.output import Schedule
 
 if TYPE_CHECKING:
@@ -97,8 +97,8 @@ def run(
         t1 = time.perf_counter()
         traj = refine_schedule(instance, schedule, stretch="auto")
         times["refine"] = time.perf_counter() - t1
-    if mode not in ("agent", "robot", "replay"):
-        raise OptionError(f"unknown mode {mode!r} (use agent, robot, replay)")
+    if mode not in MODES:
+        raise OptionError(f"unknown mode {mode!r} (use {', '.join(MODES)})")
     t2 = time.perf_counter()
     ex = simulate(
         instance,

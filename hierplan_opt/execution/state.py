@@ -33,7 +33,7 @@ POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
 #: its slack; the others - ``replan``, ``goal``, ``trajectories``, ``horizon`` - record
 #: what the layers did).
 DISTURBANCE_KINDS = ("stop", "breakdown", "slow", "random", "late")
-MODES = ("agent", "robot", "replay")
+MODES = ("agent", "robot", "replay", "physics")
 LAYERS = {
     "slack": ("slack",),
     "stn": ("slack", "stn"),

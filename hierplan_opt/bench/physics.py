@@ -1,0 +1,312 @@
+"""``hierplan bench physics``: robots in MuJoCo under the execution hierarchy.
+
+Five tables, every run in one process, one after the other:
+
+1. **Paper warehouse, part 1 then part 2**, each with
+   ``instances/paper/warehouse-disturbances.yaml`` (a stop, a blocking breakdown, a water
+   spill, random delays), CBM plan, MAPF-POST, physics closed loop (slack -> STN ->
+   re-plan). Targets: every working robot at its goal, 0 contacts, minimum distance >=
+   the guaranteed clearance (and how much of the schedule's own minimum distance tracking
+   error ate), each disturbance handled by a named layer, >= 10x real time.
+2. **32-quadcopter formation** (``formation-usc.yaml``, 3D): 0 contacts, all at targets.
+3. **200 differential drives** (iRobot Create 2 size) on ``warehouse-10-20-10-2-1``,
+   LaCAM (first plan; the next seed when MAPF-POST finds a rotation that no clearance
+   allows) + MAPF-POST: simulated seconds per wall second >= 1 on one core.
+4. **Spill vs no spill** on the paper warehouse (part 1, only the spill): which robots
+   were late, which layer absorbed each delay; the run without the spill has no spill
+   event.
+5. **Agreement** without disturbances, per drive type (youBot, Pioneer, Create 2,
+   quadcopter; a 4-robot swap, a 3-robot 3D swap): largest |arrival - schedule| at any
+   way-point and at the goals against the stated tolerances
+   (:data:`hierplan_opt.physics.run.AGREEMENT`).
+
+``--quick``: 50 robots in table 3. ``--instance`` is not used (fixed instances).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from hierplan_opt.bench import BenchParser, time_limit
+from hierplan_opt.core.errors import InputError
+
+log = logging.getLogger(__name__)
+
+PAPER = "instances/paper"
+WAREHOUSE_MAP = "instances/movingai/warehouse-10-20-10-2-1.map"
+WAREHOUSE_SCEN = "instances/movingai/warehouse-10-20-10-2-1-even-1.scen"
+
+
+def _ok(flag: bool) -> str:
+    return "yes" if flag else "NO"
+
+
+def _plan(inst: Any, solver: str, limit: float, **options: Any) -> Any:
+    from hierplan_opt.api import solve
+    from hierplan_opt.schedule.post import postprocess
+
+    r = solve(inst, solver, time_limit=limit, **options)
+    if r.plan is None:
+        raise RuntimeError(f"{solver} found no plan for {inst.name} ({r.status.value})")
+    return postprocess(inst, r.plan)
+
+
+def _planned_min(sched: Any, t: np.ndarray) -> float:
+    from hierplan_opt.physics.run import scheduled_positions
+
+    pos = scheduled_positions(sched, t)
+    n = pos.shape[1]
+    iu = np.triu_indices(n, 1)
+    best = math.inf
+    for k in range(0, len(t), 5):
+        d = np.linalg.norm(pos[k, iu[0]] - pos[k, iu[1]], axis=1)
+        best = min(best, float(d.min()))
+    return best
+
+
+def _layers_by_kind(events: list[Any]) -> dict[str, set[str]]:
+    out: dict[str, set[str]] = {}
+    for e in events:
+        out.setdefault(e.kind, set()).add(e.layer)
+    return out
+
+
+def warehouse(limit: float) -> list[dict[str, Any]]:
+    from hierplan_opt.execution.disturbances import Breakdown, Stop, load_disturbances
+    from hierplan_opt.io import load_instance
+    from hierplan_opt.physics.loop import closed_loop
+
+    print("\n1. paper warehouse in physics, with warehouse-disturbances.yaml (closed loop)")
+    print(
+        f"{'part':6} {'robots':>6} {'at goal':>9} {'contacts':>8} {'min_d':>6} {'guar.':>6} "
+        f"{'ate':>6} {'track':>6} {'makesp':>7} {'plan':>6} {'slack':>5} {'stn':>4} "
+        f"{'replan':>6} {'none':>4} {'RTF':>6}  disturbance -> layer"
+    )
+    rows = []
+    successor: dict[str, str] = {}
+    for part in ("part1", "part2"):
+        inst = load_instance(f"{PAPER}/warehouse-{part}.yaml")
+        dist = load_disturbances(f"{PAPER}/warehouse-disturbances.yaml")
+        if successor:
+            # Part 2's robots start where part 1's ended: the file's robot names are
+            # carried over to the robot that starts at that robot's part-1 goal.
+            dist = [
+                replace(d, agent=successor[d.agent]) if isinstance(d, (Stop, Breakdown)) else d
+                for d in dist
+            ]
+        sched = _plan(inst, "cbm", limit)
+        run, events = closed_loop(inst, sched, dist)
+        st = run.statistics
+        working = len(run.names) - st["broken"]
+        h = st["handled"]
+        ate = _planned_min(sched, run.samples_t) - st["min_distance"]
+        by_kind = _layers_by_kind(events)
+        named = {k: sorted(v) for k, v in by_kind.items() if k != "tracking"}
+        print(
+            f"{part:6} {len(run.names):>6} {st['finished']:>4}/{working:<4} {st['contacts']:>8} "
+            f"{st['min_distance']:>6.3f} {st['guaranteed_distance']:>6.3f} {ate:>6.3f} "
+            f"{st['tracking_error_max']:>6.2f} {st['makespan']:>7.2f} "
+            f"{st['planned_makespan']:>6.2f} {h.get('slack', 0):>5} {h.get('stn', 0):>4} "
+            f"{h.get('replan', 0):>6} {h.get('none', 0):>4} {st['real_time_factor']:>6.1f}  "
+            + ", ".join(f"{k}: {'/'.join(v)}" for k, v in sorted(named.items()))
+        )
+        target = (
+            st["finished"] == working
+            and st["contacts"] == 0
+            and st["min_margin"] >= 0
+            and all("none" not in v for v in by_kind.values())
+            and st["real_time_factor"] >= 10
+        )
+        print(
+            f"       target (all working at goal, 0 contacts, distance kept, every "
+            f"disturbance handled by a layer, >= 10x real time): {_ok(target)}"
+        )
+        rows.append({"part": part, **{k: st[k] for k in ("contacts", "finished")}})
+        if part == "part1":
+            at = {
+                tuple(int(round(c)) for c in sched.waypoints[i].coords[-1]): n
+                for i, n in enumerate(sched.agent_names)
+            }
+            nxt = load_instance(f"{PAPER}/warehouse-part2.yaml")
+            for a in nxt.agents:
+                loc = tuple(int(c) for c in np.atleast_1d(nxt.graph.location(a.start)))
+                if loc in at:
+                    successor[at[loc]] = a.name
+    return rows
+
+
+def formation(limit: float) -> None:
+    from hierplan_opt.io import load_instance
+    from hierplan_opt.physics.loop import closed_loop
+
+    print("\n2. formation change, 32 quadcopters (3D), physics closed loop")
+    inst = load_instance(f"{PAPER}/formation-usc.yaml")
+    sched = _plan(inst, "cbm", limit)
+    run, _ev = closed_loop(inst, sched)
+    st = run.statistics
+    print(
+        f"robots {len(run.names)}, at targets {st['finished']}, contacts {st['contacts']}, "
+        f"min distance {st['min_distance']:.3f} m (guaranteed {st['guaranteed_distance']:.3f}),"
+        f" makespan {st['makespan']:.2f} s (planned {st['planned_makespan']:.2f}), latest "
+        f"way-point {st['lateness_max']:.2f} s late, RTF {st['real_time_factor']:.1f}"
+    )
+    ok = st["contacts"] == 0 and st["finished"] == len(run.names)
+    print(f"target (0 contacts, every quadcopter at its target): {_ok(ok)}")
+
+
+def fleet(n: int, limit: float) -> None:
+    from hierplan_opt.api import solve
+    from hierplan_opt.core.instance import Kinematics
+    from hierplan_opt.io.movingai import load_movingai
+    from hierplan_opt.physics.loop import closed_loop
+    from hierplan_opt.schedule.clearance import ClearanceError
+    from hierplan_opt.schedule.post import postprocess
+
+    print(
+        f"\n3. {n} differential drives (Create 2 size) on warehouse-10-20-10-2-1, LaCAM + "
+        "MAPF-POST, physics closed loop, one process"
+    )
+    inst = load_movingai(WAREHOUSE_MAP, WAREHOUSE_SCEN, n)
+    k = Kinematics(
+        "create2", drive="differential", v_max=0.5, omega_max=2.0, a_max=0.5, radius=0.17
+    )
+    inst = replace(inst, agents=tuple(replace(a, kinematics=k) for a in inst.agents))
+    sched = None
+    for seed in range(10):
+        r = solve(inst, "lacam", time_limit=limit, anytime=0, seed=seed)
+        if r.plan is None:
+            continue
+        try:
+            sched = postprocess(inst, r.plan)
+            print(
+                f"LaCAM seed {seed}: plan makespan {r.plan.makespan}, schedule "
+                f"{sched.makespan:.1f} s"
+            )
+            break
+        except ClearanceError:
+            print(f"LaCAM seed {seed}: a rotation no clearance allows, next seed")
+    if sched is None:
+        print("no schedule")
+        return
+    t0 = time.perf_counter()
+    run, _ev = closed_loop(inst, sched)
+    wall = time.perf_counter() - t0
+    st = run.statistics
+    print(
+        f"robots {n}, at goals {st['finished']}, contacts {st['contacts']}, min distance "
+        f"{st['min_distance']:.3f} m (guaranteed {st['guaranteed_distance']:.3f}), simulated "
+        f"{st['sim_time']:.1f} s in {wall:.1f} s wall: {st['sim_time'] / wall:.2f} sim s per "
+        f"wall s, {st['physics_steps']} physics steps"
+    )
+    print(f"target (>= 1 simulated second per wall second): {_ok(st['sim_time'] / wall >= 1)}")
+
+
+def spill(limit: float) -> None:
+    from hierplan_opt.execution.disturbances import Slow, load_disturbances
+    from hierplan_opt.io import load_instance
+    from hierplan_opt.physics.loop import closed_loop
+
+    print("\n4. water spill vs no spill (paper warehouse part 1, only the spill)")
+    inst = load_instance(f"{PAPER}/warehouse-part1.yaml")
+    spills = [
+        d for d in load_disturbances(f"{PAPER}/warehouse-disturbances.yaml") if isinstance(d, Slow)
+    ]
+    sched = _plan(inst, "cbm", limit)
+    runs = {}
+    for label, dist in (("spill", spills), ("no spill", [])):
+        run, events = closed_loop(inst, sched, dist)
+        runs[label] = run
+        st = run.statistics
+        wet = [e for e in events if e.kind == "spill"]
+        layers = sorted({e.layer for e in wet})
+        on = [n for n, c in st["disturbed"].items() if "spill" in c]
+        print(
+            f"{label:9} spill events {len(wet):>3} (layers {', '.join(layers) or '-'}), robots "
+            f"on the spill: {', '.join(on) or '-'}"
+            f", makespan {st['makespan']:.2f} s, contacts {st['contacts']}"
+        )
+    wet_robots = [n for n, c in runs["spill"].statistics["disturbed"].items() if "spill" in c]
+    print(f"{'robot':10} {'latest wp (spill)':>17} {'(dry)':>6} {'goal (spill)':>12} {'(dry)':>6}")
+    for n in wet_robots:
+        i = runs["spill"].names.index(n)
+        w, d = runs["spill"], runs["no spill"]
+        lw = float(np.nanmax(w.reach[i] - w.planned[i]))
+        ld = float(np.nanmax(d.reach[i] - d.planned[i]))
+        a, b = float(w.reach[i][-1]), float(d.reach[i][-1])
+        print(f"{n:10} {lw:>17.2f} {ld:>6.2f} {a:>12.2f} {b:>6.2f}")
+
+
+def agreement() -> None:
+    from hierplan_opt.api import solve
+    from hierplan_opt.core.graph import Graph
+    from hierplan_opt.core.instance import Instance, Kinematics
+    from hierplan_opt.physics.run import AGREEMENT, GOAL_TOL, follow
+    from hierplan_opt.schedule.post import postprocess
+
+    print("\n5. agreement with the schedule, no disturbance (4-robot swap; 3D: 3 robots)")
+    kinds = [
+        Kinematics("youbot", drive="omni", v_max=0.8, a_max=1.0, radius=0.35),
+        Kinematics(
+            "pioneer", drive="differential", v_max=0.6, omega_max=1.5, a_max=0.3, radius=0.3
+        ),
+        Kinematics(
+            "create2", drive="differential", v_max=0.5, omega_max=2.0, a_max=0.5, radius=0.17
+        ),
+        Kinematics("quad", drive="omni", v_max=1.0, a_max=2.0, radius=0.15),
+    ]
+    print(f"{'type':8} {'max |dt|':>8} {'tol':>5} {'goal |dt|':>9} {'tol':>5} {'contacts':>8}")
+    for k in kinds:
+        if k.robot_type == "quad":
+            g = Graph.grid(3, 3, 3)
+            inst = Instance.mapf(
+                g,
+                [(0, 0, 0), (2, 2, 2), (0, 2, 0)],
+                [(2, 2, 2), (0, 0, 0), (2, 0, 2)],
+                kinematics=k,
+            )
+        else:
+            g = Graph.grid(5, 4, obstacles=[(2, 1), (2, 2)])
+            inst = Instance.mapf(
+                g, [(0, 0), (4, 0), (0, 3), (4, 3)], [(4, 3), (0, 3), (4, 0), (0, 0)], kinematics=k
+            )
+        plan = solve(inst, "cbs", time_limit=10).plan
+        assert plan is not None
+        sched = postprocess(inst, plan)
+        run = follow(inst, sched)
+        dev = max(
+            float(np.nanmax(np.abs(r - p))) for r, p in zip(run.reach, run.planned, strict=True)
+        )
+        goal = max(abs(float(r[-1] - p[-1])) for r, p in zip(run.reach, run.planned, strict=True))
+        tol = AGREEMENT[k.robot_type]
+        print(
+            f"{k.robot_type:8} {dev:>8.2f} {tol:>5.2f} {goal:>9.2f} {GOAL_TOL:>5.2f} "
+            f"{run.statistics['contacts']:>8}  {_ok(dev <= tol and goal <= GOAL_TOL)}"
+        )
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = BenchParser(
+        "physics",
+        "robots in MuJoCo physics under the execution hierarchy",
+        instance="not used (the tables' instances are fixed)",
+        quick="50 robots in table 3 instead of 200",
+    )
+    args = p.parse_args(argv)
+    if args.instance:
+        raise InputError("bench physics: --instance is not used (its instances are fixed)")
+    limit = time_limit(args.time_limit, args.quick, full=60.0, small=10.0)
+    from hierplan_opt.physics.plant import mujoco  # heavy module
+
+    print(f"MuJoCo {mujoco.__version__}; RTF = simulated seconds per wall second")
+    warehouse(limit)
+    formation(limit)
+    fleet(50 if args.quick else 200, min(limit, 30.0))
+    spill(limit)
+    agreement()
+    return 0
