@@ -134,9 +134,12 @@ def summary(result: Any, instance: Any) -> str:
     parts.append(f"runtime={result.runtime:.3f}s")
     parts.append(f"solver={result.solver} objective={result.objective}")
     parts.append(f"agents={instance.num_agents}")
+    for k in _ALWAYS:  # why the search stopped and what the plan does not meet: never cut
+        if k in result.stats:
+            parts.append(f"{k}={_fmt(result.stats[k])}")
     shown = 0
     for k, v in result.stats.items():
-        if k == "error" or shown >= 6:
+        if k == "error" or k in _ALWAYS or shown >= 6:
             continue
         if isinstance(v, (bool, int, float, str)):
             text = _fmt(v) if not isinstance(v, str) else v
@@ -145,6 +148,10 @@ def summary(result: Any, instance: Any) -> str:
             parts.append(f"{k}={text}")
             shown += 1
     return " ".join(parts)
+
+
+#: Stats the summary line always shows when present, before the solver's others.
+_ALWAYS = ("stopped_by", "bound_met", "tracker_y")
 
 
 def _fmt(x: Any) -> str:

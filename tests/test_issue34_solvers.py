@@ -1,0 +1,84 @@
+"""Issue 34, "Solvers": plans are never dropped, caps are named, directed roadmaps decided,
+bounded solvers say when a plan misses the bound."""
+
+from __future__ import annotations
+
+import pytest
+
+import hierplan_opt as hp
+from hierplan_opt.formulations import cpsat, mip
+
+FORMULATIONS = [mip, cpsat]
+
+
+def full_3x2() -> hp.Instance:
+    """A 3x2 grid full of agents where two neighbours swap goals (issue 34)."""
+    g = hp.Graph.grid(3, 2)
+    cells = [(0, 0), (1, 0), (2, 0), (0, 1), (1, 1), (2, 1)]
+    goals = [(1, 0), (0, 0), (2, 0), (0, 1), (1, 1), (2, 1)]
+    return hp.Instance.mapf(g, cells, goals, name="full-3x2")
+
+
+def one_way_trap() -> hp.Instance:
+    """A robot must leave its goal B for the one-way loop C-D-E, from which no arc leads
+    back to B: the other robot can pass, but the first never returns. Infeasible although
+    every goal is reachable."""
+    pts = {"A": (0, 0), "B": (1, 0), "C": (2, 0), "D": (3, 0), "E": (2, 1)}
+    arcs = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "E"), ("E", "C")]
+    g = hp.Graph.roadmap(pts, arcs, directed=True)
+    return hp.Instance.mapf(g, ["A", "B"], ["C", "B"], name="one-way-trap")
+
+
+def four_cycle() -> hp.Instance:
+    """A full one-way 4-cycle asked to transpose two robots: they can only rotate."""
+    ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
+    g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
+    return hp.Instance.mapf(g, ["A", "B", "C", "D"], ["B", "A", "C", "D"], name="4-cycle")
+
+
+# ------------------------------------------------------------- cpsat and mip keep plans
+def test_cpsat_keeps_the_plan_it_found_full_3x2() -> None:
+    inst = full_3x2()
+    res = cpsat.solve(inst, objective="soc", time_limit=30)
+    assert res.status is hp.Status.OPTIMAL and res.plan is not None
+    assert res.cost == res.lower_bound == 16 and hp.validate(inst, res.plan) == []
+
+
+@pytest.mark.slow
+def test_mip_keeps_the_plan_it_found_full_3x2() -> None:
+    inst = full_3x2()
+    res = mip.solve(inst, objective="soc", time_limit=60)
+    assert res.status is hp.Status.OPTIMAL and res.cost == 16
+    assert res.plan is not None and hp.validate(inst, res.plan) == []
+
+
+@pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
+def test_a_user_cap_returns_the_plan_found_and_names_the_cap(form) -> None:
+    inst = full_3x2()
+    res = form.solve(inst, objective="soc", time_limit=30, max_horizon=6)
+    assert res.status is hp.Status.FEASIBLE and res.plan is not None
+    assert hp.validate(inst, res.plan) == [] and res.cost == res.plan.sum_of_costs
+    assert res.stats["stopped_by"] == "max_horizon"
+    assert res.lower_bound is not None and 2 <= res.lower_bound <= res.cost
+
+
+def test_summary_line_names_the_cap(tmp_path, capsys) -> None:
+    from hierplan_opt.cli import main
+
+    hp.save_instance(tmp_path / "full.yaml", full_3x2())
+    code = main(
+        ["solve", str(tmp_path / "full.yaml"), "--solver", "cpsat", "--set", "max_horizon=6"]
+    )
+    line = capsys.readouterr().out.strip()
+    assert code == 0 and line.startswith("FEASIBLE cost=")
+    assert "stopped_by=max_horizon" in line
+
+
+@pytest.mark.parametrize("make", [one_way_trap, four_cycle], ids=lambda f: f.__name__)
+@pytest.mark.parametrize("objective", ["soc", "makespan"])
+@pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
+def test_formulations_prove_small_directed_roadmaps_infeasible(form, objective, make) -> None:
+    # The formulation itself (no front door): the default cap reaches the horizon bound.
+    res = form.solve(make(), objective=objective, time_limit=60)
+    assert res.status is hp.Status.INFEASIBLE and res.plan is None
+    assert "no plan has makespan" in res.stats["reason"]
