@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -109,6 +110,16 @@ def run(args: argparse.Namespace) -> int:
     if kind == "instance":
         from hierplan_opt.io import save_instance
 
+        if to == "lmrp":  # write what the format carries; say what it cannot
+            from hierplan_opt.io.lmrp_yaml import without_extras
+
+            instance, lost = without_extras(instance)
+            for what in lost:
+                print(
+                    f"hierplan convert: warning: the libMultiRobotPlanning format cannot hold "
+                    f"{what}; left out of {out}",
+                    file=sys.stderr,
+                )
         save_instance(out, instance, format=to)
         written = f"{out.with_suffix('.map')} and {out.with_suffix('.scen')}"
         print(

@@ -47,10 +47,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     p.add_argument(
         "--solver",
-        default="cbs",
+        default=None,
         metavar="NAME",
         action=SolverName,
-        help="solver name (default: cbs); `--solver NAME --help` lists its options",
+        help="solver name (default: cbs for MAPF; for TAPF flow with one team, cbm with "
+        "more; the choice is printed); `--solver NAME --help` lists its options",
     )
     p.add_argument(
         "--objective",
@@ -192,6 +193,26 @@ def highway_options(args: argparse.Namespace, instance: Any, options: dict[str, 
     return replace(instance, highways=hw)
 
 
+def default_solver(instance: Any) -> tuple[str, str]:
+    """The solver ``solve`` uses when none is given, and why: cbs for MAPF; for TAPF,
+    flow (optimal makespan for one team, i.e. anonymous MAPF) or cbm (teams).
+
+    Example
+    -------
+    >>> from hierplan_opt import Graph, Instance
+    >>> g = Graph.grid(3, 3)
+    >>> default_solver(Instance.tapf(g, [([(0, 0)], [(2, 2)]), ([(2, 0)], [(0, 2)])]))
+    ('cbm', 'TAPF with 2 teams')
+    >>> default_solver(Instance.mapf(g, [(0, 0)], [(2, 2)]))[0]
+    'cbs'
+    """
+    if not instance.is_tapf:
+        return "cbs", "MAPF"
+    if len(instance.teams) == 1:
+        return "flow", "TAPF with one team"
+    return "cbm", f"TAPF with {len(instance.teams)} teams"
+
+
 def run(args: argparse.Namespace) -> int:
     import hierplan_opt
     from hierplan_opt import registry
@@ -200,13 +221,23 @@ def run(args: argparse.Namespace) -> int:
 
     check_outputs(("--out", args.out, PLAN_SUFFIXES))
     texts = parse_pairs(args.set)
+    if args.solver is None:  # the instance decides: read it first
+        instance = load_instance_from_args(args)
+        args.solver, why = default_solver(instance)
+        chosen = f"hierplan solve: no --solver given; using {args.solver} ({why})"
+    else:
+        instance = None
+        chosen = None
     options = registry.get(args.solver).load().options.parse(texts, args.solver)
     if args.w is not None:
         if "w" in options:
             raise InputError("give w either with --w or with --set w=..., not both")
         options["w"] = args.w
-    instance = load_instance_from_args(args)
+    if instance is None:
+        instance = load_instance_from_args(args)
     instance = highway_options(args, instance, options)
+    if chosen is not None and instance.is_tapf:  # MAPF: cbs, the documented default
+        print(chosen, file=sys.stderr)
     with progress_of(args, f"solve {args.solver}"):
         result = hierplan_opt.solve(
             instance,

@@ -36,6 +36,7 @@ agents sharing them, are refused. An agent with a plain ``goal`` next to agents 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -276,6 +277,30 @@ def _tapf(
 
 
 # ---------------------------------------------------------------- writing
+def without_extras(instance: Instance) -> tuple[Instance, list[str]]:
+    """``instance`` without what the libMultiRobotPlanning format cannot carry (highways,
+    robot kinematics), and one phrase per thing left out (empty: nothing is lost).
+
+    Example
+    -------
+    >>> g = Graph.grid(2, 1)
+    >>> inst = Instance.mapf(g, [(0, 0)], [(1, 0)], highways=[((0, 0), (1, 0))])
+    >>> plain, lost = without_extras(inst)
+    >>> plain.highways, lost
+    (None, ['highways (1 preferred directed edges)'])
+    """
+    lost: list[str] = []
+    if instance.highways is not None:
+        lost.append(f"highways ({len(instance.highways)} preferred directed edges)")
+        instance = replace(instance, highways=None)
+    moved = [a for a in instance.agents if a.kinematics != DEFAULT_KINEMATICS]
+    if moved:
+        lost.append(f"robot kinematics (of {len(moved)} robots)")
+        agents = tuple(replace(a, kinematics=DEFAULT_KINEMATICS) for a in instance.agents)
+        instance = replace(instance, agents=agents)
+    return instance, lost
+
+
 def dumps(instance: Instance) -> str:
     """The libMultiRobotPlanning YAML text of an instance on a 2D grid or a roadmap.
 
