@@ -3,7 +3,10 @@ bounded solvers say when a plan misses the bound."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
+import yaml
 
 import hierplan_opt as hp
 from hierplan_opt.formulations import cpsat, mip
@@ -82,3 +85,37 @@ def test_formulations_prove_small_directed_roadmaps_infeasible(form, objective, 
     res = form.solve(make(), objective=objective, time_limit=60)
     assert res.status is hp.Status.INFEASIBLE and res.plan is None
     assert "no plan has makespan" in res.stats["reason"]
+
+
+# ------------------------------------------------- bounded plans outside their bound
+@pytest.mark.parametrize("name", ["ecbs", "eecbs"])
+def test_lacam_fallback_outside_the_bound_is_labelled(name, tmp_path, capsys) -> None:
+    from hierplan_opt.cli import main
+
+    mai = Path(__file__).resolve().parents[1] / "instances" / "movingai"
+    out = tmp_path / "plan.yaml"
+    argv = ["solve", str(mai / "room-32-32-4.map"), "--scen", str(mai / "room-32-32-4-even-1.scen")]
+    argv += ["--agents", "40", "--solver", name, "--w", "1.0", "--time-limit", "3"]
+    code = main([*argv, "--out", str(out)])
+    line = capsys.readouterr().out
+    assert code == 0 and line.startswith("FEASIBLE")
+    doc = yaml.safe_load(out.read_text())["statistics"]
+    assert doc["plan_from"] == "lacam" and doc["cost"] > doc["lower_bound"]  # w = 1
+    assert doc["bound_met"] is False and "bound_met=false" in line
+
+
+def test_bound_met_on_results() -> None:
+    from hierplan_opt.search import ecbs
+
+    inst = full_3x2()
+    r = hp.solve(inst, "ecbs", w=1.5, time_limit=10)
+    assert r.solved and r.bound_met is True and r.stats["plan_from"] == "search"
+    assert hp.solve(inst, "cbs", time_limit=10).bound_met is None
+    # LaCAM's plan handed back at the limit: labelled by whether w * LB covers it
+    mai = Path(__file__).resolve().parents[1] / "instances" / "movingai"
+    room = hp.load_instance(
+        mai / "room-32-32-4.map", scen=mai / "room-32-32-4-even-1.scen", agents=40
+    )
+    r = ecbs.solve.fn(room, time_limit=3.0, w=1.0)
+    assert r.stats["plan_from"] == "lacam" and r.plan is not None
+    assert r.bound_met is (r.cost <= r.lower_bound)
