@@ -116,7 +116,7 @@ def default_max_horizon(instance: Instance) -> int:
 
 
 #: The default cap stretches up to the horizon bound when the bound is at most this many
-#: times :func:`default_max_horizon` (e.g. a 4-cycle of one-way arcs: bound 23, cap 9).
+#: times :func:`default_max_horizon` (e.g. a full one-way 4-cycle: bound 23, cap 11).
 BOUND_REACH = 8
 
 
@@ -132,7 +132,7 @@ def search_cap(instance: Instance, max_horizon: int | None, bound: int) -> int:
     >>> g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
     >>> inst = Instance.mapf(g, ["A", "B", "C", "D"], ["B", "A", "C", "D"])
     >>> default_max_horizon(inst), search_cap(inst, None, 23), search_cap(inst, 5, 23)
-    (9, 23, 5)
+    (11, 23, 5)
     """
     if max_horizon is not None:
         return max_horizon
