@@ -77,12 +77,12 @@ def test_summary_line_names_the_cap(tmp_path, capsys) -> None:
     assert "stopped_by=max_horizon" in line
 
 
-@pytest.mark.parametrize("make", [one_way_trap, four_cycle], ids=lambda f: f.__name__)
 @pytest.mark.parametrize("objective", ["soc", "makespan"])
 @pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
-def test_formulations_prove_small_directed_roadmaps_infeasible(form, objective, make) -> None:
-    # The formulation itself (no front door): the default cap reaches the horizon bound.
-    res = form.solve(make(), objective=objective, time_limit=60)
+def test_formulations_prove_small_directed_roadmaps_infeasible(form, objective) -> None:
+    # The formulation itself (.fn: no front door, whose exhaustive search decides it at
+    # once): the default cap reaches the horizon bound 19 (default cap 2 + 5 + 2 = 9).
+    res = form.solve.fn(one_way_trap(), objective=objective, time_limit=60)
     assert res.status is hp.Status.INFEASIBLE and res.plan is None
     assert "no plan has makespan" in res.stats["reason"]
 
@@ -119,3 +119,68 @@ def test_bound_met_on_results() -> None:
     r = ecbs.solve.fn(room, time_limit=3.0, w=1.0)
     assert r.stats["plan_from"] == "lacam" and r.plan is not None
     assert r.bound_met is (r.cost <= r.lower_bound)
+
+
+# ------------------------------------------ directed roadmaps: decided at the front door
+def four_cycle_teams() -> hp.Instance:
+    """Two teams trade places on a full one-way 4-cycle: they can only rotate."""
+    ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
+    g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
+    return hp.Instance.tapf(g, [(["A", "B"], ["A", "C"]), (["C", "D"], ["B", "D"])])
+
+
+def one_way_trap_teams() -> hp.Instance:
+    inst = one_way_trap()
+    return hp.Instance.tapf(inst.graph, [(["A"], ["C"]), (["B"], ["B"])])
+
+
+CASES = [
+    ("cbs", one_way_trap),
+    ("cbs", four_cycle),
+    ("cbm", four_cycle_teams),
+    ("cbm", one_way_trap_teams),
+    ("hungarian", four_cycle_teams),
+    ("hungarian", one_way_trap_teams),
+    ("cpsat", four_cycle),
+    ("mip", four_cycle),
+]
+
+
+@pytest.mark.parametrize(("name", "make"), CASES, ids=lambda x: getattr(x, "__name__", x))
+def test_directed_infeasible_roadmaps_are_decided_not_timed_out(name, make) -> None:
+    import time
+
+    from teams_bruteforce import brute_force_makespan
+
+    inst = make()
+    assert brute_force_makespan(inst, max_depth=200) is None  # independent: no plan
+    t0 = time.perf_counter()
+    res = hp.solve(inst, name, time_limit=20)
+    assert time.perf_counter() - t0 < 10
+    assert res.status is hp.Status.INFEASIBLE and res.plan is None
+    assert "exhaustive search" in res.stats["reason"]
+
+
+def test_joint_reachable_agrees_with_solvers_on_solvable_directed_instances() -> None:
+    from hierplan_opt.core.feasibility import joint_reachable
+
+    ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
+    g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
+    inst = hp.Instance.mapf(g, ["A", "B"], ["C", "D"])
+    assert joint_reachable(inst) is True
+    res = hp.solve(inst, "cbs", time_limit=10)
+    assert res.status is hp.Status.OPTIMAL and res.cost == 4
+
+
+def test_directed_time_limit_says_feasibility_is_undecided() -> None:
+    # 12 robots fill a one-way ring of 12 and must transpose two: far too many joint
+    # configurations to enumerate, so the time limit stops cbs and the result says that
+    # nothing decided whether a plan exists.
+    n = 12
+    names = [f"v{i}" for i in range(n)]
+    pts = {v: (i, 0) for i, v in enumerate(names)}
+    g = hp.Graph.roadmap(pts, [(names[i], names[(i + 1) % n]) for i in range(n)], directed=True)
+    goals = [names[1], names[0], *names[2:]]
+    res = hp.solve(hp.Instance.mapf(g, names, goals), "cbs", time_limit=0.5)
+    assert res.status is hp.Status.TIME_LIMIT and res.plan is None
+    assert res.stats["feasibility"] == "undecided"
