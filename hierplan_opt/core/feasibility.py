@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -154,48 +155,52 @@ def joint_reachable(
         return True
     seen = {start}
     frontier = [start]
-    steps = 0
+    budget = [max_steps]
     while frontier:
         nxt_frontier: list[tuple[int, ...]] = []
         for state in frontier:
-            nxt = [0] * k
-            taken: dict[int, int] = {}  # vertex -> agent slot moving there this step
-
-            def assign(i: int) -> bool:
-                """Give slots i.. their next vertices; True when the goal is reached."""
-                nonlocal steps
-                if i == k:
-                    c = canon(nxt)
-                    if c == goal:
-                        return True
-                    if c not in seen:
-                        seen.add(c)
-                        nxt_frontier.append(c)
-                    return False
-                u = state[i]
-                for v in (u, *adj[u]):
-                    steps += 1
-                    if v in taken:
-                        continue
-                    if v != u:  # a swap: the agent now at v moves to u
-                        j = taken.get(u)
-                        if j is not None and state[j] == v:
-                            continue
-                    taken[v] = i
-                    nxt[i] = v
-                    if assign(i + 1):
-                        return True
-                    del taken[v]
-                    if steps > max_steps or len(seen) > max_states:
-                        return False
-                return False
-
-            if assign(0):
-                return True
-            if steps > max_steps or len(seen) > max_states:
+            for nxt in _joint_moves(state, adj, budget):
+                c = canon(nxt)
+                if c == goal:
+                    return True
+                if c not in seen:
+                    seen.add(c)
+                    nxt_frontier.append(c)
+            if budget[0] < 0 or len(seen) > max_states:
                 return None
         frontier = nxt_frontier
     return False
+
+
+def _joint_moves(
+    state: tuple[int, ...], adj: list[list[int]], budget: list[int]
+) -> Iterator[list[int]]:
+    """Every joint move from ``state`` (wait or one arc each; no shared vertex, no swap);
+    each partial choice spends one unit of ``budget[0]``, and none is made below 0."""
+    k = len(state)
+    nxt = [0] * k
+    taken: dict[int, int] = {}  # vertex -> the slot moving there this step
+
+    def assign(i: int) -> Iterator[list[int]]:
+        if i == k:
+            yield nxt
+            return
+        u = state[i]
+        for v in (u, *adj[u]):
+            budget[0] -= 1
+            if budget[0] < 0:
+                return
+            if v in taken:
+                continue
+            j = taken.get(u) if v != u else None  # a swap: the agent at v moves to u
+            if j is not None and state[j] == v:
+                continue
+            taken[v] = i
+            nxt[i] = v
+            yield from assign(i + 1)
+            del taken[v]
+
+    yield from assign(0)
 
 
 def _configurations(instance: Instance) -> int:
