@@ -152,7 +152,7 @@ def summary(result: Any, instance: Any) -> str:
 
 
 #: Stats the summary line always shows when present, before the solver's others.
-_ALWAYS = ("stopped_by", "bound_met", "feasibility", "tracker_y")
+_ALWAYS = ("stopped_by", "bound_met", "feasibility")
 
 
 def _fmt(x: Any) -> str:

@@ -8,7 +8,9 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_INVALID,
     add_instance_arguments,
+    add_tracker_y_arguments,
     load_instance_from_args,
+    tracker_y_note,
 )
 
 HELP = "check a plan file against an instance (prints 'valid' with costs, or the violations)"
@@ -22,14 +24,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="plan file: libMultiRobotPlanning layout (YAML/JSON), EECBS / CBSH2-RTC paths, "
         "LaCAM result or MAPF Tracker submission",
     )
+    add_tracker_y_arguments(p)
 
 
 def run(args: argparse.Namespace) -> int:
     from hierplan_opt.core.validate import validate
-    from hierplan_opt.io import load_plan
+    from hierplan_opt.io import read_plan
 
     instance = load_instance_from_args(args)
-    plan = load_plan(args.plan, instance)
+    plan, stats = read_plan(args.plan, instance, tracker_y=args.tracker_y)
     violations = validate(instance, plan)
     if violations:
         for v in violations:
@@ -38,6 +41,6 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"valid: soc={plan.sum_of_costs} makespan={plan.makespan} "
         f"agents={plan.num_agents} (lower bounds: soc>={instance.soc_lower_bound()}, "
-        f"makespan>={instance.makespan_lower_bound()})"
+        f"makespan>={instance.makespan_lower_bound()})" + tracker_y_note(stats)
     )
     return OK
