@@ -49,9 +49,16 @@ def solve(
     (<Status.OPTIMAL: 'OPTIMAL'>, 8)
     """
     t0 = time.perf_counter()
-    result = registry.run(
-        solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
-    )
+    if instance.meta.get("free_agents"):  # task-free robots: the solve picks their ends
+        from hierplan_opt.search.libmrp import solved_free_robots
+
+        result, instance = solved_free_robots(
+            solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+        )
+    else:
+        result = registry.run(
+            solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+        )
     result = replace(result, runtime=time.perf_counter() - t0)
     if result.plan is None:
         return result

@@ -238,6 +238,7 @@ def load_instance_from_args(args: argparse.Namespace) -> Instance:
         scen=args.scen,
         agents=args.agents,
         check_scen_map=not getattr(args, "ignore_scen_map", False),
+        shared_goals=bool(getattr(args, "disappear_at_goal", False)),
     )
 
 

@@ -84,6 +84,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="a solver option (repeatable); booleans are true/false, yes/no or on/off",
     )
     p.add_argument(
+        "--disappear-at-goal",
+        action="store_true",
+        help="agents leave the map when they reach their goals (libMultiRobotPlanning's "
+        "--disappear-at-goal; cost counts up to each arrival); the plan's paths end there",
+    )
+    p.add_argument(
         "--out",
         metavar="PLAN",
         help="write the plan here (.yaml, or .json); only written when a plan is found",
@@ -152,7 +158,7 @@ def summary(result: Any, instance: Any) -> str:
 
 
 #: Stats the summary line always shows when present, before the solver's others.
-_ALWAYS = ("stopped_by", "bound_met", "feasibility")
+_ALWAYS = ("stopped_by", "bound_met", "feasibility", "disappear_at_goal", "free_agents")
 
 
 def _fmt(x: Any) -> str:
@@ -208,6 +214,10 @@ def default_solver(instance: Any) -> tuple[str, str]:
     """
     if not instance.is_tapf:
         return "cbs", "MAPF"
+    if len(instance.teams) > 1 and all(len(t.agents) == 1 for t in instance.teams):
+        if instance.meta.get("free_agents"):
+            return "cbs", "one robot per team, task-free robots' ends chosen: MAPF"
+        return "cbs", "one robot per team: MAPF"
     if len(instance.teams) == 1:
         return "flow", "TAPF with one team"
     return "cbm", f"TAPF with {len(instance.teams)} teams"
@@ -225,6 +235,8 @@ def run(args: argparse.Namespace) -> int:
         instance = load_instance_from_args(args)
         args.solver, why = default_solver(instance)
         chosen = f"hierplan solve: no --solver given; using {args.solver} ({why})"
+        if args.solver == "cbs" and instance.is_tapf and not instance.meta.get("free_agents"):
+            instance = instance.with_goals([t.targets[0] for t in instance.teams])
     else:
         instance = None
         chosen = None
@@ -236,18 +248,27 @@ def run(args: argparse.Namespace) -> int:
     if instance is None:
         instance = load_instance_from_args(args)
     instance = highway_options(args, instance, options)
-    if chosen is not None and instance.is_tapf:  # MAPF: cbs, the documented default
-        print(chosen, file=sys.stderr)
+    solved = instance
+    if args.disappear_at_goal:
+        from hierplan_opt.search.libmrp import disappear_at_goals
+
+        solved = disappear_at_goals(instance)
     with progress_of(args, f"solve {args.solver}"):
         result = hierplan_opt.solve(
-            instance,
+            solved,
             args.solver,
             time_limit=args.time_limit,
             seed=args.seed,
             objective=args.objective,
             **options,
         )
+    if args.disappear_at_goal:
+        from hierplan_opt.search.libmrp import from_disappeared
+
+        result = from_disappeared(instance, result)
         note(status=str(result.status), lb=result.lower_bound, best=result.cost)
+    if chosen is not None and "MAPF)" not in chosen:  # MAPF: cbs, the documented default
+        print(chosen, file=sys.stderr)
     line = summary(result, instance)
     if result.plan is not None and args.out:
         save_plan(args.out, instance, result)

@@ -30,7 +30,11 @@ instance: agents with the same set of potential goals form one team whose target
 that set. This toolkit's teams need disjoint target sets with as many targets as
 robots, so sets that overlap without being equal, or that have more goals than the
 agents sharing them, are refused. An agent with a plain ``goal`` next to agents with
-``potentialGoals`` is a team of one.
+``potentialGoals`` is a team of one. An agent with an empty ``potentialGoals`` is a
+task-free robot (it ends anywhere, keeping out of the others' way): a team of one with a
+placeholder target (its start where free), listed in ``instance.meta["free_agents"]``;
+:func:`hierplan_opt.solve` and ``hierplan solve`` choose its end
+(:mod:`hierplan_opt.search.libmrp`).
 """
 
 from __future__ import annotations
@@ -75,7 +79,7 @@ def load(path: str | Path) -> Instance:
     return from_data(read_yaml(path), path)
 
 
-def from_data(data: Any, path: str | Path) -> Instance:
+def from_data(data: Any, path: str | Path, *, shared_goals: bool = False) -> Instance:
     """Build the instance from parsed YAML (``path`` names the file in errors).
 
     Example
@@ -101,6 +105,7 @@ def from_data(data: Any, path: str | Path) -> Instance:
     starts = Unique(ctx, graph, "start")
     goals = Unique(ctx, graph, "goal")
     rows: list[tuple[str, int, tuple[int, ...], bool, int | None]] = []
+    free: list[int] = []  # rows of task-free robots (empty potentialGoals)
     for i, a in enumerate(agents_raw):
         aline = ctx.line_of(agents_raw, i)
         a = ctx.mapping(a, f"agent {i}", aline)
@@ -124,8 +129,10 @@ def from_data(data: Any, path: str | Path) -> Instance:
         elif "potentialGoals" in a:
             pline = ctx.line_of(a, "potentialGoals")
             pg = ctx.sequence(a["potentialGoals"], f"potentialGoals of {name!r}", pline)
-            if not pg:
-                raise ctx.error(f"potentialGoals of agent {name!r} is empty", pline)
+            if not pg:  # a task-free robot: its end is chosen by the solve
+                free.append(len(rows))
+                rows.append((name, start, (), True, pline))
+                continue
             targets: list[int] = []
             for j, loc in enumerate(pg):
                 v = location(ctx, graph, loc, f"agent {name!r} potential goal", ctx.line_of(pg, j))
@@ -139,15 +146,43 @@ def from_data(data: Any, path: str | Path) -> Instance:
         else:
             raise ctx.error(f"agent {name!r} needs 'goal' or 'potentialGoals'", aline)
 
+    if free:
+        _placeholders(ctx, graph, rows, free)
     if not any(r[3] for r in rows):  # plain MAPF
         for name, _s, (g,), _p, gline in rows:
-            goals.add(g, f"agent {name!r}", gline)
+            if not shared_goals:  # allowed for agents that disappear at their goals
+                goals.add(g, f"agent {name!r}", gline)
         agents = tuple(Agent(n, s, gs[0]) for n, s, gs, _p, _l in rows)
         inst = wrap(ctx, None, lambda: Instance(graph, agents, name=Path(path).stem))
     else:
         inst = _tapf(ctx, graph, rows, Path(path).stem)
     inst.meta.update({"format": "lmrp", "source": str(path)})
+    if free:
+        inst.meta["free_agents"] = [rows[i][0] for i in free]
     return inst
+
+
+def _placeholders(
+    ctx: Ctx,
+    graph: Graph,
+    rows: list[tuple[str, int, tuple[int, ...], bool, int | None]],
+    free: list[int],
+) -> None:
+    """Give each task-free robot a team of its own with one placeholder target: its
+    start, or the nearest vertex no other robot may end at. The solve chooses its real
+    end (:mod:`hierplan_opt.search.libmrp`); the placeholder only keeps teams well-formed."""
+    used = {t for i, r in enumerate(rows) if i not in free for t in r[2]}
+    for i in free:
+        name, start, _t, _p, line = rows[i]
+        d = graph.dist_from(start)
+        options = sorted(
+            (int(d[v]), v) for v in range(graph.n) if graph.passable[v] and v not in used
+        )
+        if not options:
+            raise ctx.error(f"task-free robot {name!r} has no vertex left to end at", line)
+        v = start if start not in used else options[0][1]
+        used.add(v)
+        rows[i] = (name, start, (v,), True, line)
 
 
 def _grid(ctx: Ctx, value: Any, line: int | None) -> Graph:
