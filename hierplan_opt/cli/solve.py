@@ -200,18 +200,25 @@ def highway_options(args: argparse.Namespace, instance: Any, options: dict[str, 
 
 
 def default_solver(instance: Any) -> tuple[str, str]:
-    """The solver ``solve`` uses when none is given, and why: cbs for MAPF; for TAPF,
-    flow (optimal makespan for one team, i.e. anonymous MAPF) or cbm (teams).
+    """The solver ``solve`` uses when none is given, and why: cbs for MAPF (and for TAPF
+    with one robot per team, which is MAPF); for TAPF, flow (optimal makespan for one
+    team, i.e. anonymous MAPF) or cbm (teams); cpsat for annotated roadmaps whose
+    conflicts go beyond vertex and swap conflicts.
 
     Example
     -------
     >>> from hierplan_opt import Graph, Instance
     >>> g = Graph.grid(3, 3)
-    >>> default_solver(Instance.tapf(g, [([(0, 0)], [(2, 2)]), ([(2, 0)], [(0, 2)])]))
+    >>> teams = [([(0, 0), (1, 0)], [(2, 2), (2, 1)]), ([(2, 0)], [(0, 2)])]
+    >>> default_solver(Instance.tapf(g, teams))
     ('cbm', 'TAPF with 2 teams')
+    >>> default_solver(Instance.tapf(g, [([(0, 0)], [(2, 2)]), ([(2, 0)], [(0, 2)])]))
+    ('cbs', 'one robot per team: MAPF')
     >>> default_solver(Instance.mapf(g, [(0, 0)], [(2, 2)]))[0]
     'cbs'
     """
+    if instance.meta.get("edge_conflicts"):
+        return "cpsat", "an annotated roadmap with conflicts beyond vertex and swap"
     if not instance.is_tapf:
         return "cbs", "MAPF"
     if len(instance.teams) > 1 and all(len(t.agents) == 1 for t in instance.teams):

@@ -23,7 +23,11 @@ names::
 
 Without ``vertices`` the vertices are the edges' ends, every edge has length 1 and
 there are no positions (all coordinates 0): fine for planning, not for MAPF-POST.
-Annotated roadmaps (``conflicts``, edge-conflict sets) are refused.
+Annotated roadmaps (``conflicts``: for each edge in file order, the edges no second
+robot may traverse at the same time, as libMRP's ``annotate_roadmap.py`` writes them, with
+self-edges for waits) are read; the pairs this toolkit's vertex and swap rules do not cover
+go to ``instance.meta["edge_conflicts"]`` (vertex ids), which the ``cpsat`` and ``mip``
+formulations honour (:func:`hierplan_opt.solve` refuses other solvers for them).
 
 ``potentialGoals`` (the target-assignment variant, ``cbs_ta``) becomes a TAPF
 instance: agents with the same set of potential goals form one team whose targets are
@@ -93,10 +97,10 @@ def from_data(data: Any, path: str | Path, *, shared_goals: bool = False) -> Ins
     top = ctx.mapping(data, "a libMultiRobotPlanning instance", 1)
     if "roadmap" in top:
         ctx.check_keys(top, "the instance", ("roadmap", "agents"), ("roadmap", "agents"))
-        graph = _roadmap(ctx, top["roadmap"], ctx.line_of(top, "roadmap"))
+        graph, annotated = _roadmap(ctx, top["roadmap"], ctx.line_of(top, "roadmap"))
     else:
         ctx.check_keys(top, "the instance", TOP_KEYS, TOP_KEYS)
-        graph = _grid(ctx, top["map"], ctx.line_of(top, "map"))
+        graph, annotated = _grid(ctx, top["map"], ctx.line_of(top, "map")), None
 
     agents_raw = ctx.sequence(top["agents"], "agents", ctx.line_of(top, "agents"))
     if not agents_raw:
@@ -157,9 +161,34 @@ def from_data(data: Any, path: str | Path, *, shared_goals: bool = False) -> Ins
     else:
         inst = _tapf(ctx, graph, rows, Path(path).stem)
     inst.meta.update({"format": "lmrp", "source": str(path)})
+    if annotated is not None:
+        extra = extra_conflicts(graph, annotated)
+        inst.meta["annotated_conflicts"] = len(annotated)
+        inst.meta["edge_conflicts"] = extra
     if free:
         inst.meta["free_agents"] = [rows[i][0] for i in free]
     return inst
+
+
+def extra_conflicts(
+    graph: Graph, pairs: list[tuple[tuple[str, str], tuple[str, str]]]
+) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The conflicting move pairs (``(u, v)`` vertex ids, ``u == v`` a wait) that this
+    toolkit's own rules (vertex and swap conflicts) do not already forbid.
+
+    Example
+    -------
+    >>> g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (2, 0)}, [("A", "B"), ("B", "C")])
+    >>> extra_conflicts(g, [(("A", "B"), ("B", "A")), (("A", "B"), ("B", "C"))])
+    [((0, 1), (1, 2))]
+    """
+    out = []
+    for (a, b), (c, d) in pairs:
+        (u1, v1), (u2, v2) = (graph.vertex(a), graph.vertex(b)), (graph.vertex(c), graph.vertex(d))
+        if u1 == u2 or v1 == v2 or (u1 == v2 and v1 == u2):
+            continue  # one vertex at one time, or a swap: forbidden anyway
+        out.append(((u1, v1), (u2, v2)))
+    return out
 
 
 def _placeholders(
@@ -208,15 +237,11 @@ def _grid(ctx: Ctx, value: Any, line: int | None) -> Graph:
     return Graph.grid(width, height, obstacles=obstacles)
 
 
-def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
+def _roadmap(
+    ctx: Ctx, value: Any, line: int | None
+) -> tuple[Graph, list[tuple[tuple[str, str], tuple[str, str]]] | None]:
     r = ctx.mapping(value, "roadmap", line)
     ctx.check_keys(r, "roadmap", ROADMAP_KEYS, ("edges",))
-    if r.get("conflicts") is not None:
-        raise ctx.error(
-            "annotated roadmaps ('conflicts') are not supported: this toolkit's conflicts "
-            "are vertex and swap conflicts; remove 'conflicts'",
-            ctx.line_of(r, "conflicts"),
-        )
     undirected = True
     if "undirected" in r:
         undirected = ctx.boolean(r["undirected"], "undirected", ctx.line_of(r, "undirected"))
@@ -240,11 +265,13 @@ def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
     elist = ctx.sequence(r["edges"], "edges", eline)
     edges: list[tuple[Any, ...]] = []
     self_loops: set[str] = set()
+    listed: list[tuple[str, str]] = []  # every edge in file order (conflicts index them)
     for i, e in enumerate(elist):
         el = ctx.line_of(elist, i)
         if not isinstance(e, list) or len(e) != 2:
             raise ctx.error(f"an edge must be [u, v], got {e!r}", el)
         u, v = (ctx.string(x, "an edge end", el) for x in e)
+        listed.append((u, v))
         for x in (u, v):
             if x not in coords:
                 if positions:
@@ -265,7 +292,32 @@ def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
                 ctx.line_of(r, "allow_wait_actions"),
             )
     graph = wrap(ctx, eline, lambda: Graph.roadmap(coords, edges, directed=not undirected))
-    return graph
+    if r.get("conflicts") is None:
+        return graph, None
+    return graph, _conflicts(ctx, r["conflicts"], listed, ctx.line_of(r, "conflicts"))
+
+
+def _conflicts(
+    ctx: Ctx, value: Any, listed: list[tuple[str, str]], line: int | None
+) -> list[tuple[tuple[str, str], tuple[str, str]]]:
+    """The ``conflicts`` of an annotated roadmap (libMRP's ``annotate_roadmap.py``): for
+    edge ``i`` in file order, the edges ``j`` that no two robots may traverse at once."""
+    rows = ctx.sequence(value, "conflicts", line)
+    if len(rows) != len(listed):
+        raise ctx.error(
+            f"conflicts has {len(rows)} entries for {len(listed)} edges (one list per edge)", line
+        )
+    pairs: set[tuple[int, int]] = set()
+    for i, row in enumerate(rows):
+        rl = ctx.line_of(rows, i)
+        for j in ctx.sequence(row, f"conflicts of edge {i}", rl):
+            jj = ctx.integer(j, f"an edge index in the conflicts of edge {i}", rl, minimum=0)
+            if jj >= len(listed):
+                raise ctx.error(
+                    f"conflicts of edge {i} name edge {jj} (there are {len(listed)})", rl
+                )
+            pairs.add((min(i, jj), max(i, jj)))
+    return [(listed[i], listed[j]) for i, j in sorted(pairs)]
 
 
 def _tapf(

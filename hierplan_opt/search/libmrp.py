@@ -289,3 +289,51 @@ def solved_free_robots(
     status = Status.OPTIMAL if proven else Status.FEASIBLE
     lb = best.cost if proven else lower
     return replace(best, status=status, lower_bound=lb, stats=stats), best_inst
+
+
+# ---------------------------------------------------------- annotated roadmaps' conflicts
+#: Solvers that honour ``instance.meta["edge_conflicts"]`` (annotated roadmaps).
+ANNOTATED_SOLVERS = ("cpsat", "mip")
+
+
+def annotated_violations(instance: Instance, plan: Plan) -> list[str]:
+    """One line per pair of robots making two moves that an annotated roadmap's extra
+    conflicts forbid at the same time (``instance.meta["edge_conflicts"]``; a robot past
+    the end of its path waits at its last vertex).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.roadmap({"A": (0, 0), "B": (2, 2), "C": (0, 2), "D": (2, 0)},
+    ...                   [("A", "B"), ("C", "D")])
+    >>> inst = Instance.mapf(g, ["A", "C"], ["B", "D"])
+    >>> inst.meta["edge_conflicts"] = [((0, 1), (2, 3))]
+    >>> annotated_violations(inst, Plan(((0, 1), (2, 3))))
+    ["agent0 'A' -> 'B' and agent1 'C' -> 'D' at t=0 (annotated conflict)"]
+    """
+    extra = instance.meta.get("edge_conflicts") or []
+    if not extra:
+        return []
+    clash: dict[tuple[int, int], set[tuple[int, int]]] = {}
+    for m1, m2 in extra:
+        clash.setdefault(tuple(m1), set()).add(tuple(m2))  # type: ignore[arg-type]
+        clash.setdefault(tuple(m2), set()).add(tuple(m1))  # type: ignore[arg-type]
+    g = instance.graph
+    out: list[str] = []
+    for t in range(plan.makespan + 1):
+        moves: dict[tuple[int, int], list[int]] = {}
+        for i, p in enumerate(plan.paths):
+            a, b = p[min(t, len(p) - 1)], p[min(t + 1, len(p) - 1)]
+            moves.setdefault((a, b), []).append(i)
+        for m, who in moves.items():
+            for other in clash.get(m, ()):
+                for i in who:
+                    for j in moves.get(other, ()):
+                        if i < j:
+                            ni, nj = instance.agents[i].name, instance.agents[j].name
+                            out.append(
+                                f"{ni} {g.label(m[0])} -> {g.label(m[1])} and {nj} "
+                                f"{g.label(other[0])} -> {g.label(other[1])} at t={t} "
+                                "(annotated conflict)"
+                            )
+    return out
