@@ -223,3 +223,27 @@ def test_annotated_conflict_with_a_parked_robot(solver) -> None:
     res = hp.solve(inst, solver, objective="soc", time_limit=30)
     assert res.status is hp.Status.OPTIMAL and res.cost == best and best > 3
     assert annotated_violations(inst, res.plan) == []
+
+
+def test_validate_checks_the_variants(tmp_path, capsys) -> None:
+    def solve_and_validate(name: str, *flags: str) -> tuple[int, str]:
+        out = tmp_path / f"{name}.yaml"
+        assert main(["solve", str(LMRP / f"{name}.yaml"), *flags, "--out", str(out)]) == 0
+        capsys.readouterr()
+        code = main(["validate", str(LMRP / f"{name}.yaml"), str(out), *flags])
+        return code, capsys.readouterr().out
+
+    assert solve_and_validate("mapf_someAtGoal", "--disappear-at-goal") == (
+        0,
+        "valid: soc=1 makespan=1 agents=2 (lower bounds: soc>=1, makespan>=1)\n",
+    )
+    code, out = solve_and_validate("mapfta_simple1_a2")  # the free robot ends in the pocket
+    assert code == 0 and out.startswith("valid: soc=6")
+    code, out = solve_and_validate("hierplan_cross_annotated")
+    assert code == 0 and out.startswith("valid: soc=3")
+    # the plain crossing plan breaks the annotation
+    plain = tmp_path / "plain.yaml"
+    assert main(["solve", str(LMRP / "hierplan_cross.yaml"), "--out", str(plain)]) == 0
+    capsys.readouterr()
+    assert main(["validate", str(LMRP / "hierplan_cross_annotated.yaml"), str(plain)]) == 1
+    assert "(annotated conflict)" in capsys.readouterr().out

@@ -25,6 +25,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "LaCAM result or MAPF Tracker submission",
     )
     add_tracker_y_arguments(p)
+    p.add_argument(
+        "--disappear-at-goal",
+        action="store_true",
+        help="agents leave the map at their goals (as `solve --disappear-at-goal` plans)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,7 +38,11 @@ def run(args: argparse.Namespace) -> int:
 
     instance = load_instance_from_args(args)
     plan, stats = read_plan(args.plan, instance, tracker_y=args.tracker_y)
-    violations = validate(instance, plan)
+    # libMRP's variants (task-free robots, agents that leave, annotated conflicts)
+    from hierplan_opt.search.libmrp import annotated_violations, checked_form
+
+    checked, as_plan = checked_form(instance, plan, disappear=args.disappear_at_goal)
+    violations: list[object] = [*validate(checked, as_plan), *annotated_violations(checked, plan)]
     if violations:
         for v in violations:
             print(f"{args.plan}: {v}")

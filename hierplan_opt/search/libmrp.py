@@ -337,3 +337,29 @@ def annotated_violations(instance: Instance, plan: Plan) -> list[str]:
                                 "(annotated conflict)"
                             )
     return out
+
+
+def checked_form(
+    instance: Instance, plan: Plan, *, disappear: bool = False
+) -> tuple[Instance, Plan]:
+    """The instance and plan that the ordinary validator checks for a libMRP variant: the
+    task-free robots' ends fixed where the plan leaves them; with ``disappear``, the
+    reduction of :func:`disappear_at_goals` and each path with its step into the exit.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.validate import validate
+    >>> inst = Instance.mapf(Graph.grid(2, 1), [(0, 0), (1, 0)], [(1, 0), (1, 0)])
+    >>> validate(*checked_form(inst, Plan(((0, 1), (1,))), disappear=True))
+    []
+    """
+    free = free_agents(instance)
+    if free and plan.num_agents == instance.num_agents:
+        instance = with_ends(instance, free, tuple(plan.paths[i][-1] for i in free))
+    if not disappear:
+        return instance, plan
+    red = disappear_at_goals(instance)
+    n = instance.graph.n
+    paths = tuple((*p, n + i) for i, p in enumerate(plan.paths))
+    return red, Plan(paths)
