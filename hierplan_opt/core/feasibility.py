@@ -101,10 +101,11 @@ def quick_infeasibility(instance: Instance) -> str | None:
     return None if why is None else _describe(instance, why)
 
 
-#: Joint configurations :func:`joint_reachable` visits at most (about a second).
+#: Joint configurations of the map (robots of a team exchangeable) up to which
+#: :func:`joint_reachable` runs at all: it can then visit every one.
 JOINT_STATES = 20_000
-#: Partial joint moves it enumerates at most.
-JOINT_STEPS = 400_000
+#: Partial joint moves it enumerates at most (about 0.2 s).
+JOINT_STEPS = 200_000
 
 
 def joint_reachable(
@@ -114,9 +115,10 @@ def joint_reachable(
     configurations (every agent waits or takes an arc at each step; no two on one vertex,
     no two over one edge in opposite directions; rotations along cycles and following
     are allowed, as in :func:`hierplan_opt.core.validate.validate`). Robots of one team
-    are exchangeable. None when the search would exceed ``max_states`` configurations or
-    ``max_steps`` partial moves: the front door's exact test on directed roadmaps, where
-    the pebble-motion test does not apply, for instances small enough to enumerate.
+    are exchangeable. None when the map has more than ``max_states`` joint
+    configurations or the search would exceed ``max_steps`` partial moves: the front
+    door's exact test on directed roadmaps, where the pebble-motion test does not apply,
+    for instances small enough to enumerate.
 
     Example
     -------
@@ -130,8 +132,8 @@ def joint_reachable(
     """
     g = instance.graph
     k = instance.num_agents
-    if _configurations(instance) > 100 * max_states:
-        return None  # far too many to exhaust: not worth starting
+    if _configurations(instance) > max_states:
+        return None  # more configurations than the search may visit: not worth starting
     adj = g.adj
     if instance.is_tapf:
         groups = [list(t.agents) for t in instance.teams]
