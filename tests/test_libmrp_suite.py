@@ -247,3 +247,21 @@ def test_validate_checks_the_variants(tmp_path, capsys) -> None:
     capsys.readouterr()
     assert main(["validate", str(LMRP / "hierplan_cross_annotated.yaml"), str(plain)]) == 1
     assert "(annotated conflict)" in capsys.readouterr().out
+
+
+def test_task_free_robot_in_the_hierplan_format_and_round_trips(tmp_path) -> None:
+    text = (
+        "format: hierplan/1\nname: free\n"
+        "graph: {type: grid, dimensions: [5, 2], obstacles: [[0, 1], [1, 1], [3, 1], [4, 1]]}\n"
+        "agents:\n  - {name: a, start: [0, 0], goal: [3, 0]}\n  - {name: b, start: [1, 0]}\n"
+    )
+    (tmp_path / "free.yaml").write_text(text)
+    inst = hp.load_instance(tmp_path / "free.yaml")
+    assert not inst.is_tapf and inst.meta["free_agents"] == ["b"]
+    res = hp.solve(inst, "cbs", time_limit=10)
+    assert res.status is hp.Status.OPTIMAL and res.cost == 5  # as mapfta_simple1_a3
+    for fmt in ("hierplan", "lmrp"):
+        hp.save_instance(tmp_path / f"{fmt}.yaml", inst, format=fmt)
+        back = hp.load_instance(tmp_path / f"{fmt}.yaml")
+        assert back.meta["free_agents"] == ["b"]
+        assert hp.solve(back, "cbs", time_limit=10).cost == 5

@@ -421,10 +421,13 @@ def dumps(instance: Instance) -> str:
     loc = partial(g.label, quote=yaml_scalar)  # reads back as the same location
     lines = _roadmap_lines(g) if g.kind == "roadmap" else _map_lines(g)
     lines.append("agents:")
+    free = set(instance.meta.get("free_agents", ()))
     for a in instance.agents:
         lines.append(f"  - name: {yaml_scalar(a.name)}")
         lines.append(f"    start: {loc(a.start)}")
-        if a.team is None:
+        if a.name in free:  # a task-free robot (its goal is a placeholder)
+            lines.append("    potentialGoals: []")
+        elif a.team is None:
             assert a.goal is not None
             lines.append(f"    goal: {loc(a.goal)}")
         else:
