@@ -269,10 +269,10 @@ def run(args: argparse.Namespace) -> int:
             objective=args.objective,
             **options,
         )
-    if args.disappear_at_goal:
-        from hierplan_opt.search.libmrp import from_disappeared
+        if args.disappear_at_goal:
+            from hierplan_opt.search.libmrp import from_disappeared
 
-        result = from_disappeared(instance, result)
+            result = from_disappeared(instance, result)
         note(status=str(result.status), lb=result.lower_bound, best=result.cost)
     if chosen is not None and "MAPF)" not in chosen:  # MAPF: cbs, the documented default
         print(chosen, file=sys.stderr)
