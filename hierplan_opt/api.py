@@ -8,6 +8,7 @@ from dataclasses import replace
 from typing import Any
 
 from hierplan_opt import registry
+from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import validate
@@ -49,13 +50,33 @@ def solve(
     (<Status.OPTIMAL: 'OPTIMAL'>, 8)
     """
     t0 = time.perf_counter()
-    result = registry.run(
-        solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
-    )
+    if instance.meta.get("edge_conflicts"):  # an annotated roadmap's extra conflicts
+        from hierplan_opt.search.libmrp import ANNOTATED_SOLVERS
+
+        if solver not in ANNOTATED_SOLVERS:
+            raise OptionError(
+                f"solver {solver!r} knows vertex and swap conflicts only; this annotated "
+                f"roadmap has {len(instance.meta['edge_conflicts'])} more conflicting move "
+                f"pairs (use {' or '.join(ANNOTATED_SOLVERS)})"
+            )
+    if instance.meta.get("free_agents"):  # task-free robots: the solve picks their ends
+        from hierplan_opt.search.libmrp import solved_free_robots
+
+        result, instance = solved_free_robots(
+            solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+        )
+    else:
+        result = registry.run(
+            solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+        )
     result = replace(result, runtime=time.perf_counter() - t0)
     if result.plan is None:
         return result
-    violations = validate(instance, result.plan)
+    violations: list[Any] = validate(instance, result.plan)
+    if not violations and instance.meta.get("edge_conflicts"):
+        from hierplan_opt.search.libmrp import annotated_violations
+
+        violations = annotated_violations(instance, result.plan)
     if violations:
         log.error("solver %s returned an invalid plan: %s", solver, violations[0])
         stats = dict(result.stats)

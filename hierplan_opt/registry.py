@@ -274,24 +274,27 @@ def run(
                 instance.soc_lower_bound if objective == "soc" else instance.makespan_lower_bound
             )
             lb = bound()
-        return Result(
+        result = Result(
             Status.TIME_LIMIT,
             None,
             lower_bound=lb,
-            solver=name,
-            objective=objective,
             stats={
                 "reason": f"time limit ({time_limit:g} s) reached during the cheap checks "
                 "(distance tables, feasibility test), before the solver started"
             },
         )
-    result = info.load().fn(
-        instance,
-        time_limit=None if time_limit is None else remaining,
-        seed=seed,
-        objective=objective,
-        **values,
-    )
+    else:
+        result = info.load().fn(
+            instance,
+            time_limit=None if time_limit is None else remaining,
+            seed=seed,
+            objective=objective,
+            **values,
+        )
+    if result.status is Status.TIME_LIMIT and result.plan is None and instance.graph.directed:
+        # On directed roadmaps the checks above are exact only for small instances
+        # (core/feasibility.joint_reachable): say that nothing decided feasibility.
+        result = replace(result, stats={**result.stats, "feasibility": "undecided"})
     return replace(result, solver=name, objective=objective)
 
 

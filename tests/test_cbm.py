@@ -178,16 +178,33 @@ def test_two_teams_must_pass_proven_infeasible() -> None:
 
 
 def test_two_teams_must_pass_time_limit() -> None:
-    # A full one-way ring only rotates its robots; on directed roadmaps no check proves
-    # that two teams cannot trade places, so CBM must stop at the time limit.
+    # A full one-way ring only rotates its robots. On a small ring the exhaustive joint
+    # search proves that two teams cannot trade places; on a ring of 16 robots in 8 teams
+    # (16! / 2^8 configurations) no check proves it, so CBM must stop at the time limit.
     ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
     g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
     inst = Instance.tapf(g, [(["A", "B"], ["A", "C"]), (["C", "D"], ["B", "D"])])
+    r = hp.solve(inst, "cbm", time_limit=10.0)
+    assert r.status == Status.INFEASIBLE and "exhaustive search" in r.stats["reason"]
+    n = 16
+    names = [f"v{i}" for i in range(n)]
+    big = Graph.roadmap(
+        {v: (i, 0) for i, v in enumerate(names)},
+        [(names[i], names[(i + 1) % n]) for i in range(n)],
+        directed=True,
+    )
+    # teams of two neighbours; the first two teams trade one robot's place
+    teams = [
+        ([names[2 * t], names[2 * t + 1]], [names[2 * t], names[2 * t + 1]]) for t in range(n // 2)
+    ]
+    teams[0] = ([names[0], names[1]], [names[0], names[2]])
+    teams[1] = ([names[2], names[3]], [names[1], names[3]])
+    inst = Instance.tapf(big, teams)
     t0 = time.perf_counter()
     r = hp.solve(inst, "cbm", time_limit=1.0)
     assert time.perf_counter() - t0 < 3.0
     assert r.status == Status.TIME_LIMIT and r.plan is None
-    assert r.lower_bound >= 1
+    assert r.lower_bound >= 1 and r.stats["feasibility"] == "undecided"
 
 
 def test_infeasible_detected() -> None:

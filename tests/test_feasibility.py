@@ -203,11 +203,22 @@ def test_messages_name_the_case() -> None:
 
 
 def test_directed_graphs_keep_the_necessary_checks_only() -> None:
+    # Small directed roadmaps are decided by the exhaustive joint search; large ones
+    # keep the necessary checks only (a full one-way ring of 12: 12! configurations).
     g = Graph.roadmap(
         {"A": (0, 0), "B": (1, 0), "C": (0, 1)}, [("A", "B"), ("B", "C"), ("C", "A")], directed=True
     )
-    assert quick_infeasibility(Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"])) is None
+    why = quick_infeasibility(Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"]))
+    assert why is not None and "exhaustive search" in why
+    assert quick_infeasibility(Instance.mapf(g, ["A", "B", "C"], ["B", "C", "A"])) is None
     assert makespan_upper_bound(Instance.mapf(g, ["A", "B"], ["B", "A"])) == 5
+    names = [f"v{i}" for i in range(12)]
+    ring = Graph.roadmap(
+        {v: (i, 0) for i, v in enumerate(names)},
+        [(names[i], names[(i + 1) % 12]) for i in range(12)],
+        directed=True,
+    )
+    assert quick_infeasibility(Instance.mapf(ring, names, [names[1], names[0], *names[2:]])) is None
 
 
 # ------------------------------------------------------------------ exactness (fast sample)

@@ -179,7 +179,7 @@ def test_proven_infeasible(form):
 @pytest.mark.parametrize("objective", ["soc", "makespan"])
 def test_one_way_ring_swap_is_proven_infeasible_by_the_horizon_bound(form, objective):
     # Two robots swap places on a full one-way ring: no plan at any horizon. On directed
-    # roadmaps quick_infeasibility does not see it; the horizon bound does: 3 robots on 3
+    # roadmaps the pebble-motion test does not apply; the horizon bound does: 3 robots on 3
     # vertices have 6 configurations, so a solvable instance has a plan of makespan <= 5,
     # and the network at that bound has none.
     from hierplan_opt.core.feasibility import makespan_upper_bound, quick_infeasibility
@@ -187,14 +187,17 @@ def test_one_way_ring_swap_is_proven_infeasible_by_the_horizon_bound(form, objec
     ring = [("A", "B"), ("B", "C"), ("C", "A")]
     g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (0, 1)}, ring, directed=True)
     inst = hp.Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"])
-    assert quick_infeasibility(inst) is None and makespan_upper_bound(inst) == 5
-    res = form.solve(inst, objective=objective, time_limit=60)
+    assert makespan_upper_bound(inst) == 5
+    # The front door's exhaustive joint search decides it at once; the formulation alone
+    # (.fn) proves it by the horizon bound.
+    assert "exhaustive search" in (quick_infeasibility(inst) or "")
+    res = form.solve.fn(inst, objective=objective, time_limit=60)
     assert res.status == hp.Status.INFEASIBLE and res.plan is None
     assert "no plan has makespan <= 5" in res.stats["reason"]
     tried = [h for h, _ in res.stats["horizons"]]
     assert max(tried) == (7 if objective == "soc" else 5)  # soc: slack 5 on min deadline 0
     # a user cap below the bound still stops with TIME_LIMIT, not a proof
-    res = form.solve(inst, objective=objective, max_horizon=3)
+    res = form.solve.fn(inst, objective=objective, max_horizon=3)
     assert res.status == hp.Status.TIME_LIMIT and res.stats["stopped_by"] == "max_horizon"
     assert res.lower_bound >= (5 if objective == "soc" else 4)
 

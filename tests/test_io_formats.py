@@ -254,10 +254,14 @@ def test_lmrp_annotated_roadmap_forms(tmp_path: Path) -> None:
     assert inst.graph.directed and inst.graph.num_edges == 2
     with pytest.raises(InputError, match=r"d2.yaml:3: allow_wait_actions is false and vertex 'B'"):
         load_instance(write(tmp_path, "d2.yaml", directed.replace(", [B, B]", "")))
-    with pytest.raises(InputError, match="annotated roadmaps"):
+    # annotated roadmaps are read (issue 34): one conflict list per edge, in file order
+    with pytest.raises(InputError, match="conflicts has 1 entries for 4 edges"):
         load_instance(
             write(tmp_path, "c.yaml", directed.replace("edges:", "conflicts: [[1]]\n  edges:"))
         )
+    ok = directed.replace("edges:", "conflicts: [[1, 2, 3], [0, 2, 3], [0, 1], [0, 1]]\n  edges:")
+    inst = load_instance(write(tmp_path, "c2.yaml", ok))
+    assert inst.meta["annotated_conflicts"] == 5 and inst.meta["edge_conflicts"] == []
 
 
 def test_lmrp_roadmap_round_trip(tmp_path: Path) -> None:

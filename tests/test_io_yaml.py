@@ -236,7 +236,8 @@ BAD_OWN = [
     ),
     (G + "agents:\n  - {name: a, start: [0, 0.5], goal: [2, 0]}\n", r":3: .*must be an integer"),
     (G + "agents:\n  - {name: a, start: [0], goal: [2, 0]}\n", r":3: .*start must be \[x, y\]"),
-    (G + "agents:\n  - {start: [0, 0]}\n", r":3: agent 0 is missing the key 'goal'"),
+    # an agent without a goal is a task-free robot (issue 34); without a start, refused
+    (G + "agents:\n  - {goal: [0, 0]}\n", r":3: agent 0 is missing the key 'start'"),
     (G + "agents: []\n", r":2: the instance has no agents"),
     (
         G + A + "  - {name: b, start: [0, 0], goal: [0, 1]}\n",

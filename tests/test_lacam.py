@@ -49,7 +49,13 @@ def test_corridors_and_sidings(case: str):
 
 
 def test_exhausted_search_proves_infeasibility():
+    # The front door's joint search decides this small ring first; LaCAM alone (.fn)
+    # proves it by its own exhausted search.
+    from hierplan_opt.search import lacam
+
     res = hp.solve(one_way_ring(), "lacam", time_limit=30)
+    assert res.status == hp.Status.INFEASIBLE and "exhaustive search" in res.stats["reason"]
+    res = lacam.solve.fn(one_way_ring(), time_limit=30)
     assert res.status == hp.Status.INFEASIBLE and res.plan is None
     assert "exhausted" in res.stats["reason"]
 
@@ -336,11 +342,13 @@ def test_bounded_solvers_start_from_lacam_plan(solver: str):
         assert r.stats["high_level_expanded"] <= plain.stats["high_level_expanded"]
     else:  # the search's plan, cheaper than LaCAM's
         assert r.cost < r.stats["lacam_cost"]
-    # A full one-way ring only rotates: no quick check proves the transposition
-    # impossible, LaCAM's exhausted search does (also without a time limit).
+    # A full one-way ring only rotates: without the front door's joint search (.fn),
+    # the plain search cannot prove the transposition impossible, LaCAM's exhausted
+    # search does (also without a time limit).
     ring = one_way_ring()
-    assert hp.solve(ring, solver, time_limit=0.3, lacam="off").status == hp.Status.TIME_LIMIT
-    bad = hp.solve(ring, solver, lacam="start")
+    fn = hp.registry.get(solver).load().fn
+    assert fn(ring, time_limit=0.3, lacam="off").status == hp.Status.TIME_LIMIT
+    bad = fn(ring, lacam="start")
     assert bad.status == hp.Status.INFEASIBLE and "lacam" in bad.stats["reason"]
     with pytest.raises(OptionError, match="lacam must be one of"):
         hp.solve(inst, solver, lacam="yes")

@@ -233,8 +233,11 @@ def test_team_instance_refused_by_cbs_names_cbm_and_flow(
     one_team = hp.load_instance(ANONYMOUS)
     with pytest.raises(OptionError, match="use 'cbm', or 'flow' for one team"):
         hp.solve(one_team, "cbs")
-    code, _, err = run(capsys, "solve", TEAMS)
+    code, _, err = run(capsys, "solve", TEAMS, "--solver", "cbs")
     assert code == 2 and "for teams use 'cbm'" in err
+    # without --solver, solve picks one that fits the instance and says so (issue 34)
+    code, out, err = run(capsys, "solve", TEAMS)
+    assert code == 0 and "no --solver given; using" in err
 
 
 # ---------------------------------------------------------------- one meaning per word

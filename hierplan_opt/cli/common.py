@@ -94,6 +94,33 @@ def apply_limits(args: argparse.Namespace) -> None:
     set_limits(new)
 
 
+def add_tracker_y_arguments(p: argparse.ArgumentParser) -> None:
+    """``--tracker-y-down`` / ``--tracker-y-up``: the MAPF Tracker move convention of a
+    plan file (``args.tracker_y``; None: detected from the scenario)."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--tracker-y-down",
+        dest="tracker_y",
+        action="store_const",
+        const="down",
+        help="read MAPF Tracker moves with d = y+1 (the tracker's current documentation)",
+    )
+    g.add_argument(
+        "--tracker-y-up",
+        dest="tracker_y",
+        action="store_const",
+        const="up",
+        help="read MAPF Tracker moves with u = y+1 (its older data); default: detect which "
+        "convention fits the scenario and say so",
+    )
+
+
+def tracker_y_note(stats: dict) -> str:
+    """`` moves=y-up (detected)`` for a tracker plan's statistics, else ``""``."""
+    y = stats.get("tracker_y")
+    return f" moves=y-{y} ({stats.get('tracker_y_from', 'detected')})" if y else ""
+
+
 def add_memory_argument(p: argparse.ArgumentParser) -> None:
     """``--memory-limit GB``: the budget of :mod:`hierplan_opt.formulations.memory`."""
     p.add_argument(
@@ -213,6 +240,7 @@ def load_instance_from_args(args: argparse.Namespace) -> Instance:
         scen=args.scen,
         agents=args.agents,
         check_scen_map=not getattr(args, "ignore_scen_map", False),
+        shared_goals=bool(getattr(args, "disappear_at_goal", False)),
     )
 
 

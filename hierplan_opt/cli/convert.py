@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -24,8 +25,10 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_SUFFIXES,
     add_instance_arguments,
+    add_tracker_y_arguments,
     check_outputs,
     load_instance_from_args,
+    tracker_y_note,
 )
 from hierplan_opt.core.errors import InputError
 
@@ -59,6 +62,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "lacam, tracker (plans); lmrp (schedules, for libMultiRobotPlanning's visualize.py)",
     )
     p.add_argument("--out", required=True, metavar="FILE", help="file to write")
+    add_tracker_y_arguments(p)
 
 
 def _target(args: argparse.Namespace, kind: str) -> str:
@@ -109,6 +113,16 @@ def run(args: argparse.Namespace) -> int:
     if kind == "instance":
         from hierplan_opt.io import save_instance
 
+        if to == "lmrp":  # write what the format carries; say what it cannot
+            from hierplan_opt.io.lmrp_yaml import without_extras
+
+            instance, lost = without_extras(instance)
+            for what in lost:
+                print(
+                    f"hierplan convert: warning: the libMultiRobotPlanning format cannot hold "
+                    f"{what}; left out of {out}",
+                    file=sys.stderr,
+                )
         save_instance(out, instance, format=to)
         written = f"{out.with_suffix('.map')} and {out.with_suffix('.scen')}"
         print(
@@ -140,13 +154,15 @@ def run(args: argparse.Namespace) -> int:
     plan_path = str(args.plan)
     text = read_text(plan_path)
     src = plan_format(text)
-    plan, stats = read_plan(plan_path, instance, text=text)
+    plan, stats = read_plan(plan_path, instance, text=text, tracker_y=args.tracker_y)
     violations = validate(instance, plan)
     lower = _soc_lower_bound(stats)
+    written = ""
     if to == "tracker":
         from hierplan_opt.io import tracker
 
         tracker.save(out, submission(instance, plan, lower_cost=lower))
+        written = f" (moves y-{tracker.WRITE_Y}: d = y+1, the tracker's current convention)"
     elif to == "lacam":
         from hierplan_opt.io import lacam
 
@@ -155,8 +171,8 @@ def run(args: argparse.Namespace) -> int:
         save_plan(out, instance, plan, format=to)
     state = "valid" if not violations else f"INVALID ({len(violations)} violations)"
     print(
-        f"plan ({src}, {plan.num_agents} agents, soc={plan.sum_of_costs}, "
-        f"makespan={plan.makespan}, {state}) as {to} -> {out}"
+        f"plan ({src}{tracker_y_note(stats)}, {plan.num_agents} agents, "
+        f"soc={plan.sum_of_costs}, makespan={plan.makespan}, {state}) as {to}{written} -> {out}"
     )
     return OK
 

@@ -47,10 +47,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
     p.add_argument(
         "--solver",
-        default="cbs",
+        default=None,
         metavar="NAME",
         action=SolverName,
-        help="solver name (default: cbs); `--solver NAME --help` lists its options",
+        help="solver name (default: cbs for MAPF; for TAPF flow with one team, cbm with "
+        "more; the choice is printed); `--solver NAME --help` lists its options",
     )
     p.add_argument(
         "--objective",
@@ -81,6 +82,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="a solver option (repeatable); booleans are true/false, yes/no or on/off",
+    )
+    p.add_argument(
+        "--disappear-at-goal",
+        action="store_true",
+        help="agents leave the map when they reach their goals (libMultiRobotPlanning's "
+        "--disappear-at-goal; cost counts up to each arrival); the plan's paths end there",
     )
     p.add_argument(
         "--out",
@@ -134,9 +141,12 @@ def summary(result: Any, instance: Any) -> str:
     parts.append(f"runtime={result.runtime:.3f}s")
     parts.append(f"solver={result.solver} objective={result.objective}")
     parts.append(f"agents={instance.num_agents}")
+    for k in _ALWAYS:  # why the search stopped and what the plan does not meet: never cut
+        if k in result.stats:
+            parts.append(f"{k}={_fmt(result.stats[k])}")
     shown = 0
     for k, v in result.stats.items():
-        if k == "error" or shown >= 6:
+        if k == "error" or k in _ALWAYS or shown >= 6:
             continue
         if isinstance(v, (bool, int, float, str)):
             text = _fmt(v) if not isinstance(v, str) else v
@@ -145,6 +155,10 @@ def summary(result: Any, instance: Any) -> str:
             parts.append(f"{k}={text}")
             shown += 1
     return " ".join(parts)
+
+
+#: Stats the summary line always shows when present, before the solver's others.
+_ALWAYS = ("stopped_by", "bound_met", "feasibility", "disappear_at_goal", "free_agents")
 
 
 def _fmt(x: Any) -> str:
@@ -185,6 +199,37 @@ def highway_options(args: argparse.Namespace, instance: Any, options: dict[str, 
     return replace(instance, highways=hw)
 
 
+def default_solver(instance: Any) -> tuple[str, str]:
+    """The solver ``solve`` uses when none is given, and why: cbs for MAPF (and for TAPF
+    with one robot per team, which is MAPF); for TAPF, flow (optimal makespan for one
+    team, i.e. anonymous MAPF) or cbm (teams); cpsat for annotated roadmaps whose
+    conflicts go beyond vertex and swap conflicts.
+
+    Example
+    -------
+    >>> from hierplan_opt import Graph, Instance
+    >>> g = Graph.grid(3, 3)
+    >>> teams = [([(0, 0), (1, 0)], [(2, 2), (2, 1)]), ([(2, 0)], [(0, 2)])]
+    >>> default_solver(Instance.tapf(g, teams))
+    ('cbm', 'TAPF with 2 teams')
+    >>> default_solver(Instance.tapf(g, [([(0, 0)], [(2, 2)]), ([(2, 0)], [(0, 2)])]))
+    ('cbs', 'one robot per team: MAPF')
+    >>> default_solver(Instance.mapf(g, [(0, 0)], [(2, 2)]))[0]
+    'cbs'
+    """
+    if instance.meta.get("edge_conflicts"):
+        return "cpsat", "an annotated roadmap with conflicts beyond vertex and swap"
+    if not instance.is_tapf:
+        return "cbs", "MAPF"
+    if len(instance.teams) > 1 and all(len(t.agents) == 1 for t in instance.teams):
+        if instance.meta.get("free_agents"):
+            return "cbs", "one robot per team, task-free robots' ends chosen: MAPF"
+        return "cbs", "one robot per team: MAPF"
+    if len(instance.teams) == 1:
+        return "flow", "TAPF with one team"
+    return "cbm", f"TAPF with {len(instance.teams)} teams"
+
+
 def run(args: argparse.Namespace) -> int:
     import hierplan_opt
     from hierplan_opt import registry
@@ -193,23 +238,44 @@ def run(args: argparse.Namespace) -> int:
 
     check_outputs(("--out", args.out, PLAN_SUFFIXES))
     texts = parse_pairs(args.set)
+    if args.solver is None:  # the instance decides: read it first
+        instance = load_instance_from_args(args)
+        args.solver, why = default_solver(instance)
+        chosen = f"hierplan solve: no --solver given; using {args.solver} ({why})"
+        if args.solver == "cbs" and instance.is_tapf and not instance.meta.get("free_agents"):
+            instance = instance.with_goals([t.targets[0] for t in instance.teams])
+    else:
+        instance = None
+        chosen = None
     options = registry.get(args.solver).load().options.parse(texts, args.solver)
     if args.w is not None:
         if "w" in options:
             raise InputError("give w either with --w or with --set w=..., not both")
         options["w"] = args.w
-    instance = load_instance_from_args(args)
+    if instance is None:
+        instance = load_instance_from_args(args)
     instance = highway_options(args, instance, options)
+    solved = instance
+    if args.disappear_at_goal:
+        from hierplan_opt.search.libmrp import disappear_at_goals
+
+        solved = disappear_at_goals(instance)
     with progress_of(args, f"solve {args.solver}"):
         result = hierplan_opt.solve(
-            instance,
+            solved,
             args.solver,
             time_limit=args.time_limit,
             seed=args.seed,
             objective=args.objective,
             **options,
         )
+        if args.disappear_at_goal:
+            from hierplan_opt.search.libmrp import from_disappeared
+
+            result = from_disappeared(instance, result)
         note(status=str(result.status), lb=result.lower_bound, best=result.cost)
+    if chosen is not None and "MAPF)" not in chosen:  # MAPF: cbs, the documented default
+        print(chosen, file=sys.stderr)
     line = summary(result, instance)
     if result.plan is not None and args.out:
         save_plan(args.out, instance, result)

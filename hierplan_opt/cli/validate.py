@@ -8,7 +8,9 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_INVALID,
     add_instance_arguments,
+    add_tracker_y_arguments,
     load_instance_from_args,
+    tracker_y_note,
 )
 
 HELP = (
@@ -25,6 +27,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="plan file: libMultiRobotPlanning layout (YAML/JSON), EECBS / CBSH2-RTC paths, "
         "LaCAM result or MAPF Tracker submission; or a schedule file of 'hierplan post' (its "
         "plan, its times against every bound, and its continuous-time replay)",
+    )
+    add_tracker_y_arguments(p)
+    p.add_argument(
+        "--disappear-at-goal",
+        action="store_true",
+        help="agents leave the map at their goals (as `solve --disappear-at-goal` plans)",
     )
 
 
@@ -61,14 +69,18 @@ def _schedule(args: argparse.Namespace, instance) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from hierplan_opt.core.validate import validate
-    from hierplan_opt.io import load_plan
+    from hierplan_opt.io import read_plan
     from hierplan_opt.schedule.files import is_schedule_file
 
     instance = load_instance_from_args(args)
     if is_schedule_file(args.plan):
         return _schedule(args, instance)
-    plan = load_plan(args.plan, instance)
-    violations = validate(instance, plan)
+    plan, stats = read_plan(args.plan, instance, tracker_y=args.tracker_y)
+    # libMRP's variants (task-free robots, agents that leave, annotated conflicts)
+    from hierplan_opt.search.libmrp import annotated_violations, checked_form
+
+    checked, as_plan = checked_form(instance, plan, disappear=args.disappear_at_goal)
+    violations: list[object] = [*validate(checked, as_plan), *annotated_violations(checked, plan)]
     if violations:
         for v in violations:
             print(f"{args.plan}: {v}")
@@ -76,6 +88,6 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"valid: soc={plan.sum_of_costs} makespan={plan.makespan} "
         f"agents={plan.num_agents} (lower bounds: soc>={instance.soc_lower_bound()}, "
-        f"makespan>={instance.makespan_lower_bound()})"
+        f"makespan>={instance.makespan_lower_bound()})" + tracker_y_note(stats)
     )
     return OK

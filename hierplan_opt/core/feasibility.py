@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -90,9 +91,127 @@ def quick_infeasibility(instance: Instance) -> str | None:
                     "(some targets are unreachable from enough starts)"
                 )
     if g.directed:
+        if joint_reachable(instance) is False:
+            return (
+                "no sequence of moves brings the agents to their goals (the exhaustive "
+                "search of the joint configurations of this directed roadmap)"
+            )
         return None
     why = _pebble_violation(instance)
     return None if why is None else _describe(instance, why)
+
+
+#: Joint configurations of the map (robots of a team exchangeable) up to which
+#: :func:`joint_reachable` runs at all: it can then visit every one.
+JOINT_STATES = 20_000
+#: Partial joint moves it enumerates at most (about 0.2 s).
+JOINT_STEPS = 200_000
+
+
+def joint_reachable(
+    instance: Instance, max_states: int = JOINT_STATES, max_steps: int = JOINT_STEPS
+) -> bool | None:
+    """Whether some plan exists, decided by breadth-first search over the joint
+    configurations (every agent waits or takes an arc at each step; no two on one vertex,
+    no two over one edge in opposite directions; rotations along cycles and following
+    are allowed, as in :func:`hierplan_opt.core.validate.validate`). Robots of one team
+    are exchangeable. None when the map has more than ``max_states`` joint
+    configurations or the search would exceed ``max_steps`` partial moves: the front
+    door's exact test on directed roadmaps, where the pebble-motion test does not apply,
+    for instances small enough to enumerate.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> ring = [("A", "B"), ("B", "C"), ("C", "A")]
+    >>> g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (0, 1)}, ring, directed=True)
+    >>> joint_reachable(Instance.mapf(g, ["A", "B", "C"], ["B", "C", "A"]))  # rotate
+    True
+    >>> joint_reachable(Instance.mapf(g, ["A", "B", "C"], ["B", "A", "C"]))  # transpose
+    False
+    """
+    g = instance.graph
+    k = instance.num_agents
+    if _configurations(instance) > max_states:
+        return None  # more configurations than the search may visit: not worth starting
+    adj = g.adj
+    if instance.is_tapf:
+        groups = [list(t.agents) for t in instance.teams]
+        goal_sets = [tuple(sorted(t.targets)) for t in instance.teams]
+    else:
+        groups = [[i] for i in range(k)]
+        goal_sets = [(a.goal,) for a in instance.agents]  # type: ignore[misc]
+    order = [i for grp in groups for i in grp]  # state positions grouped by team
+
+    def canon(pos: list[int]) -> tuple[int, ...]:
+        out: list[int] = []
+        at = 0
+        for grp in groups:
+            out += sorted(pos[at : at + len(grp)])
+            at += len(grp)
+        return tuple(out)
+
+    goal = tuple(v for gs in goal_sets for v in gs)
+    start = canon([instance.agents[i].start for i in order])
+    if start == goal:
+        return True
+    seen = {start}
+    frontier = [start]
+    budget = [max_steps]
+    while frontier:
+        nxt_frontier: list[tuple[int, ...]] = []
+        for state in frontier:
+            for nxt in _joint_moves(state, adj, budget):
+                c = canon(nxt)
+                if c == goal:
+                    return True
+                if c not in seen:
+                    seen.add(c)
+                    nxt_frontier.append(c)
+            if budget[0] < 0 or len(seen) > max_states:
+                return None
+        frontier = nxt_frontier
+    return False
+
+
+def _joint_moves(
+    state: tuple[int, ...], adj: list[list[int]], budget: list[int]
+) -> Iterator[list[int]]:
+    """Every joint move from ``state`` (wait or one arc each; no shared vertex, no swap);
+    each partial choice spends one unit of ``budget[0]``, and none is made below 0."""
+    k = len(state)
+    nxt = [0] * k
+    taken: dict[int, int] = {}  # vertex -> the slot moving there this step
+
+    def assign(i: int) -> Iterator[list[int]]:
+        if i == k:
+            yield nxt
+            return
+        u = state[i]
+        for v in (u, *adj[u]):
+            budget[0] -= 1
+            if budget[0] < 0:
+                return
+            if v in taken:
+                continue
+            j = taken.get(u) if v != u else None  # a swap: the agent at v moves to u
+            if j is not None and state[j] == v:
+                continue
+            taken[v] = i
+            nxt[i] = v
+            yield from assign(i + 1)
+            del taken[v]
+
+    yield from assign(0)
+
+
+def _configurations(instance: Instance) -> int:
+    """Joint configurations of the whole map (robots of a team exchangeable)."""
+    n = instance.graph.num_vertices
+    ways = math.perm(n, instance.num_agents) if instance.num_agents <= n else 0
+    for team in instance.teams:
+        ways //= math.factorial(len(team.agents))
+    return ways
 
 
 def _colouring(instance: Instance) -> tuple[list[int], list[int], list[int], list[int]]:

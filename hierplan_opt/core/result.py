@@ -62,6 +62,24 @@ class Result:
         return self.plan is not None and self.status in (Status.OPTIMAL, Status.FEASIBLE)
 
     @property
+    def bound_met(self) -> bool | None:
+        """For a bounded solver (ECBS, EECBS: cost <= w * optimum): True when the plan is
+        shown to be within the bound asked, False when it is not (e.g. the LaCAM plan
+        returned at the time limit, ``stats["bound_met"] = False``, which the summary line
+        and the plan file show too); None for solvers without such a bound.
+
+        Example
+        -------
+        >>> Result(Status.FEASIBLE, None, cost=154, lower_bound=100,
+        ...        stats={"bound_met": False}).bound_met
+        False
+        >>> Result(Status.OPTIMAL, None).bound_met is None
+        True
+        """
+        met = self.stats.get("bound_met")
+        return met if isinstance(met, bool) else None
+
+    @property
     def gap(self) -> float | None:
         """The relative optimality gap (see :func:`relative_gap`); None when unknown."""
         return relative_gap(self.cost, self.lower_bound)

@@ -119,6 +119,8 @@ def model_of(net: TimeExpandedNetwork, objective: str) -> tuple[Any, CpSatIndex]
         m.add_at_most_one(arcs(group))
     for group in net.swap_groups:
         m.add_at_most_one(arcs(group))
+    for a in net.forbidden.tolist():  # annotated conflicts with a parked robot
+        m.add(x[a] == 0)
     # ---- objective
     y: list = []
     if objective == "soc":

@@ -107,8 +107,37 @@ def detours(instance: Instance, horizon: int) -> list[int]:
 
 
 def default_max_horizon(instance: Instance) -> int:
-    """A horizon cap used when none is given: LB + free vertices + agents."""
+    """A horizon cap used when none is given: LB + free vertices + agents.
+
+    The search's own cap is :func:`search_cap`: it reaches the horizon bound when that
+    bound is within a small factor of this cap (small roadmaps, where a proof is cheap).
+    """
     return instance.makespan_lower_bound() + instance.graph.num_vertices + instance.num_agents
+
+
+#: The default cap stretches up to the horizon bound when the bound is at most this many
+#: times :func:`default_max_horizon` (e.g. a full one-way 4-cycle: bound 23, cap 11).
+BOUND_REACH = 8
+
+
+def search_cap(instance: Instance, max_horizon: int | None, bound: int) -> int:
+    """The largest horizon the search tries without a plan: ``max_horizon`` when given;
+    otherwise :func:`default_max_horizon`, or the horizon bound ``bound`` (which decides
+    feasibility) when it is at most :data:`BOUND_REACH` times that.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
+    >>> g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
+    >>> inst = Instance.mapf(g, ["A", "B", "C", "D"], ["B", "A", "C", "D"])
+    >>> default_max_horizon(inst), search_cap(inst, None, 23), search_cap(inst, 5, 23)
+    (11, 23, 5)
+    """
+    if max_horizon is not None:
+        return max_horizon
+    cap = default_max_horizon(instance)
+    return max(cap, bound) if bound <= BOUND_REACH * cap else cap
 
 
 class _BackendError(Exception):
@@ -153,8 +182,8 @@ def _search(
     build: Callable[..., TimeExpandedNetwork] = TimeExpandedNetwork.build,
 ) -> Result:
     deadline = Deadline(time_limit)
-    cap = default_max_horizon(instance) if max_horizon is None else max_horizon
     bound = makespan_upper_bound(instance)  # every solvable instance has a plan within it
+    cap = search_cap(instance, max_horizon, bound)
     stats: dict = {"solves": 0, "build_time": 0.0, "solve_time": 0.0, "horizons": []}
 
     def run(net: TimeExpandedNetwork, hint: Plan | None) -> Outcome:
@@ -191,8 +220,13 @@ def _search(
         stats["build_time"] += time.perf_counter() - t0
         return net
 
+    best: list[Plan] = []  # the cheapest plan found so far (sum of costs): never dropped
+
     def limit(lower_bound: float, why: str) -> Result:
         stats["stopped_by"] = why
+        if best:  # stopped with a plan in hand: FEASIBLE, not TIME_LIMIT
+            cost = best[0].sum_of_costs
+            return Result(Status.FEASIBLE, best[0], cost, min(lower_bound, cost), stats=stats)
         return Result(Status.TIME_LIMIT, None, lower_bound=lower_bound, stats=stats)
 
     def no_plan() -> Result:
@@ -240,7 +274,9 @@ def _search(
     # search may go that far to prove infeasibility even past ``cap``.
     reach = max(cap, bound - min(base) + max(base)) if bound <= cap else cap
     while True:
-        if max(base) + delta > reach:
+        # With a plan in hand the network that proves it optimal (slack cost - LB) is
+        # solved even past the default cap; a cap the user gave still stops the search.
+        if max(base) + delta > reach and (max_horizon is not None or not best):
             return limit(proven, "max_horizon")
         if deadline.expired():
             return limit(proven, "time_limit")
@@ -261,14 +297,16 @@ def _search(
             return limit(proven, "time_limit")
         plan = net.plan(out.values)
         cost = plan.sum_of_costs
+        if not best or cost < best[0].sum_of_costs:
+            best[:] = [plan]
         if out.status is Status.OPTIMAL:
             if cost - lb <= delta:
                 return Result(Status.OPTIMAL, plan, cost, cost, stats=stats)
+            proven = max(proven, min(cost, lb + delta + 1))  # plans outside the network
             delta = cost - lb
             hint = plan
             continue
         # Stopped with an incumbent: the network's bound, or any plan outside it.
-        bound = lb if out.bound is None else int(np.ceil(out.bound - 1e-6))
-        proven = max(proven, min(bound, lb + delta + 1))
-        stats["stopped_by"] = "time_limit"
-        return Result(Status.FEASIBLE, plan, cost, min(proven, cost), stats=stats)
+        net_bound = lb if out.bound is None else int(np.ceil(out.bound - 1e-6))
+        proven = max(proven, min(net_bound, lb + delta + 1))
+        return limit(proven, "time_limit")

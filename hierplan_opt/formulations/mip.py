@@ -101,6 +101,8 @@ def model_of(net: TimeExpandedNetwork, objective: str) -> Any:
     m.swap = cast(Any, pyo.ConstraintList())
     for arcs in net.swap_groups:
         m.swap.add(total(arcs) <= 1)
+    for a in net.forbidden.tolist():  # annotated conflicts with a parked robot
+        m.swap.add(xs[a] == 0)
 
     # ---- objective
     if objective == "soc":

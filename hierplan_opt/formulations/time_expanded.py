@@ -270,6 +270,7 @@ class TimeExpandedNetwork:
             for a in _groups((lo[mv] * n + hi[mv]) * H + t[mv], ids[mv]).values()
             if len(a) > 1 and len(np.unique(u[a])) > 1 and _shared(a, k, multi)
         ]
+        self.forbidden = self._extra_conflicts(ids, multi)
         # Layers per commodity.
         self.layers: list[list[np.ndarray]] = [[] for _ in self.commodities]
         lay = _groups(k * H + t, ids)
@@ -290,6 +291,44 @@ class TimeExpandedNetwork:
                 for tt in range(c.deadline):
                     w[j, tt] = wkey.get((kk, snk, tt), -1)
             self.wait.append(w)
+
+    def _extra_conflicts(self, ids: np.ndarray, multi: np.ndarray) -> np.ndarray:
+        """Annotated roadmaps' extra conflicts (``instance.meta["edge_conflicts"]``: move
+        pairs no two robots may make at one time, besides vertex and swap conflicts): one
+        more ``swap_groups`` entry (sum <= 1) per pair and time, and the arcs that meet a
+        robot parked at its sink after its deadline (its wait there is a move too), which
+        the models fix to 0 (returned)."""
+        extra = self.instance.meta.get("edge_conflicts") or []
+        if not extra:
+            return np.zeros(0, dtype=np.int64)
+        n = self.instance.graph.n
+        H = self.horizon + 2
+        k, u, v, t = self.arc_k, self.arc_u, self.arc_v, self.arc_t
+        by_move = _groups((u * n + v) * H + t, ids)
+        moves = _groups(u * n + v, ids)
+        parked: dict[int, list[tuple[int, int]]] = {}  # sink -> (commodity, deadline)
+        for kk, c in enumerate(self.commodities):
+            for snk in c.sinks:
+                parked.setdefault(snk, []).append((kk, c.deadline))
+        forbidden: list[np.ndarray] = []
+        for (a1, b1), (a2, b2) in extra:
+            for tt in range(H):
+                g1, g2 = by_move.get((a1 * n + b1) * H + tt), by_move.get((a2 * n + b2) * H + tt)
+                if g1 is not None and g2 is not None:
+                    grp = np.concatenate([g1, g2])
+                    if _shared(grp, k, multi):
+                        self.swap_groups.append(grp)
+            for (wa, wb), (oa, ob) in (((a1, b1), (a2, b2)), ((a2, b2), (a1, b1))):
+                if wa != wb:
+                    continue
+                other = moves.get(oa * n + ob)
+                if other is None:
+                    continue
+                for kk, deadline in parked.get(wa, []):
+                    if self.commodities[kk].units != len(self.commodities[kk].sinks):
+                        continue  # not every sink is filled after the deadline
+                    forbidden.append(other[(t[other] >= deadline) & (k[other] != kk)])
+        return np.unique(np.concatenate(forbidden)) if forbidden else np.zeros(0, dtype=np.int64)
 
     @cached_property
     def _sinkset(self) -> set[int]:

@@ -41,8 +41,12 @@ def load_instance(
     agents: int | None = None,
     *,
     check_scen_map: bool = True,
+    shared_goals: bool = False,
 ) -> Instance:
     """Read an instance: a MovingAI ``.map`` with ``scen``, or a YAML instance file.
+
+    ``shared_goals`` lets two agents of a libMultiRobotPlanning file share a goal (for
+    agents that disappear at their goals, :mod:`hierplan_opt.search.libmrp`).
 
     A YAML file with a top-level ``graph:`` is the hierplan format; one with ``map:``
     and ``agents:`` (or ``roadmap:`` and ``agents:``) is the libMultiRobotPlanning
@@ -83,7 +87,7 @@ def load_instance(
     if yaml_format.looks_like(data):
         inst = yaml_format.from_data(data, p)
     elif lmrp_yaml.looks_like(data):
-        inst = lmrp_yaml.from_data(data, p)
+        inst = lmrp_yaml.from_data(data, p, shared_goals=shared_goals)
     else:
         raise ctx.error(
             "not an instance file: expected a top-level 'graph:' (hierplan format) or "

@@ -23,19 +23,28 @@ names::
 
 Without ``vertices`` the vertices are the edges' ends, every edge has length 1 and
 there are no positions (all coordinates 0): fine for planning, not for MAPF-POST.
-Annotated roadmaps (``conflicts``, edge-conflict sets) are refused.
+Annotated roadmaps (``conflicts``: for each edge in file order, the edges no second
+robot may traverse at the same time, as libMRP's ``annotate_roadmap.py`` writes them, with
+self-edges for waits) are read; the pairs this toolkit's vertex and swap rules do not cover
+go to ``instance.meta["edge_conflicts"]`` (vertex ids), which the ``cpsat`` and ``mip``
+formulations honour (:func:`hierplan_opt.solve` refuses other solvers for them).
 
 ``potentialGoals`` (the target-assignment variant, ``cbs_ta``) becomes a TAPF
 instance: agents with the same set of potential goals form one team whose targets are
 that set. This toolkit's teams need disjoint target sets with as many targets as
 robots, so sets that overlap without being equal, or that have more goals than the
 agents sharing them, are refused. An agent with a plain ``goal`` next to agents with
-``potentialGoals`` is a team of one.
+``potentialGoals`` is a team of one. An agent with an empty ``potentialGoals`` is a
+task-free robot (it ends anywhere, keeping out of the others' way): a team of one with a
+placeholder target (its start where free), listed in ``instance.meta["free_agents"]``;
+:func:`hierplan_opt.solve` and ``hierplan solve`` choose its end
+(:mod:`hierplan_opt.search.libmrp`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -74,7 +83,7 @@ def load(path: str | Path) -> Instance:
     return from_data(read_yaml(path), path)
 
 
-def from_data(data: Any, path: str | Path) -> Instance:
+def from_data(data: Any, path: str | Path, *, shared_goals: bool = False) -> Instance:
     """Build the instance from parsed YAML (``path`` names the file in errors).
 
     Example
@@ -88,10 +97,10 @@ def from_data(data: Any, path: str | Path) -> Instance:
     top = ctx.mapping(data, "a libMultiRobotPlanning instance", 1)
     if "roadmap" in top:
         ctx.check_keys(top, "the instance", ("roadmap", "agents"), ("roadmap", "agents"))
-        graph = _roadmap(ctx, top["roadmap"], ctx.line_of(top, "roadmap"))
+        graph, annotated = _roadmap(ctx, top["roadmap"], ctx.line_of(top, "roadmap"))
     else:
         ctx.check_keys(top, "the instance", TOP_KEYS, TOP_KEYS)
-        graph = _grid(ctx, top["map"], ctx.line_of(top, "map"))
+        graph, annotated = _grid(ctx, top["map"], ctx.line_of(top, "map")), None
 
     agents_raw = ctx.sequence(top["agents"], "agents", ctx.line_of(top, "agents"))
     if not agents_raw:
@@ -100,6 +109,7 @@ def from_data(data: Any, path: str | Path) -> Instance:
     starts = Unique(ctx, graph, "start")
     goals = Unique(ctx, graph, "goal")
     rows: list[tuple[str, int, tuple[int, ...], bool, int | None]] = []
+    free: list[int] = []  # rows of task-free robots (empty potentialGoals)
     for i, a in enumerate(agents_raw):
         aline = ctx.line_of(agents_raw, i)
         a = ctx.mapping(a, f"agent {i}", aline)
@@ -123,8 +133,10 @@ def from_data(data: Any, path: str | Path) -> Instance:
         elif "potentialGoals" in a:
             pline = ctx.line_of(a, "potentialGoals")
             pg = ctx.sequence(a["potentialGoals"], f"potentialGoals of {name!r}", pline)
-            if not pg:
-                raise ctx.error(f"potentialGoals of agent {name!r} is empty", pline)
+            if not pg:  # a task-free robot: its end is chosen by the solve
+                free.append(len(rows))
+                rows.append((name, start, (), True, pline))
+                continue
             targets: list[int] = []
             for j, loc in enumerate(pg):
                 v = location(ctx, graph, loc, f"agent {name!r} potential goal", ctx.line_of(pg, j))
@@ -138,15 +150,68 @@ def from_data(data: Any, path: str | Path) -> Instance:
         else:
             raise ctx.error(f"agent {name!r} needs 'goal' or 'potentialGoals'", aline)
 
+    if free:
+        _placeholders(ctx, graph, rows, free)
     if not any(r[3] for r in rows):  # plain MAPF
         for name, _s, (g,), _p, gline in rows:
-            goals.add(g, f"agent {name!r}", gline)
+            if not shared_goals:  # allowed for agents that disappear at their goals
+                goals.add(g, f"agent {name!r}", gline)
         agents = tuple(Agent(n, s, gs[0]) for n, s, gs, _p, _l in rows)
         inst = wrap(ctx, None, lambda: Instance(graph, agents, name=Path(path).stem))
     else:
         inst = _tapf(ctx, graph, rows, Path(path).stem)
     inst.meta.update({"format": "lmrp", "source": str(path)})
+    if annotated is not None:
+        extra = extra_conflicts(graph, annotated)
+        inst.meta["annotated_conflicts"] = len(annotated)
+        inst.meta["edge_conflicts"] = extra
+    if free:
+        inst.meta["free_agents"] = [rows[i][0] for i in free]
     return inst
+
+
+def extra_conflicts(
+    graph: Graph, pairs: list[tuple[tuple[str, str], tuple[str, str]]]
+) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The conflicting move pairs (``(u, v)`` vertex ids, ``u == v`` a wait) that this
+    toolkit's own rules (vertex and swap conflicts) do not already forbid.
+
+    Example
+    -------
+    >>> g = Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (2, 0)}, [("A", "B"), ("B", "C")])
+    >>> extra_conflicts(g, [(("A", "B"), ("B", "A")), (("A", "B"), ("B", "C"))])
+    [((0, 1), (1, 2))]
+    """
+    out = []
+    for (a, b), (c, d) in pairs:
+        (u1, v1), (u2, v2) = (graph.vertex(a), graph.vertex(b)), (graph.vertex(c), graph.vertex(d))
+        if u1 == u2 or v1 == v2 or (u1 == v2 and v1 == u2):
+            continue  # one vertex at one time, or a swap: forbidden anyway
+        out.append(((u1, v1), (u2, v2)))
+    return out
+
+
+def _placeholders(
+    ctx: Ctx,
+    graph: Graph,
+    rows: list[tuple[str, int, tuple[int, ...], bool, int | None]],
+    free: list[int],
+) -> None:
+    """Give each task-free robot a team of its own with one placeholder target: its
+    start, or the nearest vertex no other robot may end at. The solve chooses its real
+    end (:mod:`hierplan_opt.search.libmrp`); the placeholder only keeps teams well-formed."""
+    used = {t for i, r in enumerate(rows) if i not in free for t in r[2]}
+    for i in free:
+        name, start, _t, _p, line = rows[i]
+        d = graph.dist_from(start)
+        options = sorted(
+            (int(d[v]), v) for v in range(graph.n) if graph.passable[v] and v not in used
+        )
+        if not options:
+            raise ctx.error(f"task-free robot {name!r} has no vertex left to end at", line)
+        v = start if start not in used else options[0][1]
+        used.add(v)
+        rows[i] = (name, start, (v,), True, line)
 
 
 def _grid(ctx: Ctx, value: Any, line: int | None) -> Graph:
@@ -172,15 +237,11 @@ def _grid(ctx: Ctx, value: Any, line: int | None) -> Graph:
     return Graph.grid(width, height, obstacles=obstacles)
 
 
-def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
+def _roadmap(
+    ctx: Ctx, value: Any, line: int | None
+) -> tuple[Graph, list[tuple[tuple[str, str], tuple[str, str]]] | None]:
     r = ctx.mapping(value, "roadmap", line)
     ctx.check_keys(r, "roadmap", ROADMAP_KEYS, ("edges",))
-    if r.get("conflicts") is not None:
-        raise ctx.error(
-            "annotated roadmaps ('conflicts') are not supported: this toolkit's conflicts "
-            "are vertex and swap conflicts; remove 'conflicts'",
-            ctx.line_of(r, "conflicts"),
-        )
     undirected = True
     if "undirected" in r:
         undirected = ctx.boolean(r["undirected"], "undirected", ctx.line_of(r, "undirected"))
@@ -204,11 +265,13 @@ def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
     elist = ctx.sequence(r["edges"], "edges", eline)
     edges: list[tuple[Any, ...]] = []
     self_loops: set[str] = set()
+    listed: list[tuple[str, str]] = []  # every edge in file order (conflicts index them)
     for i, e in enumerate(elist):
         el = ctx.line_of(elist, i)
         if not isinstance(e, list) or len(e) != 2:
             raise ctx.error(f"an edge must be [u, v], got {e!r}", el)
         u, v = (ctx.string(x, "an edge end", el) for x in e)
+        listed.append((u, v))
         for x in (u, v):
             if x not in coords:
                 if positions:
@@ -229,7 +292,32 @@ def _roadmap(ctx: Ctx, value: Any, line: int | None) -> Graph:
                 ctx.line_of(r, "allow_wait_actions"),
             )
     graph = wrap(ctx, eline, lambda: Graph.roadmap(coords, edges, directed=not undirected))
-    return graph
+    if r.get("conflicts") is None:
+        return graph, None
+    return graph, _conflicts(ctx, r["conflicts"], listed, ctx.line_of(r, "conflicts"))
+
+
+def _conflicts(
+    ctx: Ctx, value: Any, listed: list[tuple[str, str]], line: int | None
+) -> list[tuple[tuple[str, str], tuple[str, str]]]:
+    """The ``conflicts`` of an annotated roadmap (libMRP's ``annotate_roadmap.py``): for
+    edge ``i`` in file order, the edges ``j`` that no two robots may traverse at once."""
+    rows = ctx.sequence(value, "conflicts", line)
+    if len(rows) != len(listed):
+        raise ctx.error(
+            f"conflicts has {len(rows)} entries for {len(listed)} edges (one list per edge)", line
+        )
+    pairs: set[tuple[int, int]] = set()
+    for i, row in enumerate(rows):
+        rl = ctx.line_of(rows, i)
+        for j in ctx.sequence(row, f"conflicts of edge {i}", rl):
+            jj = ctx.integer(j, f"an edge index in the conflicts of edge {i}", rl, minimum=0)
+            if jj >= len(listed):
+                raise ctx.error(
+                    f"conflicts of edge {i} name edge {jj} (there are {len(listed)})", rl
+                )
+            pairs.add((min(i, jj), max(i, jj)))
+    return [(listed[i], listed[j]) for i, j in sorted(pairs)]
 
 
 def _tapf(
@@ -276,6 +364,30 @@ def _tapf(
 
 
 # ---------------------------------------------------------------- writing
+def without_extras(instance: Instance) -> tuple[Instance, list[str]]:
+    """``instance`` without what the libMultiRobotPlanning format cannot carry (highways,
+    robot kinematics), and one phrase per thing left out (empty: nothing is lost).
+
+    Example
+    -------
+    >>> g = Graph.grid(2, 1)
+    >>> inst = Instance.mapf(g, [(0, 0)], [(1, 0)], highways=[((0, 0), (1, 0))])
+    >>> plain, lost = without_extras(inst)
+    >>> plain.highways, lost
+    (None, ['highways (1 preferred directed edges)'])
+    """
+    lost: list[str] = []
+    if instance.highways is not None:
+        lost.append(f"highways ({len(instance.highways)} preferred directed edges)")
+        instance = replace(instance, highways=None)
+    moved = [a for a in instance.agents if a.kinematics != DEFAULT_KINEMATICS]
+    if moved:
+        lost.append(f"robot kinematics (of {len(moved)} robots)")
+        agents = tuple(replace(a, kinematics=DEFAULT_KINEMATICS) for a in instance.agents)
+        instance = replace(instance, agents=agents)
+    return instance, lost
+
+
 def dumps(instance: Instance) -> str:
     """The libMultiRobotPlanning YAML text of an instance on a 2D grid or a roadmap.
 
@@ -309,10 +421,13 @@ def dumps(instance: Instance) -> str:
     loc = partial(g.label, quote=yaml_scalar)  # reads back as the same location
     lines = _roadmap_lines(g) if g.kind == "roadmap" else _map_lines(g)
     lines.append("agents:")
+    free = set(instance.meta.get("free_agents", ()))
     for a in instance.agents:
         lines.append(f"  - name: {yaml_scalar(a.name)}")
         lines.append(f"    start: {loc(a.start)}")
-        if a.team is None:
+        if a.name in free:  # a task-free robot (its goal is a placeholder)
+            lines.append("    potentialGoals: []")
+        elif a.team is None:
             assert a.goal is not None
             lines.append(f"    goal: {loc(a.goal)}")
         else:

@@ -63,7 +63,7 @@ def plan_format(text: str) -> str:
     return "lmrp"
 
 
-def load_plan(path: str | Path, instance: Instance) -> Plan:
+def load_plan(path: str | Path, instance: Instance, *, tracker_y: str | None = None) -> Plan:
     """Read a plan file for ``instance``, in any of the formats of :func:`read_plan`.
 
     Example
@@ -76,11 +76,11 @@ def load_plan(path: str | Path, instance: Instance) -> Plan:
     >>> load_plan(f, inst).paths
     ((0, 1, 2),)
     """
-    return read_plan(path, instance)[0]
+    return read_plan(path, instance, tracker_y=tracker_y)[0]
 
 
 def read_plan(
-    path: str | Path, instance: Instance, text: str | None = None
+    path: str | Path, instance: Instance, text: str | None = None, *, tracker_y: str | None = None
 ) -> tuple[Plan, dict[str, Any]]:
     """A plan file's plan and statistics; the format is recognised by the content.
 
@@ -90,7 +90,8 @@ def read_plan(
     - EECBS / CBSH2-RTC path files (``Agent 0: (r,c)->...``, :mod:`~hierplan_opt.io.eecbs`);
     - LaCAM result files (``solution=``, :mod:`~hierplan_opt.io.lacam`), statistics
       from its ``key=value`` lines;
-    - MAPF Tracker submissions (:mod:`~hierplan_opt.io.tracker`).
+    - MAPF Tracker submissions (:mod:`~hierplan_opt.io.tracker`; ``tracker_y``: its
+      move convention, ``"down"`` or ``"up"``, detected when None).
 
     Every location must be on the map; other mistakes (blocked cells, jumps,
     conflicts) are left to :func:`hierplan_opt.validate`. ``text`` is the file's
@@ -117,7 +118,7 @@ def read_plan(
     if fmt == "lacam":
         return lacam.parse(text, name, instance)
     if fmt == "tracker":
-        return tracker.parse(text, name, instance)
+        return tracker.parse(text, name, instance, tracker_y)
     data = _fast_parse(text, name)
     if data is None:
         data = read_yaml(path, text)

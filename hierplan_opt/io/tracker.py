@@ -18,6 +18,15 @@ The tracker takes CSV (a header row, one submission per row), JSON (an object or
 list) and YAML (a mapping, a list or several documents); ``solution_plan`` may be a
 newline-separated string or a list of strings. With ``flip_up_down: true`` the
 meaning of ``u`` and ``d`` is swapped.
+
+Two y conventions exist in the wild. The tracker's current documentation has ``d`` for
+y + 1 (``"down"``: the pixel origin of MovingAI maps, what this module writes); its older
+documentation and its downloadable data use ``u`` for y + 1 (``"up"``): PlanViz's
+example 300-agent solution of random-32-32-20-random-1 (``tests/data``) is valid only
+read that way. :func:`parse` detects the convention by which one gives paths that stay
+on free cells and end at the agents' goals (``"down"`` when both do), unless told;
+``stats["tracker_y"]`` says which was used. Older exports name the moves column
+``path`` (and start with a byte-order mark); they are read the same way.
 """
 
 from __future__ import annotations
@@ -50,6 +59,11 @@ FIELDS = (
 )
 #: (dx, dy) of each move letter (y grows downwards, as in MovingAI maps).
 MOVES = {"u": (0, -1), "d": (0, 1), "l": (-1, 0), "r": (1, 0), "w": (0, 0)}
+#: The y conventions: ``"down"`` (``d`` is y + 1, the tracker's current documentation;
+#: written by this module) and ``"up"`` (``u`` is y + 1, its older data).
+Y_CONVENTIONS = ("down", "up")
+#: The convention :func:`dumps` writes.
+WRITE_Y = "down"
 _LETTER = {v: k for k, v in MOVES.items()}
 _RUN = re.compile(r"(\d*)([udlrw])")
 _SCEN = re.compile(r"^(?P<map>.+)-(?P<type>even|random)-(?P<id>\d+)$")
@@ -274,22 +288,35 @@ def _fmt(p: Path) -> str:
 
 # ---------------------------------------------------------------------- reading
 def looks_like(text: str) -> bool:
-    """Whether ``text`` looks like a tracker submission (it has ``solution_plan``).
+    """Whether ``text`` looks like a tracker submission (it has ``solution_plan``, or is
+    an older CSV export whose header names ``agents`` and ``path``).
 
     Example
     -------
     >>> looks_like("map_name,agents,solution_plan\\n"), looks_like("schedule:\\n")
     (True, False)
+    >>> looks_like('\\ufeff"agents","lower_cost","solution_cost","path"\\n')
+    True
     """
-    return "solution_plan" in text[:4096]
+    if "solution_plan" in text[:4096]:
+        return True
+    header = text.lstrip("\ufeff").split("\n", 1)[0]
+    cols = [c.strip().strip('"').lower() for c in header.split(",")]
+    return "agents" in cols and "path" in cols
 
 
-def parse(text: str, name: str, instance: Instance) -> tuple[Plan, dict[str, Any]]:
+def parse(
+    text: str, name: str, instance: Instance, y: str | None = None
+) -> tuple[Plan, dict[str, Any]]:
     """The plan of the submission for ``instance`` in a tracker file, and its fields.
 
-    A file with several submissions (a tracker download lists every agent count of a
-    scenario) gives the one with ``agents`` equal to the instance's agent count and,
-    when the instance was read from a MovingAI map, that map's name.
+    A file with several submissions (a tracker download lists every agent count of
+    every scenario of a map) gives the one whose ``agents`` is the instance's agent count
+    and, for an instance read from MovingAI files, whose ``map_name``, ``scen_type`` and
+    ``type_id`` match the map and scenario file names (fields a row lacks are not
+    compared). ``y`` is the move convention (``"down"`` or ``"up"``, see the module
+    text); None detects it. ``stats["tracker_y"]`` is the one used and
+    ``stats["tracker_y_from"]`` ``"detected"`` or ``"given"``.
 
     Example
     -------
@@ -300,26 +327,34 @@ def parse(text: str, name: str, instance: Instance) -> tuple[Plan, dict[str, Any
     ((0, 1, 2),)
     """
     ctx = Ctx(name)
+    if y is not None and y not in Y_CONVENTIONS:
+        raise InputError(f"unknown tracker y convention {y!r} (use 'down' or 'up')")
     graph = grid_2d(instance, "a MAPF Tracker submission")
-    rows = list(_rows(text, name))
+    rows = list(_rows(text.lstrip("\ufeff"), name))
     if not rows:
         raise ctx.error("no submission in the file")
     k = instance.num_agents
-    want_map = instance.meta.get("map")
-    want = Path(str(want_map)).stem.lower() if want_map else None
+    want = _wanted(instance)
     found = []
     for line, row in rows:
+        if "solution_plan" not in row and "path" in row:
+            row["solution_plan"] = row.pop("path")  # the older export layout
         if "solution_plan" not in row:
             raise ctx.error("a submission without 'solution_plan'", line)
         agents = _int(ctx, row.get("agents"), "agents", line)
         if agents != k:
             continue
-        if want is not None and str(row.get("map_name", want)).strip().lower() != want:
+        if any(
+            row.get(key) not in (None, "") and str(row[key]).strip().lower() != value
+            for key, value in want.items()
+        ):
             continue
         found.append((line, row))
     if not found:
-        counts = sorted({str(r.get("agents")) for _, r in rows})
-        where = f" on map {want!r}" if want else ""
+        counts = sorted({str(r.get("agents")) for _, r in rows}, key=lambda c: (len(c), c))
+        where = f" on map {want['map_name']!r}" if "map_name" in want else ""
+        if "scen_type" in want:
+            where += f", scenario {want['scen_type']}-{want['type_id']}"
         raise ctx.error(
             f"no submission for {k} agents{where} (the file has agents: {', '.join(counts)})"
         )
@@ -335,20 +370,63 @@ def parse(text: str, name: str, instance: Instance) -> tuple[Plan, dict[str, Any
     from hierplan_opt.io.files import limits
 
     budget = limits().max_plan_steps
-    paths = []
+    decoded = []
     for i, s in enumerate(strings):
         try:
             moves = decode_moves(s, budget)
         except InputError as exc:
             raise ctx.error(f"agent {i}: {exc}", line) from None
         budget -= len(moves)
-        paths.append(_walk(ctx, graph, instance.agents[i].start, moves, i, flip, line))
-    stats = {
+        decoded.append(moves)
+    used = y
+    if used is None:  # the convention under which the paths fit the scenario
+        fits = [c for c in Y_CONVENTIONS if _fits(graph, instance, decoded, (c == "up") != flip)]
+        used = fits[0] if fits else WRITE_Y
+    up = (used == "up") != flip  # flip_up_down swaps u and d once more
+    paths = [
+        _walk(ctx, graph, instance.agents[i].start, moves, i, up, line)
+        for i, moves in enumerate(decoded)
+    ]
+    stats: dict[str, Any] = {
         key: row.get(key)
         for key in ("map_name", "scen_type", "type_id", "lower_cost", "solution_cost")
         if row.get(key) not in (None, "")
     }
+    stats["tracker_y"] = used
+    stats["tracker_y_from"] = "detected" if y is None else "given"
     return Plan(tuple(paths)), stats
+
+
+def _wanted(instance: Instance) -> dict[str, str]:
+    """The row fields that must match an instance read from MovingAI files."""
+    want: dict[str, str] = {}
+    if instance.meta.get("map"):
+        want["map_name"] = Path(str(instance.meta["map"])).stem.lower()
+    if instance.meta.get("scen"):
+        try:
+            m, t, i = scenario_name(str(instance.meta["scen"]))
+        except InputError:  # not a benchmark scenario name: nothing more to match
+            return want
+        want.update(map_name=m.lower(), scen_type=t, type_id=str(i))
+    return want
+
+
+def _fits(graph: Graph, instance: Instance, decoded: list[str], up: bool) -> bool:
+    """Whether every move string, read with ``u`` as y + 1 when ``up``, stays on free
+    cells and ends at its agent's goal."""
+    assert graph.shape is not None
+    width, height = graph.shape
+    sign = -1 if up else 1
+    for a, moves in zip(instance.agents, decoded, strict=True):
+        x, yy = grid_xy(graph, a.start)
+        for c in moves:
+            dx, dy = MOVES[c]
+            x, yy = x + dx, yy + sign * dy
+            if not (0 <= x < width and 0 <= yy < height) or not graph.passable[x + width * yy]:
+                return False
+        if a.goal is not None and x + width * yy != a.goal:
+            return False
+    return True
 
 
 def _walk(
@@ -430,8 +508,8 @@ def _csv_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]
     with _csv_field_limit(limits().max_bytes):
         reader = csv.DictReader(io.StringIO(text, newline=""))
         fields = [f.strip() for f in reader.fieldnames or []]
-        if "solution_plan" not in fields:
-            raise InputError(f"{name}:1: the CSV header has no solution_plan column")
+        if "solution_plan" not in fields and "path" not in fields:
+            raise InputError(f"{name}:1: the CSV header has no solution_plan (or path) column")
         reader.fieldnames = fields
         try:
             rows = [(reader.line_num, dict(r)) for r in reader]

@@ -111,6 +111,11 @@ def from_data(data: Any, path: str | Path) -> Instance:
         highways = _highways(ctx, graph, top["highways"], ctx.line_of(top, "highways"))
     inst = wrap(ctx, None, lambda: Instance(graph, agents, teams, highways, name))
     inst.meta.update({"format": "hierplan", "source": str(path)})
+    free = [
+        a.name for a, raw in zip(agents, top.get("agents") or [], strict=False) if "goal" not in raw
+    ]
+    if has_agents and free:  # task-free robots (hierplan_opt.search.libmrp)
+        inst.meta["free_agents"] = free
     return inst
 
 
@@ -322,15 +327,30 @@ def _agents(
     for i, a in enumerate(lst):
         aline = ctx.line_of(lst, i)
         a = ctx.mapping(a, f"agent {i}", aline)
-        ctx.check_keys(a, f"agent {i}", AGENT_KEYS, ("start", "goal"))
+        ctx.check_keys(a, f"agent {i}", AGENT_KEYS, ("start",))
         name = _agent_name(ctx, a, i, names)
         sline, gline = ctx.line_of(a, "start"), ctx.line_of(a, "goal")
         s = location(ctx, graph, a["start"], f"agent {name!r} start", sline)
         starts.add(s, f"agent {name!r}", sline)
-        g = location(ctx, graph, a["goal"], f"agent {name!r} goal", gline)
-        goals.add(g, f"agent {name!r}", gline)
+        g = -1  # no goal: a task-free robot, given a placeholder below
+        if "goal" in a:
+            g = location(ctx, graph, a["goal"], f"agent {name!r} goal", gline)
+            goals.add(g, f"agent {name!r}", gline)
         kin = _kin(ctx, types, a, DEFAULT_KINEMATICS, f"agent {name!r}")
         out.append(Agent(name, s, g, None, kin))
+    used = {a.goal for a in out if a.goal != -1}
+    for i, a in enumerate(out):
+        if a.goal == -1:  # ends anywhere; the placeholder (its start where free) keeps
+            # the instance well-formed, the solve picks the end (hierplan_opt.search.libmrp)
+            d = graph.dist_from(a.start)
+            free = sorted(
+                (int(d[v]), v) for v in range(graph.n) if graph.passable[v] and v not in used
+            )
+            if not free:
+                raise ctx.error(f"task-free agent {a.name!r} has no vertex left to end at", line)
+            v = a.start if a.start not in used else free[0][1]
+            used.add(v)
+            out[i] = Agent(a.name, a.start, v, None, a.kinematics)
     return tuple(out), ()
 
 
@@ -506,9 +526,11 @@ def dumps(instance: Instance, *, rows: bool | None = None) -> str:
             parts.append(f"radius: {_num(kin.radius)}")
             out.append(f"  {yaml_scalar(tname)}: {{{', '.join(parts)}}}")
 
+    free = set(instance.meta.get("free_agents", ()))
+
     def robot(a: Agent, with_goal: bool) -> str:
         parts = [f"name: {yaml_scalar(a.name)}", f"start: {loc(a.start)}"]
-        if with_goal:
+        if with_goal and a.name not in free:  # a task-free robot has no goal
             assert a.goal is not None
             parts.append(f"goal: {loc(a.goal)}")
         if a.kinematics != DEFAULT_KINEMATICS:

@@ -30,7 +30,9 @@ the high level, and bypassing. See ``docs/ecbs.md``.
 Anytime (option ``lacam``): with a time limit, LaCAM (:mod:`hierplan_opt.search.lacam`)
 first computes a plan in at most ``LACAM_SHARE`` of it; when the search's limit runs
 out, that plan is returned (FEASIBLE, with the search's own lower bound; its cost need
-not be within ``w``), so a caller gets a plan whenever one was found. ``lacam="start"``
+not be within ``w``, and then ``stats["bound_met"]`` is False: :attr:`Result.bound_met
+<hierplan_opt.core.result.Result.bound_met>`, the summary line and the plan file say
+so), so a caller gets a plan whenever one was found. ``lacam="start"``
 also stops the search as soon as ``w * LB_min`` covers the LaCAM plan's cost and
 returns the cheaper of the two plans; ``"off"`` runs the plain search.
 """
@@ -476,6 +478,7 @@ class _ECBS:
         if self.lacam == "start" and self.inc_plan is not None and self.inc_cost < cost:
             return self.from_lacam(lb)
         self.stats["plan_from"] = "search"
+        self.stats["bound_met"] = True  # the search's own plan: cost <= w * LB
         status = Status.OPTIMAL if cost <= lb else Status.FEASIBLE
         return self.result(status, plan, cost, min(lb, cost))
 
@@ -496,6 +499,8 @@ class _ECBS:
         """LaCAM's plan with this search's own lower bound."""
         self.stats["plan_from"] = "lacam"
         cost = self.inc_cost
+        # Result.bound_met: whether this plan is shown within the bound asked (w * LB).
+        self.stats["bound_met"] = bool(cost <= self.w_high * lb + 1e-9)
         status = Status.OPTIMAL if cost <= lb else Status.FEASIBLE
         return self.result(status, self.inc_plan, cost, min(lb, cost))
 
@@ -600,7 +605,8 @@ def solve(
     Result
         FEASIBLE (OPTIMAL when the cost meets the lower bound) with ``lower_bound`` the
         smallest LB in OPEN; when the limit runs out, FEASIBLE with LaCAM's plan if it
-        found one (``stats["plan_from"] == "lacam"``; cost not bounded by ``w``), else
+        found one (``stats["plan_from"] == "lacam"``; its cost need not be within ``w``:
+        ``Result.bound_met`` is False when it is not shown to be), else
         TIME_LIMIT with the lower bound; INFEASIBLE when proven.
 
     Example
