@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -27,6 +28,34 @@ BAD_INPUT = 2
 INFEASIBLE = 3
 LIMIT = 4
 INTERNAL = 70  # EX_SOFTWARE: a bug in hierplan, never a user error
+
+
+#: Loggers whose INFO lines narrate a solve (periodic node counts, a first plan, each
+#: horizon): ``--progress`` shows the same as one status line, so without ``-v`` the
+#: command line shows only their warnings (issue 34: INFO lines on every ecbs solve,
+#: progress lines twice).
+SOLVER_LOGGERS = ("hierplan_opt.search", "hierplan_opt.formulations", "hierplan_opt.registry")
+
+
+def configure_logging(*, verbose: bool = False, quiet: bool = False) -> None:
+    """The command line's logging: INFO (``-v``: DEBUG, ``-q``: WARNING) on stderr, the
+    solvers' narration (:data:`SOLVER_LOGGERS`) at WARNING unless ``-v``.
+
+    Example
+    -------
+    >>> configure_logging()
+    >>> logging.getLogger("hierplan_opt.search.lacam").isEnabledFor(logging.INFO)
+    False
+    >>> logging.getLogger("hierplan_opt.progress").isEnabledFor(logging.INFO)
+    True
+    >>> configure_logging(verbose=True)
+    >>> logging.getLogger("hierplan_opt.search.lacam").isEnabledFor(logging.DEBUG)
+    True
+    """
+    level = logging.DEBUG if verbose else logging.WARNING if quiet else logging.INFO
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
+    for name in SOLVER_LOGGERS:
+        logging.getLogger(name).setLevel(logging.NOTSET if verbose else logging.WARNING)
 
 
 def add_instance_arguments(p: argparse.ArgumentParser, *, optional: bool = False) -> None:

@@ -114,6 +114,7 @@ class Progress:
         self._last_line = self._start
         self._bar: Any = None
         self._task: Any = None
+        self._unshown = True  # an update (or the start) no status line has shown yet
 
     # ------------------------------------------------------------------ context
     def __enter__(self) -> Progress:
@@ -137,7 +138,8 @@ class Progress:
             self._bar.stop()
             self._bar = None
         elif self.mode == "lines":
-            log.info("%s", self.status_line())
+            if self._unshown:  # the last periodic line may already say it all
+                log.info("%s", self.status_line())
             self.mode = "off"  # one final line only
 
     # ------------------------------------------------------------------ updates
@@ -154,12 +156,14 @@ class Progress:
         if total is not None:
             self.total = total
         self.fields.update(fields)
+        self._unshown = True
         if self._bar is not None:
             self._refresh_bar()
         elif self.mode == "lines":
             now = time.perf_counter()
             if now - self._last_line >= self.interval:
                 self._last_line = now
+                self._unshown = False
                 log.info("%s", self.status_line())
 
     # ------------------------------------------------------------------ figures

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
@@ -46,6 +47,8 @@ class Waypoints:
     ``latest`` bound the arrival in any schedule of the STN that finishes by this
     schedule's makespan; ``slack = latest - arrival`` is the delay the way-point absorbs.
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     coords: np.ndarray
     theta: np.ndarray
@@ -98,6 +101,8 @@ class Schedule:
         Per pair of robot types: the required distance ``r_a + r_b + margin`` and
         whether the schedule guarantees it.
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     agent_names: tuple[str, ...]
     waypoints: tuple[Waypoints, ...]

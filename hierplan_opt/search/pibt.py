@@ -39,6 +39,7 @@ from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt import registry
 from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)
@@ -442,7 +443,10 @@ def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, i
     try:
         space = Space(instance, deadline, seed)
     except Expired:
-        return Result(Status.TIME_LIMIT, None, stats={"reason": "time limit while preparing"})
+        lb = registry.quick_lower_bound(instance)  # from the distance tables made so far
+        return Result(
+            Status.TIME_LIMIT, None, lower_bound=lb, stats={"reason": "time limit while preparing"}
+        )
     lb = space.lower_bound()
     why = space.infeasibility(instance)
     if why is not None:

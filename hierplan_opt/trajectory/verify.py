@@ -37,6 +37,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories
 
 #: Default sampling step (seconds).
@@ -50,6 +51,8 @@ BLOCK = 256
 @dataclass(frozen=True)
 class VerifyReport:
     """What :func:`verify` found."""
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     ok: bool
     problems: tuple[str, ...]
