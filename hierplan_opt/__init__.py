@@ -36,7 +36,7 @@ logging.getLogger(__name__).addHandler(logging.NullHandler())
 __version__ = "0.1.0"
 
 # Heavier parts load on first use so that `import hierplan_opt` stays fast. One name a
-# line, sorted: a new export is one added line here (and in the TYPE_CHECKING block).
+# line, sorted: a new export is one line here, in the TYPE_CHECKING block and in __all__.
 _LAZY = {
     "Schedule": "hierplan_opt.schedule",
     "Trajectories": "hierplan_opt.trajectory",
@@ -78,5 +78,15 @@ __all__ = [
     "Violation",
     "solve",
     "validate",
-    *_LAZY,  # pyright: ignore[reportUnsupportedDunderAll]
+    # lazy (the keys of _LAZY, sorted)
+    "Schedule",
+    "Trajectories",
+    "load_instance",
+    "load_plan",
+    "postprocess",
+    "refine",
+    "save_instance",
+    "save_plan",
+    "simulate",
+    "verify",
 ]

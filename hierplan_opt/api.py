@@ -122,7 +122,9 @@ def solve(
     ``lacam`` (MAPF, heuristic): LaCAM*: complete, anytime (search + LNS refinement),
         optimal given time.
         - anytime: number >= 0 or none (default none) -- seconds of improvement after
-          the first plan (none: until the time limit)
+          the first plan (none: until the time limit, so lacam runs the whole
+          --time-limit unless it proves the optimum; 0: return the first plan, --set
+          anytime=0)
         - refine: true/false (default true) -- interleave LNS refinement with the search
         - guide: true/false (default true) -- guide paths (space utilisation) in the
           anytime phase

@@ -38,9 +38,7 @@ def solver_reference() -> str:
 
 def test_help_of_solve_names_every_solver_and_option() -> None:
     doc = _words(pydoc.render_doc(hp.solve, renderer=pydoc.plaintext))
-    missing = [
-        line for line in solver_reference().splitlines() if _words(line) not in doc
-    ]
+    missing = [line for line in solver_reference().splitlines() if _words(line) not in doc]
     assert not missing, "solve's docstring is out of date; it should list:\n" + "\n".join(
         textwrap.fill(m, 84, break_on_hyphens=False) for m in missing
     )

@@ -5,7 +5,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-
 #: Plans of at most this many path entries print in full.
 _FULL_REPR = 40
 

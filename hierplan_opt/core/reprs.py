@@ -21,7 +21,8 @@ Demo(name='a', times=<array (1000,) float64>)
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, cast
 
 import numpy as np
 
@@ -38,34 +39,38 @@ def summary(value: Any, limit: int = FIELD_LIMIT) -> str:
     ('(1, 2)', '<tuple of 100 int>', "<dict of 2: 'aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa', ...>")
     """
     if isinstance(value, np.ndarray):
-        if value.size <= 6:
-            text = np.array2string(value, separator=", ", threshold=6)
+        arr = cast("np.ndarray[Any, np.dtype[Any]]", value)
+        if arr.size <= 6:
+            text = np.array2string(arr, separator=", ", threshold=6)
             if len(text) <= limit:
                 return text
-        shape = ", ".join(map(str, value.shape)) + ("," if value.ndim == 1 else "")
-        return f"<array ({shape}) {value.dtype}>"
+        shape = ", ".join(str(n) for n in arr.shape) + ("," if arr.ndim == 1 else "")
+        return f"<array ({shape}) {arr.dtype}>"
     text = repr(value)
     if len(text) <= limit:
         return text
     if isinstance(value, (tuple, list)):
-        kinds = sorted({type(x).__name__ for x in value})  # pyright: ignore[reportUnknownVariableType, reportUnknownArgumentType]
+        items = cast("Sequence[object]", value)
+        kinds = sorted({type(x).__name__ for x in items})
         of = kinds[0] if len(kinds) == 1 else "mixed"
-        return f"<{type(value).__name__} of {len(value)} {of}>"  # pyright: ignore[reportUnknownArgumentType]
+        return f"<{type(items).__name__} of {len(items)} {of}>"
     if isinstance(value, dict):
+        table = cast("dict[object, object]", value)
         keys: list[str] = []
-        for k in value:  # pyright: ignore[reportUnknownVariableType]
+        for k in table:
             keys.append(repr(k))
             if sum(map(len, keys)) > limit // 2:
                 break
-        more = ", ..." if len(keys) < len(value) else ""  # pyright: ignore[reportUnknownArgumentType]
-        return f"<dict of {len(value)}: {', '.join(keys)}{more}>"  # pyright: ignore[reportUnknownArgumentType]
+        more = ", ..." if len(keys) < len(table) else ""
+        return f"<dict of {len(table)}: {', '.join(keys)}{more}>"
     if isinstance(value, str):
         return repr(value[: limit - 5] + "...")
     return f"<{type(value).__name__}>"
 
 
-def short_repr(obj: Any) -> str:
+def short_repr(self: Any) -> str:
     """``Class(field=value, ...)`` of a dataclass with every value :func:`summary`-ised
     (fields declared with ``repr=False`` left out); use as ``__repr__ = short_repr``."""
-    parts = [f"{f.name}={summary(getattr(obj, f.name))}" for f in dataclasses.fields(obj) if f.repr]
-    return f"{type(obj).__name__}({', '.join(parts)})"
+    fields = [f for f in dataclasses.fields(self) if f.repr]
+    parts = [f"{f.name}={summary(getattr(self, f.name))}" for f in fields]
+    return f"{type(self).__name__}({', '.join(parts)})"

@@ -32,6 +32,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hierplan_opt import registry
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.instance import Instance
@@ -39,7 +40,6 @@ from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt import registry
 from hierplan_opt.registry import solver
 
 log = logging.getLogger(__name__)
