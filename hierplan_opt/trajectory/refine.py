@@ -51,6 +51,27 @@ MODES = ("path", "corridor")
 AUTO_SOLVERS: tuple[str, ...] = ("ipopt",)
 #: Path-mode solvers without an NLP: the profile, and the profile polished by a QP.
 PROFILE_SOLVERS = ("profile", "profile+qp")
+#: ``solver="auto"`` in path mode: IPOPT up to this many robots, ``profile+qp`` beyond.
+#: IPOPT took 2.1 s on the 32-robot formation, 18.7 s on 50 warehouse robots and about
+#: 100 s on 200, where profile+qp took 1.9 s, 7.4 s and under 10 s (one loaded 2-core
+#: machine; issue 34). Corridor mode always needs the NLP.
+AUTO_NLP_ROBOTS = 32
+
+
+def auto_solver(mode: str, num_robots: int) -> str:
+    """What ``solver="auto"`` runs: IPOPT for few robots (or in corridor mode, which
+    needs the NLP), ``profile+qp`` for a fleet (:data:`AUTO_NLP_ROBOTS`).
+
+    Example
+    -------
+    >>> auto_solver("path", 12), auto_solver("path", 200), auto_solver("corridor", 200)
+    ('ipopt', 'profile+qp', 'ipopt')
+    """
+    if mode == "path" and num_robots > AUTO_NLP_ROBOTS:
+        return "profile+qp"
+    return AUTO_SOLVERS[0]
+
+
 #: Largest stretch factor tried before giving up.
 MAX_STRETCH = 256.0
 #: Relative precision of the stretch factor.
@@ -754,14 +775,19 @@ def refine(
         ``corridor``: corners cut within ``corridor`` metres (double integrator only),
         the guarantee drops by ``2 * corridor``.
     solver : {"auto", "ipopt", "fatrop", "profile", "profile+qp"}
-        ``auto``: :data:`AUTO_SOLVERS` (IPOPT with MUMPS). ``profile`` (path mode only,
+        ``auto``: by size (:func:`auto_solver`): IPOPT with MUMPS for up to
+        :data:`AUTO_NLP_ROBOTS` robots or in corridor mode, else ``profile+qp``; the
+        result's ``stats["solver"]`` says which ran. ``profile`` (path mode only,
         one process): no NLP; knots at the stretched schedule's times, delayed inside
         their windows where needed, speeds from a forward and a backward pass
-        (:mod:`hierplan_opt.trajectory.profile`); 20-30x faster, its stretch factor an
-        upper bound of the smallest. ``profile+qp``: the profile's motion, then per robot
-        a convex QP on its fixed time grid (CasADi ``conic`` with HPIPM) that minimises
-        the integral of ``|a|^2`` (:mod:`hierplan_opt.trajectory.polish`); knot times,
-        windows and stretch are the profile's.
+        (:mod:`hierplan_opt.trajectory.profile`); 20-30x faster. Its stretch factor,
+        like IPOPT's, is one that works (an upper bound of the smallest), neither is the
+        smallest in general, and either may be the smaller (the profile's on the
+        formation, IPOPT's on the warehouse: ``formulations/trajectory.md``).
+        ``profile+qp``: the profile's motion, then per robot a convex QP on its fixed
+        time grid (CasADi ``conic`` with HPIPM) that minimises the integral of ``|a|^2``
+        (:mod:`hierplan_opt.trajectory.polish`); knot times, windows and stretch are the
+        profile's.
     split : float
         Share of each precedence's slack given to the earlier event (:func:`decouple`).
     stretch : None, "auto" or float >= 1
@@ -817,7 +843,11 @@ def refine(
         raise InputError("the schedule's robots are not the instance's robots")
     if mode == "corridor" and corridor <= 0:
         raise OptionError("corridor mode needs a corridor half-width > 0")
-    solvers = AUTO_SOLVERS if solver == "auto" else (solver,)
+    asked = solver
+    if solver == "auto":
+        solver = auto_solver(mode, net.num_agents)
+        log.debug("refine: solver auto -> %s (%d robots, %s mode)", solver, net.num_agents, mode)
+    solvers = AUTO_SOLVERS if asked == "auto" and solver not in PROFILE_SOLVERS else (solver,)
     windows = decouple(net, split)
     if isinstance(stretch, (int, float)) and not isinstance(stretch, bool) and stretch > 1:
         windows = windows.stretched(float(stretch))
@@ -921,6 +951,8 @@ def refine(
         "solver_time_sum": sum(o["wall"] for o in solves),
         "iterations_sum": sum(o["iterations"] for o in solves),
         "ipopt_fallbacks": sum(1 for o in solves if o["solver"] != solvers[0]),
+        "solver": solver,  # what ran; "auto" resolved by auto_solver
+        "solver_asked": asked,
     }
     if solver == "profile+qp":
         stats["qp_fallbacks"] = sum(1 for o in solves if not o["qp_ok"])
