@@ -70,7 +70,15 @@ def summary(value: Any, limit: int = FIELD_LIMIT) -> str:
 
 def short_repr(self: Any) -> str:
     """``Class(field=value, ...)`` of a dataclass with every value :func:`summary`-ised
-    (fields declared with ``repr=False`` left out); use as ``__repr__ = short_repr``."""
+    (fields declared with ``repr=False`` left out); use as ``__repr__ = short_repr``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.result import Result, Status
+    >>> r = Result(Status.INFEASIBLE, None, solver="cbs", stats={"reason": "x" * 80})
+    >>> repr(r).split(", ")[-1]
+    "stats=<dict of 1: 'reason'>)"
+    """
     fields = [f for f in dataclasses.fields(self) if f.repr]
     parts = [f"{f.name}={summary(getattr(self, f.name))}" for f in fields]
     return f"{type(self).__name__}({', '.join(parts)})"
