@@ -40,6 +40,109 @@ def solve(
     never passed on: the result becomes ERROR with the violations in
     ``stats["violations"]``.
 
+    Solvers and their options (``**options``; ``hierplan info --solvers`` lists the same,
+    ``hierplan solve --set name=value`` sets them). Optimal: OPTIMAL is a proven optimum;
+    bounded: cost <= w * optimum; heuristic: no bound.
+
+    ``cbm`` (MAPF/TAPF, optimal): Conflict-based min-cost flow: optimal makespan for
+        teams (TAPF).
+        - tie_break: auto|cost|avoid|none (default auto) -- how a team avoids the
+          others' paths
+        - cost_arcs: integer >= 0 (default 60000) -- largest network for tie_break=auto
+          to use cost
+        - repair_rounds: integer >= 0 (default 0) -- rounds of local re-planning per
+          node (0: off)
+    ``cbs`` (MAPF, optimal): Conflict-based search with MDD prioritisation, bypass, WDG
+        heuristic, disjoint splitting and symmetry reasoning.
+        - prioritize_conflicts: true/false (default true) -- split cardinal, then
+          semi-cardinal conflicts first
+        - bypass: true/false (default true) -- adopt a child's paths when it keeps the
+          cost, fewer conflicts
+        - heuristic: wdg|dg|cg|none (default wdg) -- admissible high-level heuristic
+        - disjoint_splitting: true/false (default true) -- positive/negative constraint
+          children
+        - symmetry: true/false (default true) -- target, corridor and rectangle
+          reasoning
+        - rectangle: true/false (default true) -- rectangle reasoning (4-connected 2D
+          grids)
+        - corridor_target: true/false (default false) -- corridor-target reasoning
+          (goals inside corridors)
+        - node_limit: integer >= 1 or none (default none) -- stop after this many
+          high-level expansions
+        - highways: instance|crisscross|corridors|learned|flow or none (default none) --
+          prefer these directed edges: the instance's own, or generated
+        - w_hwy: number >= 1 and < 1e+09 (default 2.0) -- highway factor: off-highway
+          edges cost this much more
+        - hwy_mode: heuristic|cost (default heuristic) -- inflate the heuristic or the
+          edge costs off the highways
+    ``cpsat`` (MAPF/TAPF, optimal): Time-expanded CP-SAT model (OR-Tools).
+        - workers: integer >= 1 (default 2) -- CP-SAT's parallel search workers
+        - hint: solver name or none (default none) -- solver whose plan seeds the search
+          (none: no hint)
+        - max_horizon: integer >= 1 or none (default none) -- largest horizon tried
+          (none: a safe cap)
+    ``ecbs`` (MAPF, bounded): Enhanced CBS: focal search on both levels, cost <= w *
+        optimal.
+        - w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w *
+          optimum
+        - polish: true/false (default true) -- shorten paths one by one after the search
+        - lacam: fallback|start|off (default fallback) -- LaCAM's plan when the limit
+          runs out (fallback), also as an early stop (start), or off
+        - highways: instance|crisscross|corridors|learned|flow or none (default none) --
+          prefer these directed edges: the instance's own, or generated
+        - w_hwy: number >= 1 and < 1e+09 (default 2.0) -- highway factor: off-highway
+          edges cost this much more
+        - hwy_mode: heuristic|cost (default heuristic) -- inflate the heuristic or the
+          edge costs off the highways
+    ``eecbs`` (MAPF, bounded): Explicit-estimation CBS: cost <= w * optimal.
+        - w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w *
+          optimum
+        - bypass: true/false (default true) -- adopt a child's path when it lowers the
+          conflicts in the bound
+        - polish: true/false (default true) -- shorten paths one by one after the search
+        - lacam: fallback|start|off (default fallback) -- LaCAM's plan when the limit
+          runs out (fallback), also as an early stop (start), or off
+        - highways: instance|crisscross|corridors|learned|flow or none (default none) --
+          prefer these directed edges: the instance's own, or generated
+        - w_hwy: number >= 1 and < 1e+09 (default 2.0) -- highway factor: off-highway
+          edges cost this much more
+        - hwy_mode: heuristic|cost (default heuristic) -- inflate the heuristic or the
+          edge costs off the highways
+    ``flow`` (TAPF, optimal): Max-flow on the time-expanded network: anonymous MAPF (one
+        team).
+        - search: doubling|linear (default doubling) -- horizon search
+        - min_cost: true/false or none (default none) -- fewest moves at the optimal
+          horizon (none: by size)
+        - min_cost_arcs: integer >= 0 (default 300000) -- largest network for
+          min_cost=none to minimise moves
+    ``hungarian`` (TAPF, heuristic): Hungarian target assignment by distance, then a
+        MAPF solver.
+        - mapf_solver: solver name (default cbs) -- MAPF solver for the assigned goals
+        - mapf_options: options of the mapf_solver solver or none (default none) --
+          options of that solver
+    ``lacam`` (MAPF, heuristic): LaCAM*: complete, anytime (search + LNS refinement),
+        optimal given time.
+        - anytime: number >= 0 or none (default none) -- seconds of improvement after
+          the first plan (none: until the time limit, so lacam runs the whole
+          --time-limit unless it proves the optimum; 0: return the first plan, --set
+          anytime=0)
+        - refine: true/false (default true) -- interleave LNS refinement with the search
+        - guide: true/false (default true) -- guide paths (space utilisation) in the
+          anytime phase
+        - swap: true/false (default true) -- PIBT's swap technique (undirected graphs)
+        - mc: integer >= 1 (default 1) -- PIBT runs per successor in the anytime search
+          (Monte-Carlo)
+    ``mip`` (MAPF/TAPF, optimal): Time-expanded network MIP (Pyomo + HiGHS).
+        - lp_check: true/false (default true) -- reject a horizon when its LP relaxation
+          is infeasible
+        - max_horizon: integer >= 1 or none (default none) -- largest horizon tried
+          (none: a safe cap)
+    ``pibt`` (MAPF, heuristic): PIBT: one-step priority inheritance with backtracking
+        (fast, incomplete).
+        - max_steps: integer >= 1 or none (default none) -- give up after this many
+          steps (none: 10 |V| + 1000)
+        - swap: true/false (default true) -- PIBT's swap technique (undirected graphs)
+
     Example
     -------
     >>> from hierplan_opt.core.graph import Graph

@@ -146,7 +146,14 @@ def test_validate_reports_violations(capsys: pytest.CaptureFixture[str]) -> None
     code, out, _ = run(capsys, "validate", CORRIDOR, str(DATA / "corridor_plan_conflict.yaml"))
     assert code == 1
     lines = out.splitlines()
-    assert len(lines) == 2
+    assert len(lines) == 1  # the first violation and the count of the others
+    assert "vertex_conflict: agent0 and agent1 are both at [2, 0] at t=2" in lines[0]
+    assert lines[0].endswith("(and 1 further problem: 1 vertex_conflict)")
+    code, out, _ = run(
+        capsys, "validate", CORRIDOR, str(DATA / "corridor_plan_conflict.yaml"), "--all"
+    )
+    lines = out.splitlines()
+    assert code == 1 and len(lines) == 2
     assert "vertex_conflict: agent0 and agent1 are both at [2, 0] at t=2" in lines[0]
 
 

@@ -480,3 +480,53 @@ def test_output_files(tmp_path) -> None:
     assert npz["pos"].shape == (2, len(npz["t"]), 2)
     with pytest.raises(hp.InputError, match="must end in .csv or .npz"):
         write_trajectories(tr, tmp_path / "t.txt")
+
+
+# ---------------------------------------------------------------- issue 34
+def test_a_pair_exactly_at_its_distance_verifies() -> None:
+    # Two robots of radius 0.5 one cell apart: the sampled bound subtracted
+    # (a_i + a_j) dt^2 / 8 and read 0.9999 for the 1 m they keep exactly
+    import hierplan_opt as hp
+    from hierplan_opt.core.instance import Kinematics
+    from hierplan_opt.schedule import postprocess
+    from hierplan_opt.trajectory import refine
+    from hierplan_opt.trajectory.verify import verify
+
+    kin = Kinematics(v_max=1.0, a_max=1.0, radius=0.5)
+    inst = hp.Instance.mapf(hp.Graph.grid(5, 1), [(0, 0), (1, 0)], [(3, 0), (4, 0)],
+                            kinematics=kin)  # fmt: skip
+    res = hp.solve(inst, "cbs")
+    assert res.plan is not None
+    sched = postprocess(inst, res.plan)
+    for solver in ("ipopt", "profile", "profile+qp"):
+        rep = verify(refine(inst, sched, stretch="auto", solver=solver), inst)
+        assert rep.ok, (solver, rep.problems)
+        assert abs(rep.min_distance - 1.0) < 1e-9
+
+
+def test_exact_check_still_catches_a_pair_too_close() -> None:
+    from hierplan_opt.trajectory.result import RobotTrajectory
+    from hierplan_opt.trajectory.verify import _exact_min_distance
+
+    z = np.zeros((2, 2))
+    still = RobotTrajectory("a", "double_integrator", np.array([0.0, 2.0]), z, z,
+                            np.zeros((1, 2)), np.zeros(2), np.zeros(2), np.zeros(1),
+                            np.zeros(1), {})  # fmt: skip
+    # passes 0.69 m from the other, between two samples of any grid
+    mover = RobotTrajectory("b", "double_integrator", np.array([0.0, 2.0]),
+                            np.array([[-1.0, 0.69], [1.0, 0.69]]),
+                            np.array([[1.0, 0.0], [1.0, 0.0]]), np.zeros((1, 2)),
+                            np.zeros(2), np.zeros(2), np.zeros(1), np.zeros(1), {})  # fmt: skip
+    d, t = _exact_min_distance(still, mover, 0.0, 2.0)
+    assert abs(d - 0.69) < 1e-12 and abs(t - 1.0) < 1e-12
+
+
+def test_passage_time_with_round_off_acceleration() -> None:
+    # a = -1.5e-12 (a profile's round-off): (disc - v) / a lost 3e-5 s to cancellation
+    import importlib
+
+    R = importlib.import_module("hierplan_opt.trajectory.refine")
+    v, a = 0.38777744, -1.52688837e-12
+    t = R.passage_times(np.array([0.0, 0.5]), np.array([v, v]), np.array([0.0, 0.5 / v]),
+                        np.array([a]), np.array([0.3]))  # fmt: skip
+    assert abs(float(t[0]) - 0.3 / v) < 1e-9  # was off by 2.6e-5 s

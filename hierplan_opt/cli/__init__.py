@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import logging
 import sys
 from collections.abc import Sequence
 
@@ -23,6 +22,7 @@ from hierplan_opt.cli.common import (
     INTERNAL,
     LIMIT,
     apply_limits,
+    configure_logging,
     memory_guard,
     one_line_errors,
 )
@@ -81,8 +81,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     word = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(word if word in COMMANDS else None)
     args = parser.parse_args(argv)
-    level = logging.DEBUG if args.verbose else logging.WARNING if args.quiet else logging.INFO
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
+    configure_logging(verbose=args.verbose, quiet=args.quiet)
     from hierplan_opt.io.files import limits, set_limits
 
     try:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -29,6 +30,29 @@ LIMIT = 4
 #: An execution (``simulate``/``run``) left a working robot away from its goal.
 NOT_ARRIVED = 5
 INTERNAL = 70  # EX_SOFTWARE: a bug in hierplan, never a user error
+
+
+#: Loggers whose INFO lines narrate a solve (periodic node counts, a first plan, each
+#: horizon): ``--progress`` shows the same as one status line, so without ``-v`` the
+#: command line shows only their warnings (issue 34: INFO lines on every ecbs solve,
+#: progress lines twice).
+SOLVER_LOGGERS = ("hierplan_opt.search", "hierplan_opt.formulations", "hierplan_opt.registry")
+
+
+def configure_logging(*, verbose: bool = False, quiet: bool = False) -> None:
+    """The command line's logging: INFO (``-v``: DEBUG, ``-q``: WARNING) on stderr, the
+    solvers' narration (:data:`SOLVER_LOGGERS`) at WARNING unless ``-v``.
+
+    Example
+    -------
+    >>> "hierplan_opt.search" in SOLVER_LOGGERS  # lacam's "first plan after ..." is INFO
+    True
+    """
+    level = logging.DEBUG if verbose else logging.WARNING if quiet else logging.INFO
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", force=True)
+    logging.getLogger("hierplan_opt").setLevel(logging.NOTSET)  # a level left by a bench
+    for name in SOLVER_LOGGERS:
+        logging.getLogger(name).setLevel(logging.NOTSET if verbose else logging.WARNING)
 
 
 def add_instance_arguments(p: argparse.ArgumentParser, *, optional: bool = False) -> None:
@@ -173,7 +197,9 @@ def add_progress_arguments(p: argparse.ArgumentParser) -> None:
 
 @contextlib.contextmanager
 def progress_of(args: argparse.Namespace, description: str) -> Iterator[None]:
-    """The command's work, with progress shown when ``--progress`` asks (not with -q).
+    """The command's work, with progress shown when ``--progress`` asks (not with -q):
+    a status line at least every ``--progress-interval`` seconds, also through silent
+    phases (a model being built).
 
     Example
     -------
@@ -181,12 +207,13 @@ def progress_of(args: argparse.Namespace, description: str) -> Iterator[None]:
     >>> with progress_of(args, "solve cbs"):
     ...     pass
     """
-    from hierplan_opt.core.progress import Progress, reporting
+    from hierplan_opt.core.progress import Progress, heartbeat, reporting
 
     show = getattr(args, "progress", False) and not getattr(args, "quiet", False)
     interval = getattr(args, "progress_interval", 10.0)
     progress = Progress(description, interval=interval) if show else None
-    with reporting(progress):
+    # the heartbeat: a status line every interval even while the work reports nothing
+    with reporting(progress), heartbeat(progress):
         yield
 
 

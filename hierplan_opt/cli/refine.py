@@ -24,17 +24,19 @@ HELP = "refine a MAPF-POST schedule into velocity- and acceleration-limited traj
 PLOT_FORMATS = (".png", ".pdf", ".svg")
 
 
-def _stretch(text: str) -> float | str:
+def _stretch(text: str) -> float | str | None:
     if text == "auto":
         return text
+    if text == "none":
+        return None
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected 'auto' or a number >= 1, got {text!r}"
+            f"expected 'auto', 'none' or a number >= 1, got {text!r}"
         ) from None
     if not math.isfinite(value) or value < 1:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or a number >= 1, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected 'auto', 'none' or a number >= 1, got {text!r}")
     return value
 
 
@@ -66,15 +68,17 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--solver",
         choices=("auto", "ipopt", "fatrop", "profile", "profile+qp"),
         default="auto",
-        help="NLP solver (auto: IPOPT), or profile: path mode without an NLP (fast), "
-        "profile+qp: the profile smoothed by a QP",
+        help="auto (default): by size, IPOPT up to 32 robots (and in corridor mode), "
+        "profile+qp beyond (the summary line names it); ipopt/fatrop: the NLP; "
+        "profile: path mode without an NLP (fast); profile+qp: the profile smoothed by a QP",
     )
     p.add_argument(
         "--stretch",
         type=_stretch,
-        default=None,
-        help="slow the schedule down by this factor, or 'auto' for the smallest that works "
-        "(default: report an infeasible robot and that factor)",
+        default="auto",
+        help="auto (default): slow the schedule down by a factor that makes every robot "
+        "feasible (1 when it already is; the summary line gives it); a number: by that "
+        "factor; none: do not stretch, report an infeasible robot and the factor (exit 3)",
     )
     p.add_argument("--a-max", type=positive_float, help="acceleration limit for robots without one")
     p.add_argument("--alpha-max", type=positive_float, help="turn acceleration limit of unicycles")
@@ -90,8 +94,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--no-verify", action="store_true", help="skip the independent verification")
     p.epilog = (
-        "exit codes: 0 refined and verified, 1 verification failed, 2 bad input, "
-        "3 the robots' limits cannot meet the windows (the message gives the stretch factor)"
+        "exit codes: 0 refined and verified (and written), 1 verification failed (nothing "
+        "written), 2 bad input, 3 the robots' limits cannot meet the windows with "
+        "--stretch none or a number (the message gives the factor that works)"
     )
 
 
@@ -141,24 +146,33 @@ def run(args: argparse.Namespace) -> int:
     except InfeasibleWindowsError as exc:
         print(f"hierplan refine: infeasible: {exc}", file=sys.stderr)
         return INFEASIBLE
+    st = traj.stats
+    solvers = sorted({r.stats.get("solver") or "-" for r in traj.robots} - {"-"})
+    used = "/".join(solvers) or "no solver"
+    if st.get("solver_asked") == "auto":
+        picked = st.get("solver", used)
+        used = f"solver auto: {picked} for {traj.num_agents} robots" + (
+            "" if used == picked else f", ran {used}"
+        )
+    line = (
+        f"refined {traj.num_agents} robots ({traj.mode} mode, {used}): "
+        f"makespan {traj.makespan:.6g} s, stretch {traj.stretch:.4g}, clearance "
+        f"{_clearance(traj)}, {st['total_time']:.2f} s"
+    )
+    if not args.no_verify:
+        # Verified before anything is written: a result that fails its own check is not
+        # written (issue 34); --no-verify writes without the check, and says so.
+        from hierplan_opt.trajectory.verify import verify
+
+        rep = verify(traj, instance, dt=args.verify_dt)
+        if not rep.ok:
+            print(f"{line}, not written; {rep.message()}")
+            return PLAN_INVALID
     write_trajectories(traj, args.out, dt=args.dt)
     if args.plot:
         from hierplan_opt.trajectory.plot import plot_trajectories
 
         plot_trajectories(traj, args.plot)
-    st = traj.stats
-    solvers = sorted({r.stats.get("solver") or "-" for r in traj.robots} - {"-"})
-    line = (
-        f"refined {traj.num_agents} robots ({traj.mode} mode, {'/'.join(solvers) or 'no solver'}): "
-        f"makespan {traj.makespan:.6g} s, stretch {traj.stretch:.4g}, clearance "
-        f"{_clearance(traj)}, {st['total_time']:.2f} s -> {args.out}"
-    )
-    code = OK
-    if not args.no_verify:
-        from hierplan_opt.trajectory.verify import verify
-
-        rep = verify(traj, instance, dt=args.verify_dt)
-        line += f"; {rep.message()}"
-        code = OK if rep.ok else PLAN_INVALID
-    print(line)
-    return code
+    tail = "not verified (--no-verify)" if args.no_verify else rep.message()
+    print(f"{line} -> {args.out}; {tail}")
+    return OK

@@ -103,11 +103,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def solver_help(name: str) -> list[str]:
-    """The ``--help`` lines listing solver ``name``'s options.
+    """The ``--help`` lines describing solver ``name`` and listing its options.
 
     Example
     -------
-    >>> solver_help("ecbs")[1]
+    >>> solver_help("ecbs")[2]
     '  w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w * optimum'
     """
     from hierplan_opt import registry
@@ -117,7 +117,8 @@ def solver_help(name: str) -> list[str]:
     except UnknownSolverError as exc:
         return [str(exc)]
     head = f"options of solver {name!r} (--set KEY=VALUE; other solvers: --solver NAME --help):"
-    return [head] + [f"  {o.describe()}" for o in spec] + ([] if len(spec) else ["  none"])
+    what = f"solver {name!r}: {registry.get(name).description}"
+    return [what, head] + [f"  {o.describe()}" for o in spec] + ([] if len(spec) else ["  none"])
 
 
 def summary(result: Any, instance: Any) -> str:

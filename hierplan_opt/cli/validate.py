@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from collections import Counter
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from hierplan_opt.cli.common import (
     OK,
@@ -12,6 +15,9 @@ from hierplan_opt.cli.common import (
     load_instance_from_args,
     tracker_y_note,
 )
+
+if TYPE_CHECKING:
+    from hierplan_opt.core.validate import Violation
 
 HELP = (
     "check a plan or schedule file against an instance (prints 'valid' with costs, or the "
@@ -29,6 +35,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "plan, its times against every bound, and its continuous-time replay)",
     )
     add_tracker_y_arguments(p)
+    p.add_argument(
+        "--all",
+        action="store_true",
+        help="list every violation, one a line (default: the first and how many more)",
+    )
     p.add_argument(
         "--disappear-at-goal",
         action="store_true",
@@ -80,10 +91,10 @@ def run(args: argparse.Namespace) -> int:
     from hierplan_opt.search.libmrp import annotated_violations, checked_form
 
     checked, as_plan = checked_form(instance, plan, disappear=args.disappear_at_goal)
-    violations: list[object] = [*validate(checked, as_plan), *annotated_violations(checked, plan)]
+    violations: list[Violation | str] = [*validate(checked, as_plan), *annotated_violations(checked, plan)]
     if violations:
-        for v in violations:
-            print(f"{args.plan}: {v}")
+        for line in [str(v) for v in violations] if args.all else [problems_line(violations)]:
+            print(f"{args.plan}: {line}")
         return PLAN_INVALID
     print(
         f"valid: soc={plan.sum_of_costs} makespan={plan.makespan} "
@@ -91,3 +102,25 @@ def run(args: argparse.Namespace) -> int:
         f"makespan>={instance.makespan_lower_bound()})" + tracker_y_note(stats)
     )
     return OK
+
+
+def problems_line(violations: Sequence[Violation | str]) -> str:
+    """The first violation and how many further ones there are, by kind: one line
+    however many (a plan of another instance has one or two per agent).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.validate import Violation
+    >>> v = [Violation(k, (i,), None, None, f"agent{i} ...") for i, k in
+    ...      enumerate(["wrong_start", "wrong_start", "wrong_goal", "wrong_start"])]
+    >>> problems_line(v)
+    'wrong_start: agent0 ... (and 3 further problems: 2 wrong_start, 1 wrong_goal)'
+    >>> problems_line(v[:1])
+    'wrong_start: agent0 ...'
+    """
+    first, rest = violations[0], violations[1:]
+    if not rest:
+        return str(first)
+    kinds = ", ".join(f"{n} {k}" for k, n in Counter(getattr(v, "kind", "annotated_conflict") for v in rest).most_common())
+    word = "problem" if len(rest) == 1 else "problems"
+    return f"{first} (and {len(rest)} further {word}: {kinds})"

@@ -72,7 +72,5 @@ def run(args: argparse.Namespace) -> int:
             time_limit=args.time_limit,
         )
         note(verdict=str(res.outcome))
-    print(res.message())
-    for v in res.violations[1:]:
-        print(f"  {v}")
+    print(res.message())  # one line: the first violation and the count of the others
     return EXIT_CODES[res.outcome]

@@ -261,7 +261,12 @@ class Graph:
 
     @classmethod
     def from_networkx(cls, g: Any, *, pos: str = "pos", length: str = "length") -> Graph:
-        """A roadmap from a ``networkx`` (Di)Graph; nodes need a ``pos`` attribute.
+        """A roadmap from a ``networkx`` (Di)Graph.
+
+        A node's coordinates are its ``pos`` attribute or, without one, the node itself
+        when it is a tuple of 2 or 3 numbers (``nx.grid_2d_graph``'s ``(i, j)``); the
+        vertex is named ``str(node)``, so ``vertex((i, j))`` finds it. Edge lengths come
+        from the ``length`` attribute, else the Euclidean distance.
 
         Example
         -------
@@ -270,12 +275,21 @@ class Graph:
         >>> nx.set_node_attributes(G, {0: (0, 0), 1: (1, 0), 2: (2, 0)}, "pos")
         >>> Graph.from_networkx(G).num_edges
         2
+        >>> grid = Graph.from_networkx(nx.grid_2d_graph(6, 6))
+        >>> grid.num_vertices, grid.num_edges, grid.dist(grid.vertex((0, 0)), grid.vertex((5, 5)))
+        (36, 60, 10)
         """
         vertices: dict[str, Sequence[float]] = {}
         for node, data in g.nodes(data=True):
-            if pos not in data:
-                raise InputError(f"networkx node {node!r} has no {pos!r} attribute")
-            vertices[str(node)] = data[pos]
+            if pos in data:
+                vertices[str(node)] = data[pos]
+            elif _is_point(node):
+                vertices[str(node)] = node
+            else:
+                raise InputError(
+                    f"networkx node {node!r} has no {pos!r} attribute and is not a tuple of "
+                    "2 or 3 coordinates"
+                )
         edges: list[tuple[str, ...] | tuple[str, str, float]] = []
         for u, v, data in g.edges(data=True):
             edges.append((str(u), str(v), data[length]) if length in data else (str(u), str(v)))
@@ -713,3 +727,15 @@ def _csr(n: int, src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarr
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.add.at(indptr, src + 1, 1)
     return np.cumsum(indptr), dst
+
+
+def _is_point(node: object) -> bool:
+    """Whether a networkx node is itself a coordinate tuple: 2 or 3 real numbers."""
+    return (
+        isinstance(node, tuple)
+        and len(node) in (2, 3)  # pyright: ignore[reportUnknownArgumentType]
+        and all(
+            isinstance(x, _NUMBER) and not isinstance(x, bool)
+            for x in node  # pyright: ignore[reportUnknownVariableType]
+        )
+    )

@@ -5,6 +5,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+#: Plans of at most this many path entries print in full.
+_FULL_REPR = 40
+
 
 @dataclass(frozen=True)
 class Plan:
@@ -22,6 +25,20 @@ class Plan:
     """
 
     paths: tuple[tuple[int, ...], ...]
+
+    def __repr__(self) -> str:
+        """The paths in full for small plans; agents and horizon for the others.
+
+        Example
+        -------
+        >>> Plan.from_paths([[0, 1], [5]])
+        Plan(paths=((0, 1), (5,)))
+        >>> Plan.from_paths([[0] * 30] * 1000)
+        Plan(<1000 paths>, horizon=29)
+        """
+        if sum(map(len, self.paths)) <= _FULL_REPR:
+            return f"Plan(paths={self.paths!r})"
+        return f"Plan(<{self.num_agents} paths>, horizon={self.horizon})"
 
     @classmethod
     def from_paths(cls, paths: Sequence[Sequence[int]]) -> Plan:

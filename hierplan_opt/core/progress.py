@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import math
 import sys
+import threading
 import time
 from collections.abc import Generator
 from contextlib import contextmanager
@@ -114,6 +115,7 @@ class Progress:
         self._last_line = self._start
         self._bar: Any = None
         self._task: Any = None
+        self._unshown = True  # an update (or the start) no status line has shown yet
 
     # ------------------------------------------------------------------ context
     def __enter__(self) -> Progress:
@@ -137,7 +139,8 @@ class Progress:
             self._bar.stop()
             self._bar = None
         elif self.mode == "lines":
-            log.info("%s", self.status_line())
+            if self._unshown:  # the last periodic line may already say it all
+                log.info("%s", self.status_line())
             self.mode = "off"  # one final line only
 
     # ------------------------------------------------------------------ updates
@@ -154,12 +157,25 @@ class Progress:
         if total is not None:
             self.total = total
         self.fields.update(fields)
+        self._unshown = True
         if self._bar is not None:
             self._refresh_bar()
         elif self.mode == "lines":
             now = time.perf_counter()
             if now - self._last_line >= self.interval:
                 self._last_line = now
+                self._unshown = False
+                log.info("%s", self.status_line())
+
+    def beat(self) -> None:
+        """A status line when none was shown for ``interval`` seconds, whether or not
+        anything changed: the heartbeat of silent work (a model being built), called
+        from another thread (:func:`heartbeat`). A bar keeps its own elapsed time."""
+        if self.mode == "lines":
+            now = time.perf_counter()
+            if now - self._last_line >= self.interval:
+                self._last_line = now
+                self._unshown = False
                 log.info("%s", self.status_line())
 
     # ------------------------------------------------------------------ figures
@@ -176,7 +192,8 @@ class Progress:
         return self.elapsed / self.completed * max(0, self.total - self.completed)
 
     def _figures(self) -> str:
-        return ", ".join(f"{k} {_figure(v)}" for k, v in self.fields.items())
+        # a copy: the heartbeat thread may read while the work thread updates
+        return ", ".join(f"{k} {_figure(v)}" for k, v in list(self.fields.items()))
 
     def status_line(self) -> str:
         """``"sweep: 12/40 runs, solved 9, 0:31 elapsed, ETA 1:40"``."""
@@ -258,6 +275,35 @@ def reporting(progress: Progress | None) -> Generator[Progress | None]:
             yield progress
     finally:
         _ACTIVE.reset(token)
+
+
+@contextmanager
+def heartbeat(progress: Progress | None) -> Generator[None]:
+    """Call ``progress.beat()`` from a background thread every ``interval`` seconds
+    inside the block, so that status lines keep coming while the work reports nothing
+    (``hierplan verify --progress`` building a time-expanded model for seconds).
+
+    Example
+    -------
+    >>> with reporting(Progress("demo", enabled=False, interval=0.01)) as p, heartbeat(p):
+    ...     time.sleep(0.05)
+    """
+    if progress is None:
+        yield
+        return
+    stop = threading.Event()
+
+    def loop() -> None:
+        while not stop.wait(max(progress.interval, 0.01)):
+            progress.beat()
+
+    thread = threading.Thread(target=loop, name="hierplan-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
 
 
 def active() -> Progress | None:

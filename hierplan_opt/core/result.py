@@ -7,6 +7,7 @@ from enum import StrEnum
 from typing import Any
 
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.reprs import short_repr
 
 
 class Status(StrEnum):
@@ -46,6 +47,8 @@ class Result:
     >>> Result(Status.FEASIBLE, None, cost=110, lower_bound=100).gap
     0.09090909090909091
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     status: Status
     plan: Plan | None

@@ -35,6 +35,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
@@ -53,6 +54,8 @@ class Waypoints:
     ``latest`` bound the arrival in any schedule of the STN that finishes by this
     schedule's makespan; ``slack = latest - arrival`` is the delay the way-point absorbs.
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     coords: np.ndarray
     theta: np.ndarray
@@ -113,6 +116,8 @@ class Schedule:
     plan_rows : dict or None
         The plan as its file carries it (:func:`~hierplan_opt.schedule.files.plan_tree`).
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     agent_names: tuple[str, ...]
     waypoints: tuple[Waypoints, ...]

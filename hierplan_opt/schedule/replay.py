@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.stn import STN
 
@@ -165,6 +166,8 @@ class ReplayReport:
     Skipped pairs stay at least ``skipped_bound`` apart (their required distance plus
     ``watch``).
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     min_distance: float
     agents: tuple[str, str] | None

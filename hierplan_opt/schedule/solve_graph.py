@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.dag import TopoOrder, topo_order
 from hierplan_opt.schedule.stn import STN
 
@@ -65,6 +66,8 @@ class InconsistentSTNError(InputError):
 @dataclass(frozen=True, eq=False)
 class GraphSolution:
     """Earliest and latest node times, slack, makespan and a critical path."""
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     earliest: np.ndarray
     latest: np.ndarray

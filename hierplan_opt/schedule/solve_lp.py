@@ -43,6 +43,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import HierplanError, OptionError
 from hierplan_opt.core.progress import watching_highs
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.stn import PIECE, STN
 
 log = logging.getLogger(__name__)
@@ -62,6 +63,8 @@ class LPError(HierplanError):
 @dataclass(frozen=True, eq=False)
 class LPSolution:
     """Node times and objective values of an LP schedule."""
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     times: np.ndarray
     makespan: float

@@ -43,6 +43,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.clearance import finite_nonnegative
 from hierplan_opt.schedule.dag import TopoOrder, csr, topo_order
 from hierplan_opt.schedule.tpg import TPG, TYPE1, TYPE2, VERTEX, WAIT
@@ -124,6 +125,8 @@ class STN:
     arcs at a node (for incremental re-solving, :func:`~hierplan_opt.schedule.
     solve_graph.fix_and_propagate`).
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     tpg: TPG
     arc_src: np.ndarray

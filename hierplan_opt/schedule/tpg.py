@@ -43,6 +43,7 @@ import numpy as np
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.clearance import (
     ClearanceError,
     Requirement,
@@ -108,6 +109,8 @@ class TPG:
         ``none`` (point robots or ``clearance=False``), ``tight`` or ``general``
         (see :mod:`hierplan_opt.schedule.clearance`).
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     agent_ptr: np.ndarray
     node_agent: np.ndarray

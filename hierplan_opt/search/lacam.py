@@ -478,7 +478,9 @@ class _LaCAM:
     Option(
         "anytime",
         "float",
-        "seconds of improvement after the first plan (none: until the time limit)",
+        "seconds of improvement after the first plan (none: until the time limit, so "
+        "lacam runs the whole --time-limit unless it proves the optimum; 0: return the "
+        "first plan, --set anytime=0)",
         low=0,
         optional=True,
     ),

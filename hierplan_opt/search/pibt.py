@@ -32,6 +32,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from hierplan_opt import registry
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.instance import Instance
@@ -442,7 +443,10 @@ def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, i
     try:
         space = Space(instance, deadline, seed)
     except Expired:
-        return Result(Status.TIME_LIMIT, None, stats={"reason": "time limit while preparing"})
+        lb = registry.quick_lower_bound(instance)  # from the distance tables made so far
+        return Result(
+            Status.TIME_LIMIT, None, lower_bound=lb, stats={"reason": "time limit while preparing"}
+        )
     lb = space.lower_bound()
     why = space.infeasibility(instance)
     if why is not None:

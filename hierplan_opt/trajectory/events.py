@@ -27,6 +27,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.reprs import short_repr
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +73,8 @@ class EventNetwork:
         Whether the schedule's precedences keep ``r_i + r_j + margin`` (False for a
         schedule built with ``clearance=False``).
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     agent_names: tuple[str, ...]
     agent_ptr: np.ndarray

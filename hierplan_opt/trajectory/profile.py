@@ -45,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.trajectory.refine import PathProblem, RobotPath
 
 #: Tolerance of the speed intervals (m/s).
@@ -203,6 +204,8 @@ def _best_start(
 @dataclass(frozen=True, eq=False)
 class Profile:
     """A robot's solution ``(X, U)`` on its own grid ``pp``, or the knot it failed at."""
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     ok: bool
     X: np.ndarray | None

@@ -51,6 +51,28 @@ MODES = ("path", "corridor")
 AUTO_SOLVERS: tuple[str, ...] = ("ipopt",)
 #: Path-mode solvers without an NLP: the profile, and the profile polished by a QP.
 PROFILE_SOLVERS = ("profile", "profile+qp")
+#: ``solver="auto"`` in path mode: IPOPT up to this many robots, ``profile+qp`` beyond.
+#: IPOPT took 2.0 s on the 32-robot formation, 19-30 s on 50 warehouse robots (bench
+#: trajectory's ECBS plan, r 0.3 m) and 101 s on 200 (README), where profile+qp took
+#: 0.7-1.9 s, 6.7-7.4 s and 9.4-9.6 s: single runs on the shared 2-core machine, not
+#: under its CPU lock (issue 34). Corridor mode always needs the NLP.
+AUTO_NLP_ROBOTS = 32
+
+
+def auto_solver(mode: str, num_robots: int) -> str:
+    """What ``solver="auto"`` runs: IPOPT for few robots (or in corridor mode, which
+    needs the NLP), ``profile+qp`` for a fleet (:data:`AUTO_NLP_ROBOTS`).
+
+    Example
+    -------
+    >>> auto_solver("path", 12), auto_solver("path", 200), auto_solver("corridor", 200)
+    ('ipopt', 'profile+qp', 'ipopt')
+    """
+    if mode == "path" and num_robots > AUTO_NLP_ROBOTS:
+        return "profile+qp"
+    return AUTO_SOLVERS[0]
+
+
 #: Largest stretch factor tried before giving up.
 MAX_STRETCH = 256.0
 #: Relative precision of the stretch factor.
@@ -595,8 +617,11 @@ def passage_times(
     d = targets[inner] - s[k]
     vk, ak = v[k], a[k]
     disc = np.sqrt(np.maximum(vk * vk + 2.0 * ak * d, 0.0))
+    # The first root of d = v tau + a tau^2 / 2 as 2 d / (v + disc), equal to
+    # (disc - v) / a but without its cancellation: with |a| ~ 1e-12 (a profile's
+    # round-off) that form missed the passage by 3e-5 s, the way-point by 1e-5 m.
     with np.errstate(divide="ignore", invalid="ignore"):
-        tau = np.where(np.abs(ak) > 1e-12, (disc - vk) / ak, d / np.maximum(vk, 1e-300))
+        tau = 2.0 * d / (vk + disc)
         tau = np.where(np.isfinite(tau), tau, 0.0)
     out[inner] = t[k] + np.clip(tau, 0.0, t[k + 1] - t[k])
     return out
@@ -751,14 +776,19 @@ def refine(
         ``corridor``: corners cut within ``corridor`` metres (double integrator only),
         the guarantee drops by ``2 * corridor``.
     solver : {"auto", "ipopt", "fatrop", "profile", "profile+qp"}
-        ``auto``: :data:`AUTO_SOLVERS` (IPOPT with MUMPS). ``profile`` (path mode only,
+        ``auto``: by size (:func:`auto_solver`): IPOPT with MUMPS for up to
+        :data:`AUTO_NLP_ROBOTS` robots or in corridor mode, else ``profile+qp``; the
+        result's ``stats["solver"]`` says which ran. ``profile`` (path mode only,
         one process): no NLP; knots at the stretched schedule's times, delayed inside
         their windows where needed, speeds from a forward and a backward pass
-        (:mod:`hierplan_opt.trajectory.profile`); 20-30x faster, its stretch factor an
-        upper bound of the smallest. ``profile+qp``: the profile's motion, then per robot
-        a convex QP on its fixed time grid (CasADi ``conic`` with HPIPM) that minimises
-        the integral of ``|a|^2`` (:mod:`hierplan_opt.trajectory.polish`); knot times,
-        windows and stretch are the profile's.
+        (:mod:`hierplan_opt.trajectory.profile`); 20-30x faster. Its stretch factor,
+        like IPOPT's, is one that works (an upper bound of the smallest), neither is the
+        smallest in general, and either may be the smaller (the profile's on the
+        formation, IPOPT's on the warehouse: ``formulations/trajectory.md``).
+        ``profile+qp``: the profile's motion, then per robot a convex QP on its fixed
+        time grid (CasADi ``conic`` with HPIPM) that minimises the integral of ``|a|^2``
+        (:mod:`hierplan_opt.trajectory.polish`); knot times, windows and stretch are the
+        profile's.
     split : float
         Share of each precedence's slack given to the earlier event (:func:`decouple`).
     stretch : None, "auto" or float >= 1
@@ -814,7 +844,11 @@ def refine(
         raise InputError("the schedule's robots are not the instance's robots")
     if mode == "corridor" and corridor <= 0:
         raise OptionError("corridor mode needs a corridor half-width > 0")
-    solvers = AUTO_SOLVERS if solver == "auto" else (solver,)
+    asked = solver
+    if solver == "auto":
+        solver = auto_solver(mode, net.num_agents)
+        log.debug("refine: solver auto -> %s (%d robots, %s mode)", solver, net.num_agents, mode)
+    solvers = AUTO_SOLVERS if asked == "auto" and solver not in PROFILE_SOLVERS else (solver,)
     windows = decouple(net, split)
     if isinstance(stretch, (int, float)) and not isinstance(stretch, bool) and stretch > 1:
         windows = windows.stretched(float(stretch))
@@ -918,6 +952,8 @@ def refine(
         "solver_time_sum": sum(o["wall"] for o in solves),
         "iterations_sum": sum(o["iterations"] for o in solves),
         "ipopt_fallbacks": sum(1 for o in solves if o["solver"] != solvers[0]),
+        "solver": solver,  # what ran; "auto" resolved by auto_solver
+        "solver_asked": asked,
     }
     if solver == "profile+qp":
         stats["qp_fallbacks"] = sum(1 for o in solves if not o["qp_ok"])

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.reprs import short_repr
 
 #: Default sampling step of the output files (seconds).
 DEFAULT_DT = 0.1
@@ -60,6 +61,8 @@ class RobotTrajectory:
     stats : dict
         ``solver``, ``status``, ``iterations``, ``solve_time``, ``intervals``.
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     name: str
     model: str
@@ -153,6 +156,8 @@ class Trajectories:
     enforced : bool
         Whether the schedule guaranteed clearance (False for ``clearance=False``).
     """
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     robots: tuple[RobotTrajectory, ...]
     mode: str

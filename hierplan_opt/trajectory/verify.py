@@ -37,6 +37,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.trajectory.result import RobotTrajectory, Trajectories
 
 #: Default sampling step (seconds).
@@ -50,6 +51,8 @@ BLOCK = 256
 @dataclass(frozen=True)
 class VerifyReport:
     """What :func:`verify` found."""
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     ok: bool
     problems: tuple[str, ...]
@@ -145,11 +148,16 @@ def verify(
     for j, r in enumerate(traj.robots):
         lim = dict(r.limits)
         if instance is not None:
+            # The instance's limits where it gives them; the ones the trajectory was
+            # built for otherwise (``refine(..., a_max=1)`` on a MovingAI instance: before,
+            # the check skipped them and reported "accel 0.000 of the limits")
             k = instance.agents[j].kinematics
             lim["v_max"] = float(k.v_max)
-            lim["a_max"] = float(k.a_max) if k.a_max else math.inf
+            lim["a_max"] = float(k.a_max) if k.a_max else lim.get("a_max", math.inf)
             if r.model == "unicycle":
-                lim["omega_max"] = float(k.omega_max) if k.omega_max else math.inf
+                lim["omega_max"] = (
+                    float(k.omega_max) if k.omega_max else lim.get("omega_max", math.inf)
+                )
         vmax[j] = lim["v_max"]
         amax[j] = float(np.linalg.norm(r.a, axis=1).max(initial=0.0)) if len(r.a) else 0.0
         # After its last piece (and last event) a robot stands still: the samples from
@@ -268,12 +276,24 @@ def verify(
         s = np.clip(-(r0 * dr).sum(axis=2) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
         closest = np.linalg.norm(r0 + dr * s[..., None], axis=2)
         lower = np.maximum(closest - (amax[ii] + amax[jj])[None, :] * dt * dt / 8.0, 0.0)
+        margin = lower - need[ii, jj][None, :]
+        # The sampled bound is conservative by up to (a_i + a_j) dt^2 / 8: a pair that
+        # keeps exactly its distance (0.7 m, two robots waiting side by side) read
+        # 0.6999. Where it falls short, the exact minimum of the piecewise-quadratic
+        # motions over the block decides (issue 34).
+        t0b, t1b = float(ts[b0]), float(ts[b1 - 1])
+        for q in np.flatnonzero(margin.min(axis=0) < -tol).tolist():
+            a, c = int(ii[q]), int(jj[q])
+            d_exact, t_exact = _exact_min_distance(traj.robots[a], traj.robots[c], t0b, t1b)
+            column = np.full(lower.shape[0], np.inf)
+            column[int(np.argmin(np.abs(ts[b0 : b0 + len(column)] - t_exact)))] = d_exact
+            lower[:, q] = column
+            margin[:, q] = column - need[a, c]
         k = np.unravel_index(int(np.argmin(lower)), lower.shape)
         val = float(lower[k])
         if val < best[0]:
             a, c = int(ii[k[1]]), int(jj[k[1]])
             best = (val, (traj.robots[a].name, traj.robots[c].name), float(ts[b0 + k[0]]))
-        margin = lower - need[ii, jj][None, :]
         k = np.unravel_index(int(np.argmin(margin)), margin.shape)
         val = float(margin[k])
         if val < worst[0]:
@@ -343,6 +363,60 @@ def _rest_time(r: RobotTrajectory) -> float:
     if len(r.event_times):
         last = max(last, float(np.max(r.event_times)))
     return last
+
+
+def _exact_min_distance(
+    ra: RobotTrajectory, rb: RobotTrajectory, t0: float, t1: float
+) -> tuple[float, float]:
+    """The smallest distance between ``ra`` and ``rb`` over ``[t0, t1]`` and when:
+    exact for the piecewise-quadratic motions (on each interval between their grid
+    nodes the squared distance is a quartic; its minimum is at an end or a root of its
+    derivative).
+
+    Example
+    -------
+    >>> z = np.zeros((2, 2))
+    >>> still = RobotTrajectory("a", "double_integrator", np.array([0.0, 2.0]),
+    ...     np.array([[0.0, 0.0], [0.0, 0.0]]), z, np.zeros((1, 2)), np.zeros(2),
+    ...     np.zeros(2), np.zeros(1), np.zeros(1), {})
+    >>> mover = RobotTrajectory("b", "double_integrator", np.array([0.0, 2.0]),
+    ...     np.array([[-1.0, 0.7], [1.0, 0.7]]), np.array([[1.0, 0.0], [1.0, 0.0]]),
+    ...     np.zeros((1, 2)), np.zeros(2), np.zeros(2), np.zeros(1), np.zeros(1), {})
+    >>> d, t = _exact_min_distance(still, mover, 0.0, 2.0)
+    >>> round(d, 12), round(t, 12)
+    (0.7, 1.0)
+    """
+    knots = np.concatenate([ra.t, rb.t, [t0, t1]])
+    knots = np.unique(knots[(knots >= t0) & (knots <= t1)])
+    best = (math.inf, t0)
+    for lo, hi in zip(knots[:-1], knots[1:], strict=True):
+        length = float(hi - lo)
+        mid = np.array([0.5 * (lo + hi)])
+        sa, sb = ra.state(np.array([lo])), rb.state(np.array([lo]))
+        c0 = sa["p"][0] - sb["p"][0]
+        c1 = sa["v"][0] - sb["v"][0]
+        c2 = 0.5 * (ra.state(mid)["a"][0] - rb.state(mid)["a"][0])
+        # d/dtau |c0 + c1 tau + c2 tau^2|^2 / 2: a cubic in tau
+        cubic = [
+            2.0 * float(c2 @ c2),
+            3.0 * float(c1 @ c2),
+            float(c1 @ c1) + 2.0 * float(c0 @ c2),
+            float(c0 @ c1),
+        ]
+        taus = [0.0, length]
+        if any(abs(x) > 0 for x in cubic):
+            roots = np.roots(np.trim_zeros(np.array(cubic), "f"))
+            taus += [float(r.real) for r in roots if abs(r.imag) < 1e-9 and 0 < r.real < length]
+        for tau in taus:
+            d = float(np.linalg.norm(c0 + c1 * tau + c2 * tau * tau))
+            if d < best[0]:
+                best = (d, float(lo) + tau)
+    if len(knots) < 2:
+        d = float(
+            np.linalg.norm(ra.state(np.array([t0]))["p"][0] - rb.state(np.array([t0]))["p"][0])
+        )
+        best = (d, t0)
+    return best
 
 
 def _point_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

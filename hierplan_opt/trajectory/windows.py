@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.trajectory.events import EventNetwork
 
 #: Tolerance (seconds) of :func:`violations`.
@@ -44,6 +45,8 @@ TOL = 1e-9
 @dataclass(frozen=True, eq=False)
 class Windows:
     """Per-event windows ``[lo, hi]`` (seconds) of an :class:`EventNetwork`."""
+
+    __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
 
     network: EventNetwork
     lo: np.ndarray
