@@ -70,6 +70,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dot", metavar="FILE", help="also write the STN as Graphviz DOT")
     p.add_argument("--gantt", metavar="FILE", help="also write a Gantt chart (PNG)")
     p.add_argument(
+        "--gantt-rows",
+        type=int,
+        default=60,
+        metavar="N",
+        help="Gantt rows (60): more robots share rows, and the chart says so",
+    )
+    p.add_argument(
+        "--gantt-agents",
+        metavar="FIRST:STOP",
+        help="Gantt chart of robots FIRST..STOP-1 only (the chart says which)",
+    )
+    p.add_argument(
         "--check",
         action="store_true",
         help="replay the schedule and check the minimum distance and every STN bound",
@@ -122,7 +134,13 @@ def run(args: argparse.Namespace) -> int:
     if args.gantt:
         from hierplan_opt.viz.gantt import plot_gantt
 
-        plot_gantt(schedule, args.gantt)
+        rng = None
+        if args.gantt_agents:
+            a, sep, b = args.gantt_agents.partition(":")
+            if not (sep and a.isdigit() and b.isdigit()):
+                raise InputError(f"--gantt-agents expects FIRST:STOP, got {args.gantt_agents!r}")
+            rng = (int(a), int(b))
+        plot_gantt(schedule, args.gantt, rows=args.gantt_rows, agents=rng)
     st = schedule.stats
     line = (
         f"{schedule.objective} schedule ({method}): makespan {schedule.makespan:.6g} s, "

@@ -324,6 +324,32 @@ def scene_from_report(
     )
 
 
+def scene_from_execution(instance: Instance, ex: Any, title: str = "") -> Scene:
+    """An :class:`~hierplan_opt.execution.simulate.Execution` (its executed way-points and
+    events), like :func:`scene_from_report` without the file."""
+    names, radius, goals, team, team_names = _robots(instance)
+    keys = [np.asarray(tr, dtype=float) for tr in ex.trajectories]
+    st = ex.statistics
+    g = st.get("guaranteed_distance")
+    return _with_targets(
+        Scene(
+            title=title or f"{instance.name}: execution ({ex.policy}), {len(keys)} robots",
+            source="execution",
+            graph=instance.graph,
+            names=list(ex.agent_names) if len(ex.agent_names) == len(keys) else names,
+            radius=radius,
+            goals=goals,
+            team=team,
+            team_names=team_names,
+            keys=keys,
+            events=[e.as_dict() for e in ex.log],
+            guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
+            margin=float(ex.schedule.margin),
+        ),
+        instance,
+    )
+
+
 def scene_from_trajectories(
     instance: Instance, traj: Any, title: str = "", dt: float = 0.1
 ) -> Scene:
@@ -551,6 +577,7 @@ __all__ = [
     "read_lorr",
     "scene_from_lorr",
     "scene_from_plan",
+    "scene_from_execution",
     "scene_from_report",
     "scene_from_schedule",
     "scene_from_schedule_file",

@@ -1,0 +1,339 @@
+"""``hierplan view`` in a real browser: Debian's chromium, driven by Playwright.
+
+The module installs chromium with apt-get when it is missing (root and apt needed; no
+browser download). Every page is generated here, opened headless, and checked against
+the file it was made from, read independently of the viewer's own code: the positions
+the page drew (read back), and the pixels of a screenshot at those positions. Mutations
+(a robot's data moved, or the drawing code shifted) must make the same checks fail.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+import hierplan_opt as hp
+from hierplan_opt.cli import main
+from hierplan_opt.viz.browser import browser, chromium_executable, open_view
+from hierplan_opt.viz.html import render_html, write_view
+from hierplan_opt.viz.scene import scene_from_plan
+
+ROOT = Path(__file__).resolve().parent.parent
+WAREHOUSE = ROOT / "instances" / "paper" / "warehouse-part1.yaml"
+DISTURBANCES = ROOT / "instances" / "paper" / "warehouse-disturbances.yaml"
+
+
+@pytest.fixture(scope="module")
+def chrome() -> Any:
+    exe = chromium_executable(install=True)  # apt-get install -y chromium when missing
+    with browser(exe) as b:
+        yield b
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """A cbm plan of the warehouse, its schedule and an execution report (README's run)."""
+    d = tmp_path_factory.mktemp("view")
+    plan, sched, report = d / "plan.yaml", d / "sched.yaml", d / "run.yaml"
+    assert main(["-q", "solve", str(WAREHOUSE), "--solver", "cbm", "--out", str(plan)]) == 0
+    assert main(["-q", "post", str(WAREHOUSE), str(plan), "--out", str(sched)]) == 0
+    code = main(
+        ["-q", "simulate", str(WAREHOUSE), str(sched), "--disturbances", str(DISTURBANCES),
+         "--out", str(report)]
+    )  # fmt: skip
+    assert code == 0
+    return {"dir": d, "plan": plan, "schedule": sched, "report": report}
+
+
+# ---------------------------------------------------------------- the files, read here
+def plan_positions(path: Path, t: float) -> np.ndarray:
+    """Positions at ``t`` from a plan file's rows ``{x, y, t}`` (straight moves)."""
+    data = yaml.safe_load(path.read_text())
+    out = []
+    for rows in data["schedule"].values():
+        ts = [r["t"] for r in rows]
+        out.append(
+            [np.interp(t, ts, [r["x"] for r in rows]), np.interp(t, ts, [r["y"] for r in rows])]
+        )
+    return np.array(out)
+
+
+def rows_positions(path: Path, t: float) -> np.ndarray:
+    """Positions at ``t`` from a schedule or report's rows ``{x, y, arrival}``."""
+    data = yaml.safe_load(path.read_text())
+    out = []
+    for rows in data["schedule"].values():
+        ts = np.array([r["arrival"] for r in rows])
+        xs, ys = [r["x"] for r in rows], [r["y"] for r in rows]
+        out.append([np.interp(t, ts, xs), np.interp(t, ts, ys)])
+    return np.array(out)
+
+
+# ---------------------------------------------------------------- checks on the page
+def drawn(page: Any, t: float) -> np.ndarray:
+    d = page.evaluate(f"hierplan.seek({t})")
+    end = page.evaluate("hierplan.head.end")
+    assert math.isclose(d["t"], min(t, end), abs_tol=1e-9)  # the clock stops at the end
+    return np.array(d["xy"]).reshape(-1, 2)
+
+
+def check_drawn(page: Any, expected: np.ndarray, t: float) -> None:
+    got = drawn(page, t)
+    bad = np.flatnonzero(np.abs(got - expected).max(axis=1) > 1e-3)
+    assert not len(bad), (
+        f"t={t}: robot(s) {bad.tolist()} drawn at {got[bad]}, file says {expected[bad]}"
+    )
+
+
+def _rgb(hexcolor: str) -> np.ndarray:
+    return np.array([int(hexcolor[i : i + 2], 16) for i in (1, 3, 5)])
+
+
+def check_pixels(page: Any, expected: np.ndarray, t: float) -> None:
+    """The screenshot shows each robot's colour around where the file puts it."""
+    from PIL import Image
+
+    page.evaluate(f"hierplan.seek({t})")
+    img = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+    head = page.evaluate("({pal: hierplan.head.palette, s: hierplan.pixelsPerUnit()})")
+    colors = page.evaluate("Array.from(hierplan.colorIndex())")
+    box = page.evaluate(
+        "(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()"
+    )
+    origin = page.evaluate("hierplan.origin()")
+    for k, (x, y) in enumerate(expected):
+        cx = box[0] + origin[0] + x * head["s"]
+        cy = box[1] + origin[1] + origin[2] * y * head["s"]
+        patch = img[
+            int(round(cy)) - 2 : int(round(cy)) + 3, int(round(cx)) - 2 : int(round(cx)) + 3
+        ]
+        want = _rgb(head["pal"][colors[k]])
+        share = float((np.abs(patch - want).max(axis=2) <= 40).mean())
+        assert share >= 0.5, (
+            f"t={t}: robot {k} not seen at its place ({cx:.0f}, {cy:.0f}): {share:.0%}"
+        )
+
+
+@pytest.fixture(scope="module")
+def plan_page(chrome: Any, files: dict[str, Path]) -> Any:
+    out = files["dir"] / "plan.html"
+    assert main(["-q", "view", str(WAREHOUSE), str(files["plan"]), "--out", str(out)]) == 0
+    page, errors, load = open_view(chrome, out)
+    assert errors == [], errors
+    assert load < 3.0
+    yield page
+    page.close()
+
+
+# ---------------------------------------------------------------- tests
+def test_plan_positions_and_pixels_equal_the_file(plan_page: Any, files: dict[str, Path]) -> None:
+    horizon = yaml.safe_load(files["plan"].read_text())["statistics"]["makespan"]
+    for t in (0.0, 0.5, 3.25, 7.0, horizon - 0.4, horizon + 2.0):
+        exp = plan_positions(files["plan"], t)
+        check_drawn(plan_page, exp, t)
+        check_pixels(plan_page, exp, t)
+
+
+def test_map_pixels_show_obstacles_and_free_cells(plan_page: Any) -> None:
+    """A blocked cell is drawn dark and a free cell light, at their places."""
+    from PIL import Image
+
+    inst = hp.load_instance(WAREHOUSE)
+    g = inst.graph
+    plan_page.evaluate("hierplan.seek(0)")
+    img = np.asarray(Image.open(io.BytesIO(plan_page.screenshot())).convert("L")).astype(int)
+    s = plan_page.evaluate("hierplan.pixelsPerUnit()")
+    origin = plan_page.evaluate("hierplan.origin()")
+    box = plan_page.evaluate(
+        "(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()"
+    )
+    starts = {tuple(g.coords[v][:2]) for v in inst.starts}
+    blocked = np.flatnonzero(~g.passable)
+    free = [v for v in np.flatnonzero(g.passable) if tuple(g.coords[v][:2]) not in starts]
+    for v, dark in [
+        (int(blocked[0]), True),
+        (int(blocked[-1]), True),
+        (free[0], False),
+        (free[-1], False),
+    ]:
+        x, y = g.coords[v][:2]
+        px = img[int(round(box[1] + origin[1] + y * s)), int(round(box[0] + origin[0] + x * s))]
+        assert (px < 100) if dark else (px > 220), (v, px)
+
+
+def test_mutation_robot_data_moved_fails_both_checks(chrome: Any, files: dict[str, Path]) -> None:
+    """A page whose robot 0 is one cell off from the file fails the read-back and pixels."""
+    inst = hp.load_instance(WAREHOUSE)
+    scene = scene_from_plan(inst, hp.load_plan(files["plan"], inst))
+    assert scene.steps is not None
+    g = inst.graph
+    v = int(scene.steps[0, 0])
+    x, y = g.coords[v][:2]
+    moved = next(
+        u
+        for u in range(g.n)
+        if g.passable[u] and abs(g.coords[u][0] - x) + abs(g.coords[u][1] - y) == 1
+    )
+    scene.steps[:, 0] = moved  # robot 0 stays one cell away from where the file has it
+    out = files["dir"] / "mutant-data.html"
+    write_view(scene, out)
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    exp = plan_positions(files["plan"], 0.0)
+    with pytest.raises(AssertionError, match="robot\\(s\\) \\[0\\]"):
+        check_drawn(page, exp, 0.0)
+    with pytest.raises(AssertionError, match="robot 0 not seen"):
+        check_pixels(page, exp, 0.0)
+    page.close()
+
+
+def test_mutation_drawing_code_shifted_fails_pixels(chrome: Any, files: dict[str, Path]) -> None:
+    """Right positions, wrong drawing: the read-back passes and the pixel check fails."""
+    inst = hp.load_instance(WAREHOUSE)
+    text = render_html(scene_from_plan(inst, hp.load_plan(files["plan"], inst)))
+    line = "const k = order[q], x = P[2 * k] * s + ox"
+    assert text.count(line) == 1
+    out = files["dir"] / "mutant-draw.html"
+    out.write_text(
+        text.replace(line, "const k = order[q], x = (P[2 * k] + (k === 3 ? 1 : 0)) * s + ox")
+    )
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    exp = plan_positions(files["plan"], 0.0)
+    check_drawn(page, exp, 0.0)
+    with pytest.raises(AssertionError, match="robot 3 not seen"):
+        check_pixels(page, exp, 0.0)
+    page.close()
+
+
+def test_scrubbing_and_speed(plan_page: Any, files: dict[str, Path]) -> None:
+    end = plan_page.evaluate("hierplan.head.end")
+    # scrub: the slider's input event moves the clock and the robots
+    for frac in (0.8, 0.25):
+        t = frac * end
+        plan_page.evaluate(
+            "(t) => { const el = document.getElementById('scrub'); el.value = t;"
+            " el.dispatchEvent(new Event('input')); }",
+            t,
+        )
+        plan_page.wait_for_function(
+            f"Math.abs(hierplan.time() - {t}) < 1e-6 && hierplan.drawn().t === {t}"
+        )
+        assert f"t = {t:.2f} s" in plan_page.inner_text("#clock")
+        got = np.array(plan_page.evaluate("hierplan.drawn().xy")).reshape(-1, 2)
+        assert np.abs(got - plan_positions(files["plan"], t)).max() < 1e-3
+    # speed: the clock advances `speed` times faster than the page's own clock
+    rates = {}
+    for speed in (1, 4):
+        plan_page.select_option("#speed", str(speed))
+        rates[speed] = plan_page.evaluate(
+            """() => new Promise((done) => {
+                hierplan.seek(0); hierplan.play();
+                const t0 = performance.now();
+                setTimeout(() => { hierplan.pause();
+                  done(hierplan.time() / ((performance.now() - t0) / 1000)); }, 700);
+            })"""
+        )
+    assert 0.6 <= rates[1] <= 1.1, rates
+    assert 0.6 * 4 <= rates[4] <= 1.1 * 4, rates
+    plan_page.select_option("#speed", "1")
+
+
+def test_execution_report_events_layers_and_positions(chrome: Any, files: dict[str, Path]) -> None:
+    out = files["dir"] / "run.html"
+    assert main(["-q", "view", str(WAREHOUSE), str(files["report"]), "--out", str(out)]) == 0
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    report = yaml.safe_load(files["report"].read_text())
+    head = page.evaluate("hierplan.head")
+    assert head["source"] == "execution"
+    assert head["events"]["layer"] == [
+        e["layer"] for e in sorted(report["events"], key=lambda e: e["time"])
+    ]
+    assert head["guaranteed"] == pytest.approx(report["statistics"]["guaranteed_distance"])
+    for t in (0.0, 5.3, 11.1, report["statistics"]["makespan"] - 0.2):
+        exp = rows_positions(files["report"], t)
+        check_drawn(page, exp, t)
+        check_pixels(page, exp, t)
+    # the closest pair drawn is the file's closest pair within the sampling
+    cl = head["closest"]
+    assert min(cl["distance"]) >= report["statistics"]["min_distance"] - 1e-6
+    assert min(cl["distance"]) <= report["statistics"]["min_distance"] + 0.2
+    page.evaluate("hierplan.setColor('delay')")
+    legend = page.inner_text("#legend")
+    for layer in ("slack", "stn", "replan"):
+        assert f"handled by {layer}" in legend
+    assert page.evaluate("hierplan.errors") == []
+    page.close()
+
+
+def test_schedule_shows_slack(chrome: Any, files: dict[str, Path]) -> None:
+    out = files["dir"] / "sched.html"
+    assert main(["-q", "view", str(WAREHOUSE), str(files["schedule"]), "--out", str(out)]) == 0
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    assert page.evaluate("hierplan.head.motion.slack") is True
+    for t in (1.0, 9.9):
+        check_drawn(page, rows_positions(files["schedule"], t), t)
+    page.evaluate("hierplan.setColor('slack')")
+    assert "slack < 0.5 s" in page.inner_text("#legend")
+    page.close()
+
+
+def test_lorr_log_positions(chrome: Any, tmp_path: Path) -> None:
+    """A LoRR output (MAPF_T actions) decoded here by hand and compared with the page."""
+    (tmp_path / "m.map").write_text("type octile\nheight 3\nwidth 4\nmap\n....\n.@..\n....\n")
+    log = {
+        "actionModel": "MAPF_T",
+        "AllValid": "Yes",
+        "teamSize": 2,
+        "start": [[0, 0, "E"], [2, 3, "N"]],
+        "numTaskFinished": 0,
+        "sumOfCost": 8,
+        "makespan": 4,
+        "actualPaths": ["F,F,R,F", "C,F,F,W"],
+        "plannerPaths": ["F,F,R,F", "C,F,F,W"],
+        "errors": [],
+        "events": [[], []],
+        "tasks": [],
+    }
+    f = tmp_path / "log.json"
+    f.write_text(json.dumps(log))
+    out = tmp_path / "log.html"
+    assert main(["-q", "view", str(tmp_path / "m.map"), str(f), "--out", str(out)]) == 0
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    # robot 0: (0,0) facing E, forward twice, turn clockwise to S, forward;
+    # robot 1: (3,2) facing N, turn counter-clockwise to W, forward twice along row 2, wait
+    cells = np.array(
+        [[(0, 0), (1, 0), (2, 0), (2, 0), (2, 1)], [(3, 2), (3, 2), (2, 2), (1, 2), (1, 2)]],
+        dtype=float,
+    )
+    for t in (0.0, 1.0, 1.5, 2.0, 2.75, 4.0, 9.0):
+        i = min(int(t), 3)
+        f_ = min(t - i, 1.0)
+        exp = cells[:, i] + (cells[:, i + 1] - cells[:, i]) * f_
+        check_drawn(page, exp, t)
+        check_pixels(page, exp, t)
+    page.close()
+
+
+def test_lorr_log_leaving_the_map_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "m.map").write_text("type octile\nheight 3\nwidth 4\nmap\n....\n.@..\n....\n")
+    log = {"start": [[2, 3, "W"]], "actualPaths": ["F,C,W,F"], "teamSize": 1}
+    f = tmp_path / "log.json"
+    f.write_text(json.dumps(log))
+    out = tmp_path / "log.html"
+    assert main(["view", str(tmp_path / "m.map"), str(f), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "leaves the free cells" in err[0], err
+    assert not out.exists()
