@@ -198,11 +198,11 @@ def test_mutation_drawing_code_shifted_fails_pixels(chrome: Any, files: dict[str
     """Right positions, wrong drawing: the read-back passes and the pixel check fails."""
     inst = hp.load_instance(WAREHOUSE)
     text = render_html(scene_from_plan(inst, hp.load_plan(files["plan"], inst)))
-    line = "const k = order[q], x = P[2 * k] * s + ox"
+    line = "const x = (P[2 * k] * s + ox) * dpr"
     assert text.count(line) == 1
     out = files["dir"] / "mutant-draw.html"
     out.write_text(
-        text.replace(line, "const k = order[q], x = (P[2 * k] + (k === 3 ? 1 : 0)) * s + ox")
+        text.replace(line, "const x = ((P[2 * k] + (k === 3 ? 1 : 0)) * s + ox) * dpr")
     )
     page, errors, _ = open_view(chrome, out)
     assert errors == []

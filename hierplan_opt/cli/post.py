@@ -109,7 +109,19 @@ def run(args: argparse.Namespace) -> int:
         ("--dot", args.dot, (".dot", ".gv")),
         ("--gantt", args.gantt, FIGURE_SUFFIXES),
     )
+    rng = None
+    if args.gantt_agents:
+        a, sep, b = args.gantt_agents.partition(":")
+        if not (sep and a.isdigit() and b.isdigit() and int(a) < int(b)):
+            raise InputError(f"--gantt-agents expects FIRST:STOP, got {args.gantt_agents!r}")
+        rng = (int(a), int(b))
+    if args.gantt_rows < 1:
+        raise InputError(f"--gantt-rows must be at least 1, got {args.gantt_rows}")
     instance = load_instance_from_args(args)
+    if rng is not None and rng[1] > instance.num_agents:
+        raise InputError(
+            f"--gantt-agents {args.gantt_agents}: there are {instance.num_agents} robots"
+        )
     plan = load_plan(args.plan, instance)
     method = args.method or ("graph" if args.objective == "makespan" else "lp")
     if args.margin is not None and args.delta is not None:
@@ -134,12 +146,6 @@ def run(args: argparse.Namespace) -> int:
     if args.gantt:
         from hierplan_opt.viz.gantt import plot_gantt
 
-        rng = None
-        if args.gantt_agents:
-            a, sep, b = args.gantt_agents.partition(":")
-            if not (sep and a.isdigit() and b.isdigit()):
-                raise InputError(f"--gantt-agents expects FIRST:STOP, got {args.gantt_agents!r}")
-            rng = (int(a), int(b))
         plot_gantt(schedule, args.gantt, rows=args.gantt_rows, agents=rng)
     st = schedule.stats
     line = (
