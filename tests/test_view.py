@@ -28,6 +28,11 @@ from hierplan_opt.viz.scene import scene_from_plan
 ROOT = Path(__file__).resolve().parent.parent
 WAREHOUSE = ROOT / "instances" / "paper" / "warehouse-part1.yaml"
 DISTURBANCES = ROOT / "instances" / "paper" / "warehouse-disturbances.yaml"
+#: Where the map canvas sits on the page (CSS pixels).
+MAP_BOX = (
+    "(() => { const r = document.getElementById('map').getBoundingClientRect();"
+    " return [r.left, r.top]; })()"
+)
 
 
 @pytest.fixture(scope="module")
@@ -104,9 +109,7 @@ def check_pixels(page: Any, expected: np.ndarray, t: float) -> None:
     img = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
     head = page.evaluate("({pal: hierplan.head.palette, s: hierplan.pixelsPerUnit()})")
     colors = page.evaluate("Array.from(hierplan.colorIndex())")
-    box = page.evaluate(
-        "(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()"
-    )
+    box = page.evaluate(MAP_BOX)
     origin = page.evaluate("hierplan.origin()")
     for k, (x, y) in enumerate(expected):
         cx = box[0] + origin[0] + x * head["s"]
@@ -151,9 +154,7 @@ def test_map_pixels_show_obstacles_and_free_cells(plan_page: Any) -> None:
     img = np.asarray(Image.open(io.BytesIO(plan_page.screenshot())).convert("L")).astype(int)
     s = plan_page.evaluate("hierplan.pixelsPerUnit()")
     origin = plan_page.evaluate("hierplan.origin()")
-    box = plan_page.evaluate(
-        "(() => { const r = document.getElementById('map').getBoundingClientRect(); return [r.left, r.top]; })()"
-    )
+    box = plan_page.evaluate(MAP_BOX)
     starts = {tuple(g.coords[v][:2]) for v in inst.starts}
     blocked = np.flatnonzero(~g.passable)
     free = [v for v in np.flatnonzero(g.passable) if tuple(g.coords[v][:2]) not in starts]
@@ -201,9 +202,7 @@ def test_mutation_drawing_code_shifted_fails_pixels(chrome: Any, files: dict[str
     line = "const x = (P[2 * k] * s + ox) * dpr"
     assert text.count(line) == 1
     out = files["dir"] / "mutant-draw.html"
-    out.write_text(
-        text.replace(line, "const x = ((P[2 * k] + (k === 3 ? 1 : 0)) * s + ox) * dpr")
-    )
+    out.write_text(text.replace(line, "const x = ((P[2 * k] + (k === 3 ? 1 : 0)) * s + ox) * dpr"))
     page, errors, _ = open_view(chrome, out)
     assert errors == []
     exp = plan_positions(files["plan"], 0.0)
@@ -337,3 +336,108 @@ def test_lorr_log_leaving_the_map_is_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "leaves the free cells" in err[0], err
     assert not out.exists()
+
+
+def test_trajectories_positions_equal_the_npz_samples(chrome: Any, files: dict[str, Path]) -> None:
+    """Refined trajectories: the page agrees with the samples stored in the .npz."""
+    npz = files["dir"] / "traj.npz"
+    args = [str(WAREHOUSE), str(files["schedule"]), "--out", str(npz)]
+    assert main(["-q", "refine", *args, "--stretch", "auto", "--solver", "profile"]) == 0
+    out = files["dir"] / "traj.html"
+    assert main(["-q", "view", str(WAREHOUSE), str(npz), "--out", str(out)]) == 0
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    with np.load(npz) as z:
+        ts, pos = z["t"], z["pos"]  # metres, sampled every 0.1 s
+    scale = hp.load_instance(WAREHOUSE).graph.scale
+    for i in (0, 37, 211, len(ts) - 1):
+        exp = pos[:, i, :2] / scale
+        t = float(ts[i])
+        check_drawn(page, exp, t)
+        check_pixels(page, exp, t)
+    page.close()
+
+
+def test_3d_plan_shows_altitude(chrome: Any, tmp_path: Path) -> None:
+    g = hp.Graph.grid(4, 3, 3, obstacles=[(1, 1, 0), (1, 1, 1)])
+    inst = hp.Instance.mapf(g, [(0, 0, 0), (3, 2, 0)], [(3, 2, 2), (0, 0, 1)])
+    plan = hp.solve(inst, "cbs").plan
+    assert plan is not None
+    out = tmp_path / "3d.html"
+    write_view(scene_from_plan(inst, plan), out)
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    for t in (0.0, 1.5, 2.25, float(plan.makespan)):
+        d = page.evaluate(f"hierplan.seek({t})")
+        i = min(int(t), plan.horizon - 1)
+        f = t - i
+        for k, path in enumerate(plan.paths):
+            a = g.coords[path[min(i, len(path) - 1)]]
+            b = g.coords[path[min(i + 1, len(path) - 1)]]
+            exp = a + (b - a) * min(f, 1.0)
+            assert np.allclose([d["xy"][2 * k], d["xy"][2 * k + 1], d["z"][k]], exp, atol=1e-4)
+    page.evaluate("hierplan.setColor('altitude')")
+    legend = page.inner_text("#legend")
+    assert "z = 2.0" in legend and "altitude" in legend
+    page.close()
+
+
+def test_10000_robots_load_under_3_s_and_play_at_30_fps(chrome: Any, tmp_path: Path) -> None:
+    """Ten thousand robots (a made-up motion on an empty 128 x 128 grid: the viewer does
+    not need a valid plan; `hierplan bench view` measures a real LaCAM plan)."""
+    N, K, T = 128, 10_000, 120
+    rng = np.random.default_rng(1)
+    cells = rng.permutation(N * N)[:K]
+    x0, y0 = cells % N, cells // N
+    steps = np.arange(T)[:, None]
+    xs = (x0[None, :] + np.round(6 * np.sin(steps / 7 + np.arange(K))).astype(int)) % N
+    g = hp.Graph.grid(N, N)
+    inst = hp.Instance.mapf(
+        g,
+        list(zip(x0.tolist(), y0.tolist(), strict=True)),
+        list(zip(x0.tolist(), y0.tolist(), strict=True)),
+    )
+    plan = hp.Plan.from_paths((y0[None, :] * N + xs).T.tolist())
+    out = tmp_path / "10k.html"
+    write_view(scene_from_plan(inst, plan), out)
+    page, errors, load = open_view(chrome, out)
+    assert errors == []
+    assert load < 3.0, f"first frame after {load:.2f} s"
+    m = page.evaluate("hierplan.measure(2000)")
+    assert m["fps"] >= 30, m
+    t = 17.3
+    check_drawn(page, positions_from_steps(g, plan, t), t)
+    page.close()
+
+
+def positions_from_steps(g: hp.Graph, plan: hp.Plan, t: float) -> np.ndarray:
+    i = int(math.floor(t))
+    a = np.array([g.coords[p[min(i, len(p) - 1)]][:2] for p in plan.paths])
+    b = np.array([g.coords[p[min(i + 1, len(p) - 1)]][:2] for p in plan.paths])
+    return a + (b - a) * (t - i)
+
+
+@pytest.mark.parametrize(
+    ("args", "what"),
+    [
+        (["missing.yaml", "--out", "v.html"], "no such file"),
+        (["PLAN", "--out", "v.png"], "unsupported extension"),
+        (["PLAN", "--out", "nodir/v.html"], "nodir"),
+        (["BADJSON", "--out", "v.html"], "not JSON"),
+    ],
+)
+def test_bad_inputs_are_one_line(
+    files: dict[str, Path],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    args: list[str],
+    what: str,
+) -> None:
+    (tmp_path / "bad.json").write_text("{not json")
+    subst = {"PLAN": str(files["plan"]), "BADJSON": str(tmp_path / "bad.json")}
+    argv = [subst.get(a, str(tmp_path / a) if a.endswith((".html", ".png")) else a) for a in args]
+    capsys.readouterr()
+    assert main(["view", str(WAREHOUSE), *argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and what in err[0], err
+    assert not list(tmp_path.glob("*.htm*")) and not list(tmp_path.glob("*.png"))
