@@ -69,6 +69,8 @@ def _size(text: str) -> tuple[int, int]:
     w, sep, h = text.lower().partition("x")
     if not (sep and w.isdigit() and h.isdigit()):
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, got {text!r}")
+    if not (64 <= int(w) <= 7680 and 64 <= int(h) <= 4320):
+        raise argparse.ArgumentTypeError(f"{text}: sizes go from 64x64 to 7680x4320 pixels")
     return int(w), int(h)
 
 
