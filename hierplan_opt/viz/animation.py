@@ -144,6 +144,7 @@ def animate(
     size: tuple[int, int] | None = None,
     speed: float = 1.0,
     max_frames: int | None = None,
+    until: float | None = None,
     highlight: float = 3.0,
     names: bool | None = None,
     progress: bool | None = False,
@@ -159,7 +160,8 @@ def animate(
     The legend inside the picture says what each mark means and what is left out.
 
     ``fps`` frames per second of video, ``speed`` seconds of plan per second of video,
-    ``size`` in pixels; ``max_frames`` caps the frames (the video then runs faster, and
+    ``size`` in pixels (default: 960 or 1280 wide, the map's aspect), ``until`` the last
+    moment shown (default: the end); ``max_frames`` caps the frames (the video then runs faster, and
     the clock says so). MP4 uses the ffmpeg of the ``imageio-ffmpeg`` wheel (H.264);
     GIF uses Pillow with one fixed palette. The background is drawn once and every frame
     only redraws the robots (matplotlib blitting), so 200 robots for 60 s of plan take
@@ -200,7 +202,7 @@ def animate(
     if not (64 <= w <= 7680 and 64 <= h <= 4320):
         raise InputError(f"animation size {w}x{h} is outside 64x64 .. 7680x4320 pixels")
     w, h = w - w % 2, h - h % 2  # H.264 wants even sizes
-    end = max(scene.end, 1e-9)
+    end = max(scene.end if until is None else min(float(until), scene.end), 1e-9)
     frames = int(math.ceil(end / speed * fps)) + 1
     skip = 1.0
     if max_frames is not None and frames > max_frames:
@@ -496,36 +498,51 @@ def _draw_map(ax: Any, g: Any) -> None:
 
 
 class _GifWriter:
-    """Frames quantized against one palette (from the first frame), written by Pillow."""
+    """Frames quantized against one palette (from the first frame) in a worker thread
+    while the next frames are drawn (Pillow releases the GIL there), written by Pillow."""
 
     def __init__(self, fps: float) -> None:
         self.fps = fps
-        self.frames: list[Any] = []
+        self.jobs: list[Any] = []
         self.palette: Any = None
         self.path: Path | None = None
+        self.pool: Any = None
 
     def open(self, path: Path) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
         self.path = path
+        self.pool = ThreadPoolExecutor(max_workers=1)
+
+    def _quantize(self, rgb: np.ndarray) -> Any:
+        from PIL import Image
+
+        return Image.fromarray(rgb).quantize(palette=self.palette, dither=Image.Dither.NONE)
 
     def add(self, rgb: np.ndarray) -> None:
         from PIL import Image
 
-        img = Image.fromarray(rgb)
         if self.palette is None:
-            self.palette = img.quantize(colors=255, method=Image.Quantize.MEDIANCUT)
-        self.frames.append(img.quantize(palette=self.palette, dither=Image.Dither.NONE))
+            self.palette = Image.fromarray(rgb).quantize(
+                colors=255, method=Image.Quantize.MEDIANCUT
+            )
+        self.jobs.append(self.pool.submit(self._quantize, rgb))
 
     def close(self) -> None:
-        if self.frames and self.path is not None:
-            self.frames[0].save(
+        frames = [j.result() for j in self.jobs]
+        if self.pool is not None:
+            self.pool.shutdown()
+        if frames and self.path is not None:
+            frames[0].save(
                 self.path,
                 format="GIF",
                 save_all=True,
-                append_images=self.frames[1:],
+                append_images=frames[1:],
                 duration=max(int(round(1000 / self.fps)), 20),
+                optimize=False,
                 loop=0,
             )
-        self.frames = []
+        self.jobs = []
 
 
 class _Mp4Writer:
