@@ -46,11 +46,12 @@ def picture_table(quick: bool = False, robots: int = 200, seconds: float = 60.0)
     if res.plan is None:
         print(f"pictures: LaCAM found no plan for {robots} robots")
         return False
-    schedule = hp.postprocess(inst, res.plan)
+    plan = res.plan
+    schedule = hp.postprocess(inst, plan)
     ex = simulate(inst, schedule)
     scene = scene_from_execution(inst, ex)
     print(
-        f"pictures: {robots} robots on {inst.name}, plan makespan {res.plan.makespan}, "
+        f"pictures: {robots} robots on {inst.name}, plan makespan {plan.makespan}, "
         f"execution {ex.statistics['makespan']:.1f} s; animations of the first {seconds:g} s "
         "at 10 fps; one warm process"
     )
@@ -59,7 +60,7 @@ def picture_table(quick: bool = False, robots: int = 200, seconds: float = 60.0)
     with tempfile.TemporaryDirectory() as d:
         rows = [
             ("plan plot (solve --plot)", "plan.png",
-             lambda p: save_plan_figure(inst, res.plan, p)),
+             lambda p: save_plan_figure(inst, plan, p)),
             ("Gantt chart (post --gantt)", "gantt.png", lambda p: plot_gantt(schedule, p)),
             ("MP4 (simulate --animate)", "run.mp4",
              lambda p: animate(scene, None, p, until=seconds)),

@@ -55,8 +55,12 @@ def _kind(path: str) -> tuple[str, Any]:
     if isinstance(data, dict) and isinstance(data.get("schedule"), dict):
         rows = data["schedule"]
         first = next(iter(rows.values()), None) if rows else None
-        timed = isinstance(first, list) and first and isinstance(first[0], dict)
-        if timed and "arrival" in first[0]:
+        if (
+            isinstance(first, list)
+            and first
+            and isinstance(first[0], dict)
+            and "arrival" in first[0]
+        ):
             return ("report" if "events" in data else "schedule"), data
     return "plan", data
 
@@ -91,8 +95,9 @@ def build_scene(args: argparse.Namespace) -> Any:
         try:  # re-derive the STN for the slack of every way-point
             schedule, _ = load_plan_or_schedule(ns, instance)
             scene = sc.scene_from_schedule(instance, schedule, title)
-            scene.keys = sc.scene_from_schedule_file(instance, args.file, data).keys
-            if [len(k) for k in scene.keys] != [len(s) for s in scene.slack or []]:
+            keys = sc.scene_from_schedule_file(instance, args.file, data).keys or []
+            scene.keys = keys
+            if [len(k) for k in keys] != [len(s) for s in scene.slack or []]:
                 scene.slack = None
             return scene
         except InputError:  # not re-derivable: the file's way-points without slack

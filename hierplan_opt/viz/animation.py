@@ -396,12 +396,13 @@ class _Drawer:
                     edges[k] = self.layer_rgba.get(self.events[i]["layer"], (0.5, 0.5, 0.5, 1.0))
                     widths[k] = 2.5
         self.coll.set_offsets(p[:, :2])
-        self.coll.set_edgecolors(edges)
-        self.coll.set_linewidths(widths)
+        self.coll.set_edgecolor(edges)  # type: ignore[arg-type]
+        self.coll.set_linewidth(widths)  # type: ignore[arg-type]
         self.ax.draw_artist(self.coll)
         if K >= 2:
             q = p * sc.scale
-            d, idx = cKDTree(q).query(q, k=min(K, 6))
+            dq, iq = cKDTree(q).query(q, k=min(K, 6))
+            d, idx = np.asarray(dq), np.asarray(iq)
             req = self.rad_m[:, None] + self.rad_m[idx[:, 1:]] + sc.margin
             left = d[:, 1:] - req
             a = int(np.argmin(left.min(axis=1)))
@@ -559,7 +560,7 @@ class _Mp4Writer:
         self.gen = imageio_ffmpeg.write_frames(
             str(path),
             self.size,
-            fps=self.fps,
+            fps=self.fps,  # type: ignore[arg-type]  # ffmpeg takes fractional rates
             codec="libx264",
             pix_fmt_in="rgb24",
             output_params=["-f", "mp4", "-preset", "veryfast", "-tune", "animation"],

@@ -129,7 +129,11 @@ def scene_payload(scene: Scene, *, clearance_samples: int = 300) -> tuple[dict[s
     marks, markc = scene.goals[has], col[has]
     if scene.targets is not None and len(scene.targets):
         marks = np.concatenate([marks, scene.targets])
-        tc = scene.target_team if scene.team_names else np.zeros(len(scene.targets), int)
+        tc = (
+            scene.target_team
+            if scene.team_names and scene.target_team is not None
+            else np.zeros(len(scene.targets), int)
+        )
         markc = np.concatenate([markc, tc.astype(np.uint16)])
     blob.add("marks", marks.reshape(-1, scene.dim).astype(np.float32))
     blob.add("markc", markc.astype(np.uint16))
@@ -148,7 +152,7 @@ def scene_payload(scene: Scene, *, clearance_samples: int = 300) -> tuple[dict[s
         lens = np.array([len(k) for k in scene.keys], dtype=np.int64)
         off = np.concatenate([[0], np.cumsum(lens)]).astype(np.uint32)
         allk = np.concatenate(scene.keys) if len(scene.keys) else np.zeros((0, 1 + scene.dim))
-        head["motion"] = {"mode": "keys"}
+        head["motion"] = {"mode": "keys", "slack": False}
         blob.add("koff", off)
         # times relative to each robot's first key in float32 would lose little; keep
         # absolute times (float32 has 7 digits: 0.1 ms at 1000 s)

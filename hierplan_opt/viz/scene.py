@@ -553,8 +553,8 @@ def closest_pairs(scene: Scene, samples: int = 300) -> dict[str, list[float] | l
     kq = min(K, 6)
     for t in times:
         p = positions_at(scene, float(t)) * scene.scale
-        d, idx = cKDTree(p).query(p, k=kq)
-        d, idx = d[:, 1:], idx[:, 1:]
+        dq, iq = cKDTree(p).query(p, k=kq)
+        d, idx = np.asarray(dq)[:, 1:], np.asarray(iq)[:, 1:]
         req = rad[:, None] + rad[idx] + scene.margin
         left = d - req
         a = int(np.argmin(left.min(axis=1)))
