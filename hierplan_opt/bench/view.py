@@ -45,6 +45,29 @@ def _empty_instance(n: int, robots: int, seed: int = 1) -> Any:
     return hp.Instance.mapf(g, starts[:robots], goals[:robots], name=f"empty-{n}-{n}")
 
 
+def _save(path: str, plan: Any) -> None:
+    import numpy as np
+
+    from hierplan_opt.io.files import atomic_path
+
+    H = plan.horizon + 1
+    arr = np.array([list(p) + [p[-1]] * (H - len(p)) for p in plan.paths], dtype=np.int32)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, paths=arr)
+
+
+def _load(path: str, inst: Any) -> Any:
+    import numpy as np
+
+    import hierplan_opt as hp
+
+    with np.load(path) as z:
+        arr = z["paths"]
+    if arr.shape[0] != inst.num_agents:
+        raise InputError(f"{path}: a plan of {arr.shape[0]} robots, not {inst.num_agents}")
+    return hp.Plan.from_paths(arr.tolist()).trimmed()
+
+
 def viewer_rows(path: Path, repeats: int, sizes: list[tuple[int, int]]) -> list[dict[str, Any]]:
     """Load time and frame rate of the page at ``path`` (medians over ``repeats``)."""
     from hierplan_opt.viz.browser import browser, open_view
@@ -84,6 +107,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robots", type=int, default=None, help="fleet size (default 10000)")
     p.add_argument("--repeats", type=int, default=3, help="page loads per viewport (default 3)")
     p.add_argument("--no-pictures", action="store_true", help="skip the 200-robot picture table")
+    p.add_argument(
+        "--reuse",
+        metavar="NPZ",
+        help="keep the LaCAM plan in this file: solved and saved when missing, else loaded "
+        "(a 10,000-robot solve takes minutes)",
+    )
     args = p.parse_args(argv)
     import hierplan_opt as hp
     from hierplan_opt.viz.html import write_view
@@ -93,25 +122,32 @@ def main(argv: list[str] | None = None) -> int:
     robots = args.robots or robots
     repeats = 1 if args.quick else args.repeats
     inst = _empty_instance(n, robots)
-    t0 = time.perf_counter()
-    res = hp.solve(inst, "lacam", time_limit=args.time_limit or 300.0)
-    solve_s = time.perf_counter() - t0
-    if res.plan is None:
-        print(f"LaCAM found no plan for {robots} robots in {solve_s:.0f} s: {res.status.value}")
-        return 1
-    bad = hp.validate(inst, res.plan)
+    plan = _load(args.reuse, inst) if args.reuse and Path(args.reuse).is_file() else None
+    solve_s = float("nan")
+    if plan is None:
+        t0 = time.perf_counter()
+        res = hp.solve(inst, "lacam", time_limit=args.time_limit or 300.0)
+        solve_s = time.perf_counter() - t0
+        if res.plan is None:
+            print(f"LaCAM found no plan for {robots} robots in {solve_s:.0f} s: {res.status.value}")
+            return 1
+        plan = res.plan
+        if args.reuse:
+            _save(args.reuse, plan)
+    bad = hp.validate(inst, plan)
     if bad:
         print(f"LaCAM's plan is invalid: {bad[0]}")
         return 1
     with tempfile.TemporaryDirectory() as d:
         page = Path(d) / "view.html"
         t0 = time.perf_counter()
-        write_view(scene_from_plan(inst, res.plan), page)
+        write_view(scene_from_plan(inst, plan), page)
         write_s = time.perf_counter() - t0
         size = page.stat().st_size / 1e6
+        how = f"solved in {solve_s:.1f} s" if solve_s == solve_s else f"loaded from {args.reuse}"
         print(
-            f"viewer: {robots} robots, {inst.name}, LaCAM plan makespan {res.plan.makespan} "
-            f"(solved in {solve_s:.1f} s, valid); page {size:.2f} MB written in {write_s:.2f} s"
+            f"viewer: {robots} robots, {inst.name}, LaCAM plan makespan {plan.makespan} "
+            f"({how}, valid); page {size:.2f} MB written in {write_s:.2f} s"
         )
         print(f"{'viewport':10} {'load_s':>7} {'fps':>6} {'draw_ms':>8}")
         rows = viewer_rows(page, repeats, [(1200, 800), (1920, 1080)])
