@@ -441,3 +441,36 @@ def test_bad_inputs_are_one_line(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and what in err[0], err
     assert not list(tmp_path.glob("*.htm*")) and not list(tmp_path.glob("*.png"))
+
+
+def test_report_with_fields_added_later_still_reads(files: dict[str, Path], tmp_path: Path) -> None:
+    """The execution report may gain fields: the viewer ignores what it does not know."""
+    from hierplan_opt.viz.scene import scene_from_report
+
+    data = yaml.safe_load(files["report"].read_text())
+    data["statistics"]["new_figure"] = {"nested": [1, 2]}
+    data["layers_v2"] = {"anything": True}
+    for e in data["events"]:
+        e["handled_by"] = {"layer": e["layer"], "when": e["time"]}
+    inst = hp.load_instance(WAREHOUSE)
+    scene = scene_from_report(inst, "r.yaml", data)
+    assert [e["layer"] for e in scene.events] == [e["layer"] for e in data["events"]]
+    out = tmp_path / "r.html"
+    write_view(scene, out)
+    assert "new_figure" not in out.read_text()  # only plain statistics travel
+
+
+def test_lorr_goals_from_tasks_and_events(tmp_path: Path) -> None:
+    from hierplan_opt.viz.scene import scene_from_lorr
+
+    g = hp.Graph.grid(4, 3)
+    log = {
+        "start": [[0, 0, "E"], [2, 3, "W"]],
+        "actualPaths": ["F,W", "W,W"],
+        "tasks": [[0, 2, 1], [1, 0, 3]],  # [id, row, col]
+        "events": [[[0, 0, "assigned"]], [[1, 0, "assigned"], [1, 2, "finished"]]],
+    }
+    scene = scene_from_lorr(g, "log.json", log)
+    assert scene.goals.tolist() == [[1.0, 2.0], [3.0, 0.0]]
+    log["events"] = [[5, 0, 1, "assigned"], [6, 1, 0, "assigned"]]  # another layout: no goals
+    assert np.isnan(scene_from_lorr(g, "log.json", log).goals).all()

@@ -510,7 +510,13 @@ def _lorr_goals(data: Mapping[str, Any], W: int, goals: np.ndarray) -> bool:
         if not isinstance(evs, list):
             continue
         for e in evs:
-            if isinstance(e, list) and len(e) >= 3 and e[2] == "assigned" and e[0] in where:
+            if (
+                isinstance(e, list)
+                and len(e) >= 3
+                and isinstance(e[0], int)
+                and e[2] == "assigned"
+                and e[0] in where
+            ):
                 goals[k] = where[e[0]]
                 found = True
     return found
