@@ -59,9 +59,9 @@ def add_animation_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--animate-speed",
         type=positive_float,
-        default=1.0,
+        default=None,
         metavar="X",
-        help="seconds of plan per second of animation (1)",
+        help="seconds of plan per second of animation (1; plans over 60 s: videos of 60 s)",
     )
 
 

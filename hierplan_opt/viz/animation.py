@@ -142,7 +142,7 @@ def animate(
     *,
     fps: float = 10.0,
     size: tuple[int, int] | None = None,
-    speed: float = 1.0,
+    speed: float | None = None,
     max_frames: int | None = None,
     until: float | None = None,
     highlight: float = 3.0,
@@ -159,7 +159,9 @@ def animate(
     clearance is joined by a dashed line (red when closer than ``r_i + r_j + margin``).
     The legend inside the picture says what each mark means and what is left out.
 
-    ``fps`` frames per second of video, ``speed`` seconds of plan per second of video,
+    ``fps`` frames per second of video, ``speed`` seconds of plan per second of video
+    (default: 1, faster for plans over 60 s so that videos last at most 60 s; the clock
+    shows the speed),
     ``size`` in pixels (default: 960 or 1280 wide, the map's aspect), ``until`` the last
     moment shown (default: the end); ``max_frames`` caps the frames (the video then runs faster, and
     the clock says so). MP4 uses the ffmpeg of the ``imageio-ffmpeg`` wheel (H.264);
@@ -189,14 +191,17 @@ def animate(
     if ext not in (".gif", ".mp4"):
         raise InputError(f"{path}: animations are written as .gif or .mp4")
     check_output(path, what="animation", suffixes=(".gif", ".mp4"))
-    if not (math.isfinite(fps) and fps > 0 and math.isfinite(speed) and speed > 0):
-        raise InputError(f"fps and speed must be positive numbers, got {fps} and {speed}")
     if isinstance(source, Scene):
         scene = source
     else:
         if instance is None:
             raise InputError("animating an execution needs its instance")
         scene = scene_from_execution(instance, source)
+    if speed is None:
+        span = scene.end if until is None else min(float(until), scene.end)
+        speed = max(1.0, span / 60.0)
+    if not (math.isfinite(fps) and fps > 0 and math.isfinite(speed) and speed > 0):
+        raise InputError(f"fps and speed must be positive numbers, got {fps} and {speed}")
     w, h = size if size is not None else _auto_size(scene)
     w, h = int(w), int(h)
     if not (64 <= w <= 7680 and 64 <= h <= 4320):
@@ -209,7 +214,7 @@ def animate(
         skip = (frames - 1) / max(max_frames - 1, 1)
         frames = max(2, int(max_frames))
     times = np.linspace(0.0, end, frames)
-    drawer = _Drawer(scene, w, h, highlight, names, faster=skip)
+    drawer = _Drawer(scene, w, h, highlight, names, faster=skip * speed)
     with Progress(f"animate {path.name}", total=frames, unit="frames", enabled=progress) as bar:
         writer = _GifWriter(fps) if ext == ".gif" else _Mp4Writer(w, h, fps)
         with atomic_path(path) as tmp:
@@ -415,7 +420,7 @@ class _Drawer:
             )
         else:
             dist = ""
-        fast = f" (x{self.faster:.2g}: frames skipped)" if self.faster > 1.0001 else ""
+        fast = f" (speed x{self.faster:.3g})" if self.faster > 1.0001 else ""
         buf = np.asarray(self.canvas.buffer_rgba())
         img = Image.fromarray(buf[:, :, :3])
         draw = ImageDraw.Draw(img)
