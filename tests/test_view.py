@@ -474,3 +474,27 @@ def test_lorr_goals_from_tasks_and_events(tmp_path: Path) -> None:
     assert scene.goals.tolist() == [[1.0, 2.0], [3.0, 0.0]]
     log["events"] = [[5, 0, 1, "assigned"], [6, 1, 0, "assigned"]]  # another layout: no goals
     assert np.isnan(scene_from_lorr(g, "log.json", log).goals).all()
+
+
+def test_hover_shows_robot_and_disturbance(chrome: Any, files: dict[str, Path]) -> None:
+    out = files["dir"] / "hover.html"
+    assert main(["-q", "view", str(WAREHOUSE), str(files["report"]), "--out", str(out)]) == 0
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    page.evaluate("hierplan.seek(10.5)")
+    names = page.evaluate("hierplan.head.names")
+    x, y = page.evaluate("hierplan.screenOf(3)")
+    page.mouse.move(x, y)
+    assert page.inner_text("#tip").splitlines()[0] == names[3]
+    ev = page.evaluate("hierplan.head.events")
+    i = ev["layer"].index("replan")
+    left, top, width = page.evaluate(
+        "(() => { const r = document.getElementById('timeline').getBoundingClientRect();"
+        " return [r.left, r.top, r.width]; })()"
+    )
+    row = page.evaluate("Object.keys(hierplan.head.layers)").index("replan")
+    end = page.evaluate("hierplan.head.end")
+    page.mouse.move(left + 40 + ev["t"][i] / end * (width - 50), top + 4 + row * 9 + 4)
+    tip = page.inner_text("#tip")
+    assert f"{names[ev['a'][i]]}  {ev['kind'][i]} -> replan" in tip, tip
+    page.close()
