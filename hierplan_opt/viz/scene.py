@@ -192,7 +192,17 @@ def scene_from_plan(instance: Instance, plan: Plan, title: str = "") -> Scene:
 
 
 def scene_from_schedule(instance: Instance, schedule: Any, title: str = "") -> Scene:
-    """A :class:`~hierplan_opt.schedule.Schedule`: way-points, their slack, its clearance."""
+    """A :class:`~hierplan_opt.schedule.Schedule`: way-points, their slack, its clearance.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.schedule import postprocess
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> sc = scene_from_schedule(inst, postprocess(inst, Plan.from_paths([[0, 1, 2]])))
+    >>> sc.keys[0][:, 0].tolist(), sc.slack[0].tolist()
+    ([0.0, 1.0, 2.0], [0.0, 0.0, 0.0])
+    """
     names, radius, goals, team, team_names = _robots(instance)
     keys, slack = [], []
     for wp in schedule.waypoints:
@@ -275,7 +285,18 @@ def scene_from_report(
     instance: Instance, path: str | Path, data: Mapping[str, Any], title: str = ""
 ) -> Scene:
     """An execution report (``hierplan simulate/run --out``): the executed way-points,
-    the disturbances and the layer that handled each; extra fields are ignored."""
+    the disturbances and the layer that handled each; extra fields are ignored.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> rows = [{"x": 0, "y": 0, "arrival": 0.0}, {"x": 2, "y": 0, "arrival": 3.0}]
+    >>> ev = [{"time": 1.0, "agent": "agent0", "kind": "stop", "layer": "slack", "new": 1}]
+    >>> sc = scene_from_report(inst, "r.yaml", {"schedule": {"agent0": rows}, "events": ev})
+    >>> positions_at(sc, 1.5).tolist(), sc.events[0]["layer"]
+    ([[1.0, 0.0]], 'slack')
+    """
     sched = data.get("schedule")
     if not isinstance(sched, dict):
         raise InputError(f"{path}: not an execution report (no 'schedule' mapping)")
@@ -326,7 +347,18 @@ def scene_from_report(
 
 def scene_from_execution(instance: Instance, ex: Any, title: str = "") -> Scene:
     """An :class:`~hierplan_opt.execution.simulate.Execution` (its executed way-points and
-    events), like :func:`scene_from_report` without the file."""
+    events), like :func:`scene_from_report` without the file.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.execution import simulate
+    >>> from hierplan_opt.schedule import postprocess
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> ex = simulate(inst, postprocess(inst, Plan.from_paths([[0, 1, 2]])))
+    >>> positions_at(scene_from_execution(inst, ex), 0.5).tolist()
+    [[0.5, 0.0]]
+    """
     names, radius, goals, team, team_names = _robots(instance)
     keys = [np.asarray(tr, dtype=float) for tr in ex.trajectories]
     st = ex.statistics
@@ -390,7 +422,13 @@ _MOVES = {"U": (0, -1), "D": (0, 1), "L": (-1, 0), "R": (1, 0)}
 
 
 def is_lorr(data: Any) -> bool:
-    """Whether a parsed JSON document is a LoRR output (``actualPaths`` and ``start``)."""
+    """Whether a parsed JSON document is a LoRR output (``actualPaths`` and ``start``).
+
+    Example
+    -------
+    >>> is_lorr({"start": [], "actualPaths": []}), is_lorr({"schedule": {}})
+    (True, False)
+    """
     return isinstance(data, dict) and "actualPaths" in data and "start" in data
 
 
