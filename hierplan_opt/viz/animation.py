@@ -545,7 +545,7 @@ class _GifWriter:
                 save_all=True,
                 append_images=frames[1:],
                 duration=max(int(round(1000 / self.fps)), 20),
-                optimize=False,
+                optimize=True,
                 loop=0,
             )
         self.jobs = []
