@@ -498,3 +498,19 @@ def test_hover_shows_robot_and_disturbance(chrome: Any, files: dict[str, Path]) 
     tip = page.inner_text("#tip")
     assert f"{names[ev['a'][i]]}  {ev['kind'][i]} -> replan" in tip, tip
     page.close()
+
+
+def test_page_is_self_contained(chrome: Any, files: dict[str, Path]) -> None:
+    """No server, no network: the page asks for nothing but itself and its data URL."""
+    out = files["dir"] / "plan.html"  # written by the plan_page fixture's command
+    if not out.exists():
+        assert main(["-q", "view", str(WAREHOUSE), str(files["plan"]), "--out", str(out)]) == 0
+    text = out.read_text()
+    assert "http://" not in text and "https://" not in text and " src=" not in text
+    page = chrome.new_page()
+    asked: list[str] = []
+    page.on("request", lambda r: asked.append(r.url))
+    page.goto(out.resolve().as_uri())
+    assert page.evaluate("window.hierplan.ready") is True
+    assert asked and all(u.startswith(("file://", "data:")) for u in asked), asked
+    page.close()
