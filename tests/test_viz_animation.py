@@ -153,3 +153,25 @@ def test_gantt_groups_rows_and_says_so(tmp_path: Path) -> None:
     assert "robots 10..39 of 130 shown" in sub.axes[0].get_title()
     with pytest.raises(InputError, match="not a range"):
         plot_gantt(s, agents=(5, 500))
+
+
+def test_refine_plot_names_every_robot_in_distinct_colours(tmp_path: Path) -> None:
+    from hierplan_opt.trajectory.plot import plot_trajectories
+    from hierplan_opt.trajectory.result import read_trajectories
+
+    plan, sched, npz = tmp_path / "p.yaml", tmp_path / "s.yaml", tmp_path / "t.npz"
+    assert main(["-q", "solve", WAREHOUSE, "--solver", "cbm", "--out", str(plan)]) == 0
+    assert main(["-q", "post", WAREHOUSE, str(plan), "--out", str(sched)]) == 0
+    args = [WAREHOUSE, str(sched), "--out", str(npz), "--solver", "profile"]
+    assert main(["-q", "refine", *args, "--stretch", "auto"]) == 0
+    traj = read_trajectories(npz)
+    fig = plot_trajectories(traj, tmp_path / "t.png")
+    (legend,) = fig.legends
+    labels = [t.get_text() for t in legend.get_texts()]
+    assert labels[: traj.num_agents] == [r.name for r in traj.robots]
+    colors = {tuple(h.get_color()) if not isinstance(h.get_color(), str) else h.get_color()
+              for h in legend.legend_handles[: traj.num_agents]}  # fmt: skip
+    assert len(colors) == traj.num_agents
+    fig.canvas.draw()
+    box, fb = legend.get_window_extent(), fig.bbox
+    assert box.x0 >= fb.x0 and box.x1 <= fb.x1 and box.y0 >= fb.y0 and box.y1 <= fb.y1
