@@ -514,3 +514,93 @@ def test_page_is_self_contained(chrome: Any, files: dict[str, Path]) -> None:
     assert page.evaluate("window.hierplan.ready") is True
     assert asked and all(u.startswith(("file://", "data:")) for u in asked), asked
     page.close()
+
+
+def expected_image(
+    g: hp.Graph,
+    s: float,
+    origin: list[float],
+    size: tuple[int, int],
+    disc: tuple[float, float, float, str],
+) -> tuple[np.ndarray, np.ndarray]:
+    """The map canvas as it should look (cells, one robot disc) and a mask of the pixels
+    to compare (those not on a cell edge or the disc's rim)."""
+    assert g.shape is not None
+    W, H = g.shape[0], g.shape[1]
+    w, h = size
+    xs, ys = np.arange(w) + 0.5, np.arange(h) + 0.5
+    mx = (xs - origin[0]) / s  # map coordinates of pixel centres
+    my = (ys - origin[1]) / s
+    img = np.full((h, w, 3), 255.0)
+    cx, cy = np.floor(mx + 0.5).astype(int), np.floor(my + 0.5).astype(int)
+    inside = (cx[None, :] >= 0) & (cx[None, :] < W) & (cy[:, None] >= 0) & (cy[:, None] < H)
+    blocked = (~g.passable).reshape(H, W)
+    yy, xx = np.clip(cy, 0, H - 1)[:, None], np.clip(cx, 0, W - 1)[None, :]
+    cell = np.where(blocked[yy, xx], 250 - 255 * 0.8, 250)
+    img[inside] = np.round(cell[inside])[:, None]
+    edge = (np.abs(mx - np.round(mx - 0.5) - 0.5) * s < 1.5)[None, :] | (
+        np.abs(my - np.round(my - 0.5) - 0.5) * s < 1.5
+    )[:, None]
+    x0, y0, r, color = disc
+    px, py = x0 * s + origin[0], y0 * s + origin[1]
+    d = np.hypot(xs[None, :] - px, ys[:, None] - py)
+    img[d <= r * s] = _rgb(color)
+    rim = np.abs(d - r * s) < 1.5
+    return img, ~(edge | rim)
+
+
+def test_screenshot_equals_expected_image(chrome: Any, tmp_path: Path) -> None:
+    """The whole map canvas, pixel for pixel (away from edges), against an image computed
+    here; and the same comparison fails for a page whose robot is one cell off."""
+    from PIL import Image
+
+    g = hp.Graph.grid(7, 4, obstacles=[(2, 1), (3, 1), (4, 1), (5, 3)])
+    inst = hp.Instance.mapf(g, [(0, 0)], [(6, 2)])
+    plan = hp.Plan.from_paths(
+        [[g.vertex((x, 0)) for x in range(7)] + [g.vertex((6, 1)), g.vertex((6, 2))]]
+    )
+
+    def compare(page: Any, t: float, x: float, y: float) -> float:
+        # goals and names off: the map and the robot only
+        page.evaluate("document.getElementById('goals').checked = false; hierplan.redraw()")
+        page.evaluate("document.getElementById('names').checked = false")
+        page.evaluate(f"hierplan.seek({t})")
+        s = page.evaluate("hierplan.pixelsPerUnit()")
+        ox, oy, _ = page.evaluate("hierplan.origin()")
+        left, top = page.evaluate(MAP_BOX)
+        w, h = page.evaluate(
+            "[document.getElementById('map').width, document.getElementById('map').height]"
+        )
+        shot = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(float)
+        got = shot[int(top) : int(top) + h, int(left) : int(left) + w]
+        exp, mask = expected_image(g, s, [ox, oy], (w, h), (x, y, 0.3, PALETTE_0))
+        lx, ly, lw, lh = page.evaluate(
+            "(() => { const r = document.getElementById('legend').getBoundingClientRect();"
+            " return [r.left, r.top, r.width, r.height]; })()"
+        )  # the legend box lies over the map's corner
+        mask[
+            int(ly - top) - 2 : int(ly - top + lh) + 3, int(lx - left) - 2 : int(lx - left + lw) + 3
+        ] = False
+        bad = (np.abs(got - exp).max(axis=2) > 12) & mask
+        return float(bad.sum()) / float(mask.sum())
+
+    out = tmp_path / "one.html"
+    write_view(scene_from_plan(inst, plan), out)
+    page, errors, _ = open_view(chrome, out, width=900, height=600)
+    assert errors == []
+    for t, (x, y) in ((0.0, (0, 0)), (2.5, (2.5, 0)), (7.5, (6, 1.5))):
+        assert compare(page, t, x, y) == 0.0, t
+    # mutation: the page's robot is one cell below where the plan has it
+    scene = scene_from_plan(inst, plan)
+    assert scene.steps is not None
+    scene.steps[:, 0] = [
+        g.vertex((min(x, 6), 1 if x in (0, 1, 6) else 0)) for x in range(len(scene.steps))
+    ]
+    write_view(scene, tmp_path / "off.html")
+    off, errors, _ = open_view(chrome, tmp_path / "off.html", width=900, height=600)
+    assert compare(off, 0.0, 0, 0) > 0.001
+    page.close()
+    off.close()
+
+
+PALETTE_0 = "#1f77b4"
