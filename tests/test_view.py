@@ -604,3 +604,33 @@ def test_screenshot_equals_expected_image(chrome: Any, tmp_path: Path) -> None:
 
 
 PALETTE_0 = "#1f77b4"
+
+
+def test_lorr_3x_segment_paths_with_agent_counter(chrome: Any, tmp_path: Path) -> None:
+    """Start-Kit 3.x logs: compressed segments, an action takes agentCounter ticks."""
+    (tmp_path / "m.map").write_text("type octile\nheight 3\nwidth 4\nmap\n....\n.@..\n....\n")
+    log = {
+        "teamSize": 2,
+        "actualPaths": ["[(0,0,0,0,0):(F 4,W 1)]", "[(0,2,3,2,0):(R 2,F 2)]"],
+    }
+    f = tmp_path / "log3.json"
+    f.write_text(json.dumps(log))
+    out = tmp_path / "log3.html"
+    argv = ["-q", "view", str(tmp_path / "m.map"), str(f), "--out", str(out)]
+    assert main([*argv, "--agent-counter", "2"]) == 0
+    page, errors, _ = open_view(chrome, out)
+    assert errors == []
+    # robot 0 (row 0, col 0, east): half a cell per tick; robot 1 (row 2, col 3, west)
+    # turns clockwise to north in two ticks, then half a cell per tick up
+    want = {
+        0: [(0, 0), (3, 2)],
+        1: [(0.5, 0), (3, 2)],
+        2: [(1, 0), (3, 2)],
+        3: [(1.5, 0), (3, 1.5)],
+        4: [(2, 0), (3, 1)],
+        5: [(2, 0), (3, 1)],
+    }
+    for t, exp in want.items():
+        check_drawn(page, np.array(exp, dtype=float), float(t))
+    check_drawn(page, np.array([(1.25, 0), (3, 1.75)]), 2.5)
+    page.close()

@@ -26,6 +26,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--out", required=True, metavar="HTML", help="the page to write (.html)")
     p.add_argument("--title", metavar="TEXT", help="title shown on the page")
+    p.add_argument(
+        "--agent-counter",
+        type=int,
+        metavar="K",
+        help="LoRR 3.x logs: ticks per action (the problem's agentCounter; default: the "
+        "log's, else 1)",
+    )
 
 
 def _kind(path: str) -> tuple[str, Any]:
@@ -80,7 +87,7 @@ def build_scene(args: argparse.Namespace) -> Any:
             graph = load_map(args.instance)
         else:
             graph = load_instance_from_args(args).graph
-        return sc.scene_from_lorr(graph, args.file, data, title)
+        return sc.scene_from_lorr(graph, args.file, data, title, args.agent_counter)
     instance = load_instance_from_args(args)
     if kind == "trajectories":
         from hierplan_opt.trajectory.result import read_trajectories

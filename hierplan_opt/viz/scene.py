@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -422,18 +423,99 @@ _MOVES = {"U": (0, -1), "D": (0, 1), "L": (-1, 0), "R": (1, 0)}
 
 
 def is_lorr(data: Any) -> bool:
-    """Whether a parsed JSON document is a LoRR output (``actualPaths`` and ``start``).
+    """Whether a parsed JSON document is a LoRR output (an ``actualPaths`` list).
 
     Example
     -------
     >>> is_lorr({"start": [], "actualPaths": []}), is_lorr({"schedule": {}})
     (True, False)
     """
-    return isinstance(data, dict) and "actualPaths" in data and "start" in data
+    return isinstance(data, dict) and isinstance(data.get("actualPaths"), list)
+
+
+_SEG = re.compile(r"\[\((-?\d+),(-?\d+),(-?\d+),(-?\d+),(-?\d+)\):\(([^)]*)\)\]")
+#: (d_row, d_col) of the LoRR orientation codes 0 E, 1 S, 2 W, 3 N.
+_DRC = {0: (0, 1), 1: (1, 0), 2: (0, -1), 3: (-1, 0)}
+
+
+def _segments(text: str, where: str) -> tuple[tuple[int, int, int, int], str]:
+    """Start-Kit 3.x compressed path ``[(t,row,col,ori,counter):(F 3,W 2)]...``: the first
+    state ``(row, col, ori, counter)`` and one action letter per tick."""
+    pos, letters, first = 0, [], None
+    while pos < len(text):
+        m = _SEG.match(text, pos)
+        if m is None:
+            raise InputError(f"{where}: bad segment at character {pos}: {text[pos : pos + 30]!r}")
+        if first is None:
+            first = (int(m[2]), int(m[3]), int(m[4]), int(m[5]))
+        for run in filter(None, (s.strip() for s in m[6].split(","))):
+            parts = run.split()
+            if len(parts) != 2 or parts[0] not in "FRCWT" or not parts[1].isdigit():
+                raise InputError(f"{where}: bad action run {run!r}")
+            letters.append(parts[0] * int(parts[1]))
+        pos = m.end()
+    if first is None:
+        raise InputError(f"{where}: empty path string")
+    return first, "".join(letters)
+
+
+def _segment_keys(
+    graph: Graph, path: str | Path, paths: list[Any], counter: int
+) -> list[np.ndarray]:
+    """Per robot ``(t, x, y)`` keys of Start-Kit 3.x paths: an action takes ``counter``
+    ticks (a forward move advances ``1 / counter`` of a cell per tick, a wait pauses it);
+    only the ticks where the motion changes are kept."""
+    assert graph.shape is not None
+    W, H = graph.shape[0], graph.shape[1]
+    keys = []
+    for i, text in enumerate(paths):
+        (r, c, o, cnt), acts = _segments(str(text), f"{path}: actualPaths[{i}]")
+        cur = "T"
+        xy = np.empty((len(acts) + 1, 2))
+        xy[0] = (c, r)
+        for t, a in enumerate(acts):
+            if cnt > 0 and cur != "T" and a not in ("W", cur):
+                a = cur  # an action in progress finishes first
+            if not (cnt > 0 and cur != "T" and a == "W"):
+                if a == "F":
+                    dr, dc = _DRC[o % 4]
+                    nr, nc = r + dr, c + dc
+                    if not (0 <= nr < H and 0 <= nc < W) or not graph.passable[nr * W + nc]:
+                        raise InputError(
+                            f"{path}: robot {i} leaves the free cells at tick {t + 1} "
+                            f"(row {nr}, column {nc})"
+                        )
+                    cnt += 1
+                    if cnt >= counter:
+                        r, c, cnt, cur = nr, nc, 0, "T"
+                    else:
+                        cur = "F"
+                elif a in ("R", "C"):
+                    cnt += 1
+                    if cnt >= counter:
+                        o, cnt, cur = (o + (1 if a == "R" else 3)) % 4, 0, "T"
+                    else:
+                        cur = a
+            frac = cnt / counter if cur == "F" else 0.0
+            dr, dc = _DRC[o % 4]
+            xy[t + 1] = (c + dc * frac, r + dr * frac)
+        ts = np.arange(len(xy), dtype=float)
+        keep = [0]
+        if len(xy) > 2:
+            v = np.diff(xy, axis=0)
+            keep += (np.flatnonzero(np.abs(np.diff(v, axis=0)).max(axis=1) > 1e-12) + 1).tolist()
+        keep.append(len(xy) - 1)
+        idx = np.unique(np.array(keep, dtype=int))
+        keys.append(np.column_stack([ts[idx], xy[idx]]))
+    return keys
 
 
 def scene_from_lorr(
-    graph: Graph, path: str | Path, data: Mapping[str, Any], title: str = ""
+    graph: Graph,
+    path: str | Path,
+    data: Mapping[str, Any],
+    title: str = "",
+    counter: int | None = None,
 ) -> Scene:
     """A LoRR output JSON (``start`` ``[[row, col, heading], ...]``, ``actualPaths`` one
     comma-separated action string per robot): one timestep per second.
@@ -456,8 +538,27 @@ def scene_from_lorr(
     else:
         raise InputError(f"{path}: LoRR logs need a grid map (.map)")
     W, H = g_shape
-    starts = data.get("start")
     paths = data.get("actualPaths")
+    if isinstance(paths, list) and paths and str(paths[0]).startswith("[("):
+        k = counter or data.get("agentCounter") or 1
+        if not isinstance(k, int) or k < 1:
+            raise InputError(f"{path}: agentCounter must be a positive whole number, got {k!r}")
+        keys = _segment_keys(graph, path, paths, k)
+        n = len(keys)
+        plain = {a: b for a, b in data.items() if isinstance(b, (int, float, str))}
+        return Scene(
+            title=title or f"{Path(path).name}: lifelong (LoRR 3.x), {n} robots",
+            source="lifelong",
+            graph=graph,
+            names=[f"r{i}" for i in range(n)],
+            radius=np.full(n, 0.4),
+            goals=np.full((n, 2), np.nan),
+            team=np.full(n, -1),
+            team_names=[],
+            keys=keys,
+            stats=plain,
+        )
+    starts = data.get("start")
     if not isinstance(starts, list) or not isinstance(paths, list) or len(starts) != len(paths):
         raise InputError(f"{path}: 'start' and 'actualPaths' must be lists of the same length")
     model = str(data.get("actionModel", "MAPF_T"))
@@ -569,7 +670,7 @@ def read_lorr(path: str | Path) -> dict[str, Any]:
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
     if not is_lorr(data):
-        raise InputError(f"{path}: not a LoRR output (no 'start' and 'actualPaths')")
+        raise InputError(f"{path}: not a LoRR output (no 'actualPaths' list)")
     return data
 
 
