@@ -612,6 +612,7 @@ def test_lorr_3x_segment_paths_with_agent_counter(chrome: Any, tmp_path: Path) -
     log = {
         "teamSize": 2,
         "actualPaths": ["[(0,0,0,0,0):(F 4,W 1)]", "[(0,2,3,2,0):(R 2,F 2)]"],
+        "delayIntervals": [[[4, 6]], []],
     }
     f = tmp_path / "log3.json"
     f.write_text(json.dumps(log))
@@ -633,4 +634,6 @@ def test_lorr_3x_segment_paths_with_agent_counter(chrome: Any, tmp_path: Path) -
     for t, exp in want.items():
         check_drawn(page, np.array(exp, dtype=float), float(t))
     check_drawn(page, np.array([(1.25, 0), (3, 1.75)]), 2.5)
+    ev = page.evaluate("hierplan.head.events")
+    assert (ev["t"], ev["a"], ev["kind"], ev["delay"]) == ([4.0], [0], ["delay"], [2.0])
     page.close()

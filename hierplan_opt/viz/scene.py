@@ -540,12 +540,21 @@ def scene_from_lorr(
     W, H = g_shape
     paths = data.get("actualPaths")
     if isinstance(paths, list) and paths and str(paths[0]).startswith("[("):
-        k = counter or data.get("agentCounter") or 1
+        k = counter or data.get("agentCounter") or data.get("agentMaxCounter") or 1
         if not isinstance(k, int) or k < 1:
             raise InputError(f"{path}: agentCounter must be a positive whole number, got {k!r}")
         keys = _segment_keys(graph, path, paths, k)
         n = len(keys)
         plain = {a: b for a, b in data.items() if isinstance(b, (int, float, str))}
+        delays = []  # the Start-Kit's delay intervals [start, end) per robot, as disturbances
+        for i, ivs in enumerate(data.get("delayIntervals") or []):
+            for iv in ivs if isinstance(ivs, list) else []:
+                if isinstance(iv, list) and len(iv) == 2 and i < n:
+                    s0, e0 = float(iv[0]), float(iv[1])
+                    delays.append(
+                        {"time": s0, "agent": f"r{i}", "kind": "delay", "layer": "none",
+                         "delay": e0 - s0, "detail": f"held for ticks {iv[0]}..{iv[1]}"}
+                    )  # fmt: skip
         return Scene(
             title=title or f"{Path(path).name}: lifelong (LoRR 3.x), {n} robots",
             source="lifelong",
@@ -556,6 +565,7 @@ def scene_from_lorr(
             team=np.full(n, -1),
             team_names=[],
             keys=keys,
+            events=delays,
             stats=plain,
         )
     starts = data.get("start")
