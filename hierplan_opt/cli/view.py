@@ -118,12 +118,15 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from hierplan_opt.cli.common import check_outputs
+    from hierplan_opt.core.progress import Progress, reporting
     from hierplan_opt.viz.html import write_view
 
     check_outputs(("--out", args.out, (".html", ".htm")))
     t0 = time.perf_counter()
-    scene = build_scene(args)
-    path = write_view(scene, args.out)
+    show = None if not args.quiet else False  # a bar on a terminal, else status lines
+    with reporting(Progress("view", enabled=show, interval=2.0)):
+        scene = build_scene(args)
+        path = write_view(scene, args.out)
     size = path.stat().st_size / 1e6
     print(
         f"view -> {args.out} ({scene.source}, {scene.num_agents} robots, {scene.end:.4g} s, "

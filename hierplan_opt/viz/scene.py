@@ -706,7 +706,10 @@ def closest_pairs(scene: Scene, samples: int = 300) -> dict[str, list[float] | l
     times = np.linspace(0.0, max(scene.end, 1e-9), max(2, samples))
     rad = scene.radius * scene.scale
     kq = min(K, 6)
-    for t in times:
+    from hierplan_opt.core.progress import tick
+
+    for n, t in enumerate(times):
+        tick("clearance samples", n, len(times))
         p = positions_at(scene, float(t)) * scene.scale
         dq, iq = cKDTree(p).query(p, k=kq)
         d, idx = np.asarray(dq)[:, 1:], np.asarray(iq)[:, 1:]
