@@ -124,8 +124,8 @@ def run(args: argparse.Namespace) -> int:
     check_outputs(("--out", args.out, (".html", ".htm")))
     t0 = time.perf_counter()
     show = None if not args.quiet else False  # a bar on a terminal, else status lines
+    scene = build_scene(args)  # bad input: one line, before any progress line
     with reporting(Progress("view", enabled=show, interval=2.0)):
-        scene = build_scene(args)
         path = write_view(scene, args.out)
     size = path.stat().st_size / 1e6
     print(
