@@ -105,8 +105,11 @@ def check_pixels(page: Any, expected: np.ndarray, t: float) -> None:
     """The screenshot shows each robot's colour around where the file puts it."""
     from PIL import Image
 
+    # names off: a neighbour's label may lie over a robot; the check is about the discs
+    page.evaluate("document.getElementById('names').checked = false")
     page.evaluate(f"hierplan.seek({t})")
     img = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+    page.evaluate("document.getElementById('names').checked = true")
     head = page.evaluate("({pal: hierplan.head.palette, s: hierplan.pixelsPerUnit()})")
     colors = page.evaluate("Array.from(hierplan.colorIndex())")
     box = page.evaluate(MAP_BOX)
@@ -150,12 +153,14 @@ def test_map_pixels_show_obstacles_and_free_cells(plan_page: Any) -> None:
 
     inst = hp.load_instance(WAREHOUSE)
     g = inst.graph
-    plan_page.evaluate("hierplan.seek(0)")
+    plan_page.evaluate("document.getElementById('names').checked = false; hierplan.seek(0)")
     img = np.asarray(Image.open(io.BytesIO(plan_page.screenshot())).convert("L")).astype(int)
+    plan_page.evaluate("document.getElementById('names').checked = true")
     s = plan_page.evaluate("hierplan.pixelsPerUnit()")
     origin = plan_page.evaluate("hierplan.origin()")
     box = plan_page.evaluate(MAP_BOX)
-    starts = {tuple(g.coords[v][:2]) for v in inst.starts}
+    marks = list(inst.starts) + [v for team in inst.teams for v in team.targets]
+    starts = {tuple(g.coords[v][:2]) for v in marks}
     blocked = np.flatnonzero(~g.passable)
     free = [v for v in np.flatnonzero(g.passable) if tuple(g.coords[v][:2]) not in starts]
     for v, dark in [
