@@ -27,6 +27,7 @@ AREAS = {
     "lacam": "PIBT and LaCAM* on large fleets, side by side with lacam3 and the Python ports",
     "highways": "ECBS/CBS with user, crisscross and learned highways (Kiva, corridor)",
     "physics": "robots in MuJoCo: paper warehouse, formation, 200 robots, spill, agreement",
+    "view": "browser viewer: 10,000-robot load time and fps; 200-robot picture commands",
 }
 
 

@@ -73,6 +73,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dot", metavar="FILE", help="also write the STN as Graphviz DOT")
     p.add_argument("--gantt", metavar="FILE", help="also write a Gantt chart (PNG)")
     p.add_argument(
+        "--gantt-rows",
+        type=int,
+        default=60,
+        metavar="N",
+        help="Gantt rows (60): more robots share rows, and the chart says so",
+    )
+    p.add_argument(
+        "--gantt-agents",
+        metavar="FIRST:STOP",
+        help="Gantt chart of robots FIRST..STOP-1 only (the chart says which)",
+    )
+    p.add_argument(
         "--check",
         action="store_true",
         help="replay the schedule and check the minimum distance and every STN bound",
@@ -100,7 +112,19 @@ def run(args: argparse.Namespace) -> int:
         ("--dot", args.dot, (".dot", ".gv")),
         ("--gantt", args.gantt, FIGURE_SUFFIXES),
     )
+    rng = None
+    if args.gantt_agents:
+        a, sep, b = args.gantt_agents.partition(":")
+        if not (sep and a.isdigit() and b.isdigit() and int(a) < int(b)):
+            raise InputError(f"--gantt-agents expects FIRST:STOP, got {args.gantt_agents!r}")
+        rng = (int(a), int(b))
+    if args.gantt_rows < 1:
+        raise InputError(f"--gantt-rows must be at least 1, got {args.gantt_rows}")
     instance = load_instance_from_args(args)
+    if rng is not None and rng[1] > instance.num_agents:
+        raise InputError(
+            f"--gantt-agents {args.gantt_agents}: there are {instance.num_agents} robots"
+        )
     plan, plan_stats = read_plan(args.plan, instance)
     method = args.method or ("graph" if args.objective == "makespan" else "lp")
     if args.margin is not None and args.delta is not None:
@@ -128,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
     if args.gantt:
         from hierplan_opt.viz.gantt import plot_gantt
 
-        plot_gantt(schedule, args.gantt)
+        plot_gantt(schedule, args.gantt, rows=args.gantt_rows, agents=rng)
     st = schedule.stats
     line = (
         f"{schedule.objective} schedule ({method}): makespan {schedule.makespan:.6g} s, "

@@ -55,6 +55,33 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--plot", metavar="PNG", help="distance over time vs the guaranteed distance")
     p.add_argument("--animate", metavar="GIF|MP4", help="animation of the run")
+    add_animation_arguments(p)
+
+
+def add_animation_arguments(p: argparse.ArgumentParser) -> None:
+    """``--fps``, ``--animate-size WxH``, ``--animate-speed`` of ``--animate``."""
+    from hierplan_opt.cli.common import positive_float
+
+    p.add_argument("--fps", type=positive_float, default=10.0, help="animation frame rate (10)")
+    p.add_argument(
+        "--animate-size", metavar="WxH", type=_size, help="animation size in pixels (auto)"
+    )
+    p.add_argument(
+        "--animate-speed",
+        type=positive_float,
+        default=None,
+        metavar="X",
+        help="seconds of plan per second of animation (1; plans over 60 s: videos of 60 s)",
+    )
+
+
+def _size(text: str) -> tuple[int, int]:
+    w, sep, h = text.lower().partition("x")
+    if not (sep and w.isdigit() and h.isdigit()):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT in pixels, got {text!r}")
+    if not (64 <= int(w) <= 7680 and 64 <= int(h) <= 4320):
+        raise argparse.ArgumentTypeError(f"{text}: sizes go from 64x64 to 7680x4320 pixels")
+    return int(w), int(h)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -209,7 +236,15 @@ def report_execution(
     if args.animate:
         from hierplan_opt.viz.animation import animate
 
-        animate(ex, instance, args.animate)
+        animate(
+            ex,
+            instance,
+            args.animate,
+            fps=args.fps,
+            size=args.animate_size,
+            speed=args.animate_speed,
+            progress=None if not args.quiet else False,
+        )
     st = ex.statistics
     if st["collisions"] or not st["distance_kept"]:
         return PLAN_INVALID

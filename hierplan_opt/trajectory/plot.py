@@ -43,6 +43,7 @@ def plot_trajectories(
     True
     """
     from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
 
     s = traj.sample(dt)
     K = min(traj.num_agents, max_agents)
@@ -53,8 +54,15 @@ def plot_trajectories(
     t = s["t"]
     styles = ("-", "--", ":")
     names = ("x", "y", "z")
+    # distinct colours for up to 20 robots (tab20), every robot named in the legend
+    palette: list[Any] = [f"C{j}" for j in range(10)]
+    if K > 10:
+        import matplotlib
+
+        cmap = matplotlib.colormaps["tab20"]
+        palette = [cmap(j) for j in range(20)]
     for j in range(K):
-        color = f"C{j % 10}"
+        color = palette[j % len(palette)]
         for d in range(traj.dim):
             axes[0].plot(
                 t,
@@ -62,7 +70,6 @@ def plot_trajectories(
                 styles[d],
                 color=color,
                 lw=1,
-                label=f"{traj.robots[j].name} {names[d]}" if j < 4 else None,
             )
         axes[1].plot(t, np.linalg.norm(s["vel"][j], axis=1), color=color, lw=1)
         axes[2].plot(t, np.linalg.norm(s["acc"][j], axis=1), color=color, lw=1)
@@ -77,7 +84,15 @@ def plot_trajectories(
     axes[1].set_ylabel("speed (m/s)")
     axes[2].set_ylabel("|acceleration| (m/s²)")
     axes[-1].set_xlabel("time (s)")
-    axes[0].legend(fontsize=7, ncol=4, loc="upper right")
+    handles = [
+        Line2D([], [], color=palette[j % len(palette)], lw=2, label=traj.robots[j].name)
+        for j in range(K)
+    ] + [
+        Line2D([], [], color="0.3", ls=styles[d], lw=1, label=f"{names[d]} coordinate")
+        for d in range(traj.dim)
+    ]
+    # beside the axes, inside the figure (constrained layout makes room)
+    fig.legend(handles=handles, loc="outside right upper", fontsize=7)
     total = traj.num_agents
     shown = f"{K} of {total} robots" if total > K else f"{K} robots"
     fig.suptitle(

@@ -39,8 +39,20 @@ def _pyplot():
 def _new_axes(ax: Any, figsize: tuple[float, float]) -> Any:
     if ax is not None:
         return ax
-    _, ax = _pyplot().subplots(figsize=figsize)
+    # constrained layout keeps legends placed beside the axes inside the figure
+    _, ax = _pyplot().subplots(figsize=figsize, layout="constrained")
     return ax
+
+
+def _place_legend(ax: Any, handles: list[Any]) -> None:
+    """Beside the axes when the figure's layout makes room for it (figures made here),
+    else inside the axes where it covers least: never cut off at the figure's edge."""
+    if ax.figure.get_layout_engine() is not None:
+        ax.legend(
+            handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False
+        )
+    else:
+        ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)
 
 
 def _palette(n: int) -> list[tuple[float, float, float, float]]:
@@ -304,9 +316,7 @@ def _draw_agents(instance: Instance, ax: Any, layer: int | None, legend: bool) -
             Line2D([], [], color=team_col[t], lw=6, label=f"{team.name} ({len(team.agents)})")
             for t, team in enumerate(instance.teams)
         ]
-    ax.legend(
-        handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False
-    )
+    _place_legend(ax, handles)
 
 
 def plot_instance(
@@ -403,8 +413,14 @@ def plot_plan(
     title: str | None = None,
     spread: float = 0.08,
     color_by: str = "auto",
+    highlight: Sequence[int] | None = None,
+    dense: bool | None = None,
 ) -> Any:
     """Draw the instance and every robot's path.
+
+    Large fleets (``dense``, by default over 40 robots) stay readable: every path is a
+    thin faint line (team colours for teams, else one colour), the ``highlight`` robots
+    (default: the first five) are drawn in full with their names, and the title says so.
 
     Parameters
     ----------
@@ -427,6 +443,10 @@ def plot_plan(
     color_by : {"auto", "team", "agent"}
         Path colours, see :func:`agent_colors` (starts and targets always use the
         team colours on TAPF instances).
+    highlight : sequence of int, optional
+        Robots drawn in full on a dense plot (default: the first five).
+    dense : bool, optional
+        Faint paths with a highlighted subset; default: more than 40 robots.
 
     Returns
     -------
@@ -461,7 +481,31 @@ def plot_plan(
     K = instance.num_agents
     scale = _spacing(instance)
     lw = float(np.clip(60.0 / _extent(instance), 0.8, 3.0))
-    for i, path in enumerate(plan.paths):
+    dense = K > 40 if dense is None else dense
+    full_paths = range(K)
+    if dense:
+        hl = sorted({int(i) for i in (highlight if highlight is not None else range(min(5, K)))})
+        if any(not 0 <= i < K for i in hl):
+            raise ValueError(f"highlight lists robots outside 0..{K - 1}: {hl}")
+        teams = instance.is_tapf and len(instance.teams) > 1
+        faint_col = agent_colors(instance, "team") if teams else [(0.12, 0.47, 0.71, 1.0)] * K
+        hl_col = _palette(max(len(hl), 1))
+        segs, cols = [], []
+        for i, path in enumerate(plan.paths):
+            full = [path[min(t, len(path) - 1)] for t in range(t0, max(t1, t0) + 1)]
+            xy = _xy(instance, full).astype(float)
+            xy[~_in_layer(instance, full, layer)] = np.nan
+            segs.append(xy)
+            cols.append(faint_col[i])
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection(segs, colors=cols, linewidths=0.6, alpha=0.3, zorder=3.5))
+        colors = list(colors)
+        for n, i in enumerate(hl):
+            colors[i] = faint_col[i] if teams else hl_col[n]
+        full_paths = hl
+        lw = max(lw, 2.0)
+    for i, path in ((i, plan.paths[i]) for i in full_paths):
         full = [path[min(t, len(path) - 1)] for t in range(t0, max(t1, t0) + 1)]
         shift = 0.0 if K == 1 else spread * scale * (2.0 * (i % 5) / 4.0 - 1.0)
         xy = _xy(instance, full) + shift
@@ -497,6 +541,16 @@ def plot_plan(
                     ax.scatter(
                         xy[k, 0], xy[k, 1], marker="^" if up else "v", color=colors[i], zorder=5
                     )
+        if dense:
+            ax.annotate(
+                instance.agents[i].name,
+                xy[-1],
+                xytext=(4, 4),
+                textcoords="offset points",
+                fontsize=7,
+                color="black",
+                zorder=8,
+            )
         if show_pos and inside[-1]:
             ax.scatter(
                 xy[-1, 0],
@@ -534,20 +588,28 @@ def plot_plan(
             ]
         else:
             handles = []
+        if dense:
+            handles = [
+                Line2D([], [], color=(0.12, 0.47, 0.71), lw=0.8, alpha=0.5,
+                       label=f"{K} paths (faint)")
+            ] + handles + [
+                Line2D([], [], color=colors[i], lw=3, label=instance.agents[i].name)
+                for i in list(full_paths)[:12]
+            ]  # fmt: skip
         handles += [
             Line2D([], [], marker="o", color="0.5", markeredgecolor="black", ls="", label="start"),
             Line2D([], [], marker="*", color="0.5", markeredgecolor="black", ls="", ms=10,
                    label="target" if instance.is_tapf else "goal"),
         ]  # fmt: skip
-        ax.legend(
-            handles=handles,
-            loc="upper left",
-            bbox_to_anchor=(1.01, 1.0),
-            fontsize=8,
-            frameon=False,
-        )
+        if instance.highways:
+            handles.append(
+                Line2D([], [], marker=">", ls="", color="tab:olive", alpha=0.6, label="highway")
+            )
+        _place_legend(ax, handles)
     if title is None:
         title = f"{instance.name}: SoC {plan.sum_of_costs}, makespan {plan.makespan}"
+        if dense:
+            title += f"; {K} robots, {len(full_paths)} highlighted"
         if show_pos:
             title += f", t = {t1}" if t0 == 0 else f", t = {t0}..{t1}"
         if layer is not None:
@@ -744,6 +806,42 @@ def plot_runtime_table(
     return ax
 
 
+def save_plan_figure(instance: Instance, plan: Plan, path: Any, **kwargs: Any) -> Any:
+    """Draw :func:`plot_plan` into a stand-alone figure (not pyplot's) and save it
+    atomically (type by extension); return the figure.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> import hierplan_opt as hp
+    >>> inst = hp.Instance.mapf(hp.Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> f = os.path.join(tempfile.mkdtemp(), "p.png")
+    >>> fig = save_plan_figure(inst, hp.Plan.from_paths([[0, 1, 2]]), f)
+    >>> os.path.getsize(f) > 1000
+    True
+    """
+    from matplotlib.figure import Figure
+
+    from hierplan_opt.io.files import atomic_path, check_output
+    from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
+
+    check_output(path, what="plan plot", suffixes=FIGURE_SUFFIXES)
+    g = instance.graph
+    if g.kind == "grid" and g.shape is not None:
+        ratio = g.shape[1] / max(g.shape[0], 1)
+    else:
+        span = g.coords[:, :2].max(axis=0) - g.coords[:, :2].min(axis=0)
+        ratio = float(span[1]) / max(float(span[0]), 1e-9)
+    width = 11.0
+    fig = Figure(figsize=(width, float(np.clip(width * 0.8 * ratio + 0.8, 3.0, 12.0))),
+                 layout="constrained")  # fmt: skip
+    ax = fig.add_subplot()
+    plot_plan(instance, plan, ax, **kwargs)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    return fig
+
+
 __all__ = [
     "agent_colors",
     "format_table",
@@ -751,4 +849,5 @@ __all__ = [
     "plot_layers",
     "plot_plan",
     "plot_runtime_table",
+    "save_plan_figure",
 ]
