@@ -1,0 +1,219 @@
+"""The LoRR action model (MAPF with turnings, ``MAPF_T``) and distances on its grid.
+
+A robot has a location (linearised ``row * cols + col``), an orientation (0 east,
+1 south, 2 west, 3 north) and a counter. Each action -- forward (``FW``), rotate
+clockwise (``CR``) or counter-clockwise (``CCR``) -- takes ``agentCounter`` ticks; the
+location or orientation changes on the last one. Once started, an action can only be
+paused (a wait) or continued, exactly as in the Start-Kit's ``ActionModelWithRotate``:
+:func:`step_state` is that rule for one robot and one tick. During a forward move the
+robot's square footprint (``agentSize``) slides from its cell towards the next.
+
+:class:`Grid` holds the map and :class:`Distances` the exact travel distances to goals
+(breadth-first search by scipy, cached up to a memory budget; Manhattan distance when a
+table is not affordable).
+"""
+
+from __future__ import annotations
+
+import logging
+from array import array
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import shortest_path
+
+log = logging.getLogger(__name__)
+
+FW, CR, CCR, W, NA = 0, 1, 2, 3, 4
+#: One letter per action in the compressed path strings.
+LETTERS = "FRCWT"
+CODES = {c: i for i, c in enumerate(LETTERS)}
+#: A distance larger than any path (unreachable cells).
+FAR = 1 << 28
+
+
+@dataclass
+class RobotState:
+    """One robot's state as the Start-Kit keeps it (``cur`` is the action in progress)."""
+
+    loc: int
+    ori: int = 0
+    count: int = 0
+    cur: int = NA
+
+
+def step_state(s: RobotState, action: int, moves: tuple[int, int, int, int], k: int) -> None:
+    """Apply one tick of ``action`` to ``s`` in place (the Start-Kit's ``result_state``).
+
+    Example
+    -------
+    >>> s = RobotState(0)
+    >>> for _ in range(3):
+    ...     step_state(s, FW, (1, 4, -1, -4), 3)
+    >>> s.loc, s.count, s.cur
+    (1, 0, 4)
+    """
+    if s.count > 0 and s.cur != NA:
+        if action == W:
+            return
+        action = s.cur
+    if action == FW:
+        s.count += 1
+        if s.count >= k:
+            s.loc += moves[s.ori]
+            s.count = 0
+            s.cur = NA
+        else:
+            s.cur = FW
+    elif action == CR or action == CCR:
+        s.count += 1
+        if s.count >= k:
+            s.ori = (s.ori + (1 if action == CR else 3)) % 4
+            s.count = 0
+            s.cur = NA
+        else:
+            s.cur = action
+    else:
+        s.cur = s.cur if s.count > 0 else NA
+
+
+class Grid:
+    """The map: size, blocked cells and the four moves (east, south, west, north).
+
+    Example
+    -------
+    >>> g = Grid(2, 3, np.array([0, 1, 0, 0, 0, 0], dtype=bool))
+    >>> g.neighbours(0), g.direction(0, 3)
+    ([3], 1)
+    """
+
+    def __init__(self, rows: int, cols: int, blocked: np.ndarray) -> None:
+        self.rows = rows
+        self.cols = cols
+        self.n = rows * cols
+        self.blocked = blocked
+        self.free = (~blocked).tolist()
+        self.moves = (1, cols, -1, -cols)
+
+    def neighbours(self, v: int) -> list[int]:
+        """Free 4-neighbours of cell ``v``."""
+        c = self.cols
+        r, col = divmod(v, c)
+        free = self.free
+        out = []
+        if col + 1 < c and free[v + 1]:
+            out.append(v + 1)
+        if r + 1 < self.rows and free[v + c]:
+            out.append(v + c)
+        if col > 0 and free[v - 1]:
+            out.append(v - 1)
+        if r > 0 and free[v - c]:
+            out.append(v - c)
+        return out
+
+    def direction(self, u: int, v: int) -> int:
+        """The orientation of the move ``u -> v`` (neighbours)."""
+        d = v - u
+        return 0 if d == 1 else 1 if d == self.cols else 2 if d == -1 else 3
+
+    def csr(self) -> csr_matrix:
+        """The free cells' adjacency as a sparse matrix (for breadth-first search)."""
+        idx = np.flatnonzero(~self.blocked)
+        r, c = np.divmod(idx, self.cols)
+        rows_l, cols_l = [], []
+        for dr, dc in ((0, 1), (1, 0)):
+            nr, nc = r + dr, c + dc
+            ok = (nr < self.rows) & (nc < self.cols)
+            a = idx[ok]
+            b = nr[ok] * self.cols + nc[ok]
+            keep = ~self.blocked[b]
+            rows_l += [a[keep], b[keep]]
+            cols_l += [b[keep], a[keep]]
+        ri = np.concatenate(rows_l)
+        ci = np.concatenate(cols_l)
+        return csr_matrix((np.ones(len(ri), dtype=np.int8), (ri, ci)), shape=(self.n, self.n))
+
+
+class Distances:
+    """Exact distances to goals, cached (least recently used) up to ``max_bytes``.
+
+    ``table(goal)`` is an ``array('i')`` over all cells (:data:`FAR` where unreachable);
+    ``estimate(a, b)`` uses ``b``'s table when cached and the Manhattan distance
+    otherwise. ``budget`` caps the number of new tables per :meth:`new_round` (one
+    planning call): beyond it :meth:`table` returns None and callers fall back to
+    Manhattan distances, so a huge map never stalls a planning call.
+
+    Example
+    -------
+    >>> g = Grid(1, 4, np.array([0, 0, 0, 0], dtype=bool))
+    >>> Distances(g).table(3).tolist()
+    [3, 2, 1, 0]
+    """
+
+    def __init__(self, grid: Grid, max_bytes: int = 1 << 30, budget: int | None = None) -> None:
+        self.grid = grid
+        self._csr: csr_matrix | None = None
+        self.cache: OrderedDict[int, array] = OrderedDict()
+        self.max_tables = max(8, max_bytes // (4 * grid.n))
+        self.budget = budget
+        self.made = 0
+        self.made_total = 0
+        self.fallbacks = 0
+
+    def new_round(self) -> None:
+        """Reset the per-call table budget."""
+        self.made = 0
+
+    def prefetch(self, goals: list[int]) -> None:
+        """Make the tables of ``goals`` (batched; within the budget)."""
+        want = [g for g in dict.fromkeys(goals) if g not in self.cache]
+        if self.budget is not None:
+            want = want[: max(0, self.budget - self.made)]
+        want = want[: self.max_tables]
+        if not want:
+            return
+        if self._csr is None:
+            self._csr = self.grid.csr()
+        batch = max(1, min(len(want), (64 << 20) // (8 * self.grid.n)))
+        for s in range(0, len(want), batch):
+            part = want[s : s + batch]
+            d = shortest_path(self._csr, directed=False, unweighted=True, indices=part)
+            d = np.atleast_2d(d)
+            d[~np.isfinite(d)] = FAR
+            di = d.astype(np.int32)
+            for g, row in zip(part, di, strict=True):
+                self._put(g, array("i", row.tobytes()))
+        self.made += len(want)
+        self.made_total += len(want)
+
+    def _put(self, g: int, t: array) -> None:
+        self.cache[g] = t
+        while len(self.cache) > self.max_tables:
+            self.cache.popitem(last=False)
+
+    def table(self, goal: int) -> array | None:
+        """The distance table of ``goal``, or None when the budget is spent."""
+        t = self.cache.get(goal)
+        if t is not None:
+            self.cache.move_to_end(goal)
+            return t
+        if self.budget is not None and self.made >= self.budget:
+            self.fallbacks += 1
+            return None
+        self.prefetch([goal])
+        return self.cache.get(goal)
+
+    def estimate(self, a: int, b: int) -> int:
+        """Distance from ``a`` to ``b``: exact when ``b``'s table is cached, else Manhattan."""
+        t = self.cache.get(b)
+        if t is not None:
+            return t[a]
+        c = self.grid.cols
+        ar, ac = divmod(a, c)
+        br, bc = divmod(b, c)
+        return abs(ar - br) + abs(ac - bc)
+
+
+__all__ = ["CCR", "CR", "FAR", "FW", "LETTERS", "NA", "W", "Distances", "Grid", "RobotState"]

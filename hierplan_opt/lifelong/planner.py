@@ -1,0 +1,219 @@
+"""Rolling-horizon planning: windowed PIBT with turning costs and congestion guidance.
+
+Every planning call plans ``window`` synchronous steps on the location graph with PIBT
+(Okumura et al., AIJ 2022; the same rule as :mod:`hierplan_opt.search.pibt`, which plans
+one-shot MAPF to the end and does not take shared goals or a step budget): agents choose
+in priority order the free neighbour (or their own cell) that is best by
+
+    distance to the goal  +  turns needed to face it  +  ``congestion`` * traffic there,
+
+where traffic counts the robots that planned through a cell in recent calls (guidance
+against congestion). An agent that wants a cell held by an undecided agent makes that
+agent move first; a step is free of vertex and swap conflicts. When an agent reaches an
+errand inside the window its next errand becomes its goal.
+
+Rotations along a cycle (each agent taking the next one's cell) are legal in MAPF but
+cannot be executed one cell at a time, so they are turned into waits. The steps become
+per-robot action lists (turns, then a forward move) and per-cell visit orders, which the
+executor (:mod:`hierplan_opt.lifelong.executor`) keeps as an action dependency graph.
+"""
+
+from __future__ import annotations
+
+import random
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from hierplan_opt.lifelong.model import CCR, CR, FW, Distances, Grid
+
+NIL = -1
+
+
+@dataclass
+class WindowPlan:
+    """The result of one planning call: per robot its actions and the cells it enters
+    (in order), and the plan's per-cell visit order (robots in order of entry)."""
+
+    actions: list[list[int]]
+    enters: list[list[int]]
+    order: dict[int, list[int]] = field(default_factory=dict)
+    cycles_broken: int = 0
+
+
+def turns(ori: int, want: int) -> list[int]:
+    """The rotations that turn orientation ``ori`` into ``want`` (shortest way).
+
+    Example
+    -------
+    >>> turns(0, 1), turns(0, 3), len(turns(0, 2)), turns(2, 2)
+    ([1], [2], 2, [])
+    """
+    d = (want - ori) % 4
+    return [] if d == 0 else [CR] if d == 1 else [CCR] if d == 3 else [CR, CR]
+
+
+class WindowedPIBT:
+    """PIBT over ``window`` steps for all robots at once (see the module doc)."""
+
+    def __init__(
+        self,
+        grid: Grid,
+        dist: Distances,
+        *,
+        window: int = 4,
+        seed: int = 0,
+        congestion: float = 0.0,
+        turn_cost: float = 0.3,
+    ) -> None:
+        self.grid = grid
+        self.dist = dist
+        self.window = window
+        self.rng = random.Random(seed)
+        self.congestion = congestion
+        self.turn_cost = turn_cost
+        self.occ_now = [NIL] * grid.n
+        self.occ_next = [NIL] * grid.n
+        self.traffic: dict[int, float] = {}
+
+    # ------------------------------------------------------------------ one call
+    def plan(
+        self,
+        locs: Sequence[int],
+        oris: Sequence[int],
+        errands: Sequence[Sequence[int]],
+        priority: Sequence[float],
+    ) -> WindowPlan:
+        """Plan ``window`` steps from the robots' committed cells and orientations.
+
+        ``errands[i]`` is robot ``i``'s remaining errands (its goal is the first; empty:
+        no task, stay unless pushed); ``priority`` orders the robots (higher first).
+        """
+        n = len(locs)
+        q = list(locs)
+        o = list(oris)
+        goal_idx = [0] * n
+        tables = [self._table(errands[i], 0, q[i]) for i in range(n)]
+        acts: list[list[int]] = [[] for _ in range(n)]
+        enters: list[list[int]] = [[] for _ in range(n)]
+        order: dict[int, list[int]] = {}
+        prio = list(priority)
+        broken = 0
+        old_limit = sys.getrecursionlimit()
+        sys.setrecursionlimit(max(old_limit, 4 * n + 1000))
+        try:
+            for _ in range(self.window):
+                seq = sorted(range(n), key=prio.__getitem__, reverse=True)
+                q_to = self._step(q, o, tables, seq)
+                broken += self._break_cycles(q, q_to)
+                for i in range(n):
+                    u, v = q[i], q_to[i]
+                    if u == v:
+                        continue
+                    d = self.grid.direction(u, v)
+                    acts[i] += turns(o[i], d)
+                    acts[i].append(FW)
+                    enters[i].append(v)
+                    order.setdefault(v, []).append(i)
+                    o[i] = d
+                    self.traffic[v] = self.traffic.get(v, 0.0) + 1.0
+                q = q_to
+                for i in range(n):
+                    e = errands[i]
+                    if goal_idx[i] < len(e) and q[i] == e[goal_idx[i]]:
+                        goal_idx[i] += 1
+                        tables[i] = self._table(e, goal_idx[i], q[i])
+                        prio[i] = self.rng.random()  # arrived: back to a low priority
+                    elif goal_idx[i] < len(e):
+                        prio[i] += 1.0
+        finally:
+            sys.setrecursionlimit(old_limit)
+        if self.traffic:  # forget old traffic slowly
+            self.traffic = {v: t * 0.5 for v, t in self.traffic.items() if t > 0.25}
+        return WindowPlan(acts, enters, order, broken)
+
+    def _table(self, errands: Sequence[int], k: int, here: int):
+        goal = errands[k] if k < len(errands) else here
+        t = self.dist.table(goal)
+        return t if t is not None else goal  # an int: Manhattan to it
+
+    # ------------------------------------------------------------------ one step
+    def _step(self, q: list[int], o: list[int], tables: list, seq: list[int]) -> list[int]:
+        occ_now, occ_next = self.occ_now, self.occ_next
+        q_to = [NIL] * len(q)
+        for i, v in enumerate(q):
+            occ_now[v] = i
+        for i in seq:
+            if q_to[i] == NIL:
+                self._push(i, NIL, q, o, q_to, tables)
+        for v in q:
+            occ_now[v] = NIL
+        for v in q_to:
+            occ_next[v] = NIL
+        return q_to
+
+    def _key(self, i: int, v: int, c: int, o: list[int], t) -> float:
+        if isinstance(t, int):
+            cols = self.grid.cols
+            d = abs(c // cols - t // cols) + abs(c % cols - t % cols)
+        else:
+            d = t[c]
+        if c != v:
+            dd = (self.grid.direction(v, c) - o[i]) % 4
+            d += self.turn_cost * (0 if dd == 0 else 2 if dd == 2 else 1)
+            if self.congestion:
+                d += self.congestion * self.traffic.get(c, 0.0)
+        return d + self.rng.random() * 1e-3
+
+    def _push(self, i: int, parent: int, q, o, q_to: list[int], tables) -> bool:
+        v = q[i]
+        t = tables[i]
+        cands = self.grid.neighbours(v)
+        cands.append(v)
+        cands.sort(key=lambda c: self._key(i, v, c, o, t))
+        occ_now, occ_next = self.occ_now, self.occ_next
+        for c in cands:
+            if occ_next[c] != NIL:
+                continue
+            if parent != NIL and c == q[parent]:
+                continue
+            j = occ_now[c]
+            if j != NIL and j != i and q_to[j] == v:
+                continue  # swap
+            q_to[i] = c
+            occ_next[c] = i
+            if j != NIL and j != i and q_to[j] == NIL and not self._push(j, i, q, o, q_to, tables):
+                occ_next[c] = NIL
+                q_to[i] = NIL
+                continue
+            return True
+        if occ_next[v] == NIL or occ_next[v] == i:
+            q_to[i] = v
+            occ_next[v] = i
+        return False
+
+    def _break_cycles(self, q: list[int], q_to: list[int]) -> int:
+        """Rotation cycles (every agent entering the next one's cell) become waits."""
+        where = {v: i for i, v in enumerate(q)}
+        state = [0] * len(q)  # 0 unseen, 1 on the current walk, 2 done
+        broken = 0
+        for s in range(len(q)):
+            if state[s]:
+                continue
+            walk = []
+            i = s
+            while i != NIL and state[i] == 0 and q_to[i] != q[i]:
+                state[i] = 1
+                walk.append(i)
+                i = where.get(q_to[i], NIL)
+            if i != NIL and state[i] == 1:  # a cycle from i
+                k = walk.index(i)
+                for a in walk[k:]:
+                    q_to[a] = q[a]
+                broken += 1
+            for a in walk:
+                state[a] = 2
+        return broken
+
+
+__all__ = ["WindowPlan", "WindowedPIBT", "turns"]
