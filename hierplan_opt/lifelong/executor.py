@@ -50,16 +50,19 @@ class ADGExecutor:
         self.staged = [deque(a) for a in plan.actions]
         self.blocked_by = [-1] * len(robots)
         q: dict[int, deque[int]] = {}
+        # a robot leaving a cell comes before one following it in (at most one each)
         for i, s in enumerate(robots):
             q[s.loc] = deque([i])
-            if s.cur == FW:
-                q[s.loc + self.moves[s.ori]] = deque([i])
+        for i, s in enumerate(robots):
+            if s.cur == FW and s.count > 0:
+                q.setdefault(s.loc + self.moves[s.ori], deque()).append(i)
         for cell, who in plan.order.items():
             q.setdefault(cell, deque()).extend(who)
         self.queues = q
 
     def command(self, i: int, s: RobotState) -> int:
-        """Robot ``i``'s action this tick (it is not delayed); W when it must wait."""
+        """Robot ``i``'s action this tick by the cell rule alone (no following); W when
+        it must wait."""
         self.blocked_by[i] = -1
         if s.count > 0 and s.cur != NA:
             return s.cur
@@ -74,6 +77,58 @@ class ADGExecutor:
             return a
         self.blocked_by[i] = head[0] if head else -2
         return W
+
+    def commands(self, robots: list[RobotState], delayed: list[bool], k: int) -> list[int]:
+        """Every robot's action this tick, decided together.
+
+        Besides the cell rule, a robot may *follow* the robot ahead into a cell that one
+        is leaving in the same direction, as long as the follower's progress never
+        passes the leader's (counter of the follower <= counter of the leader after
+        the tick): the two footprints then slide in step and never overlap. A leader
+        that pauses (delayed or blocked) stops its follower on the same tick.
+        """
+        n = len(robots)
+        out = [-1] * n
+        self.blocked_by = [-1] * n
+        moves = self.moves
+
+        def decide(i: int) -> int:
+            if out[i] >= 0:
+                return out[i]
+            out[i] = W  # provisional (no dependency cycles: followers look ahead in line)
+            s = robots[i]
+            if delayed[i]:
+                return W
+            busy = s.count > 0 and s.cur != NA
+            if busy and s.cur != FW:
+                out[i] = s.cur
+                return s.cur
+            if not busy:
+                st = self.staged[i]
+                if not st:
+                    return W
+                if st[0] != FW:
+                    out[i] = st[0]
+                    return st[0]
+            x = s.loc + moves[s.ori]
+            q = self.queues.get(x)
+            if q and q[0] == i:
+                out[i] = FW
+                return FW
+            lead = q[0] if q else -2
+            self.blocked_by[i] = lead
+            if lead >= 0 and len(q) > 1 and q[1] == i:  # type: ignore[arg-type]
+                a = robots[lead]
+                if a.loc == x and a.ori == s.ori and (a.cur == FW or a.count == 0):
+                    if decide(lead) == FW and a.count >= s.count:
+                        self.blocked_by[i] = -1
+                        out[i] = FW
+                        return FW
+            return W
+
+        for i in range(n):
+            decide(i)
+        return out
 
     def started(self, i: int) -> None:
         """Robot ``i`` began its next staged action this tick."""

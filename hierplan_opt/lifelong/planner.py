@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from hierplan_opt.lifelong.model import CCR, CR, FW, Distances, Grid
 
 NIL = -1
+#: Extra cost of a cell that needs a turn for an agent pushed out of its cell.
+PUSHED_TURN = 10.0
 
 
 @dataclass
@@ -64,7 +66,7 @@ class WindowedPIBT:
         window: int = 4,
         seed: int = 0,
         congestion: float = 0.0,
-        turn_cost: float = 0.3,
+        turn_cost: float = 1.0,
     ) -> None:
         self.grid = grid
         self.dist = dist
@@ -75,6 +77,7 @@ class WindowedPIBT:
         self.occ_now = [NIL] * grid.n
         self.occ_next = [NIL] * grid.n
         self.traffic: dict[int, float] = {}
+        self.on_stack: set[int] = set()
 
     # ------------------------------------------------------------------ one call
     def plan(
@@ -106,16 +109,14 @@ class WindowedPIBT:
                 seq = sorted(range(n), key=prio.__getitem__, reverse=True)
                 q_to = self._step(q, o, tables, seq)
                 broken += self._break_cycles(q, q_to)
+                self._turn_first(q, q_to, o, acts)
                 for i in range(n):
                     u, v = q[i], q_to[i]
                     if u == v:
                         continue
-                    d = self.grid.direction(u, v)
-                    acts[i] += turns(o[i], d)
                     acts[i].append(FW)
                     enters[i].append(v)
                     order.setdefault(v, []).append(i)
-                    o[i] = d
                     self.traffic[v] = self.traffic.get(v, 0.0) + 1.0
                 q = q_to
                 for i in range(n):
@@ -152,7 +153,8 @@ class WindowedPIBT:
             occ_next[v] = NIL
         return q_to
 
-    def _key(self, i: int, v: int, c: int, o: list[int], t) -> float:
+    def _key(self, i: int, v: int, c: int, o: list[int], t, pushed: bool) -> float:
+        """Steps to the goal through ``c``: turns to face it, the move, its distance."""
         if isinstance(t, int):
             cols = self.grid.cols
             d = abs(c // cols - t // cols) + abs(c % cols - t % cols)
@@ -160,23 +162,58 @@ class WindowedPIBT:
             d = t[c]
         if c != v:
             dd = (self.grid.direction(v, c) - o[i]) % 4
-            d += self.turn_cost * (0 if dd == 0 else 2 if dd == 2 else 1)
+            n_turns = 0 if dd == 0 else 2 if dd == 2 else 1
+            d += 1 + self.turn_cost * n_turns
+            if n_turns and pushed:
+                d += PUSHED_TURN  # it could not make room this step
             if self.congestion:
                 d += self.congestion * self.traffic.get(c, 0.0)
         return d + self.rng.random() * 1e-3
+
+    def _turn_first(self, q: list[int], q_to: list[int], o: list[int], acts: list[list[int]]) -> None:
+        """Agents whose chosen cell is not ahead turn towards it and stay this step;
+        agents that were to enter a cell whose agent stays wait too (recursively)."""
+        want = {q_to[j]: j for j in range(len(q)) if q_to[j] != q[j]}
+        stay: list[int] = []
+        for i in range(len(q)):
+            if q_to[i] == q[i]:
+                continue
+            d = self.grid.direction(q[i], q_to[i])
+            if d != o[i]:
+                acts[i].append(turns(o[i], d)[0])
+                o[i] = (o[i] + (1 if acts[i][-1] == CR else 3)) % 4
+                q_to[i] = q[i]
+                stay.append(i)
+        while stay:
+            j = want.get(q[stay.pop()], NIL)
+            if j != NIL and q_to[j] != q[j]:
+                q_to[j] = q[j]
+                stay.append(j)
 
     def _push(self, i: int, parent: int, q, o, q_to: list[int], tables) -> bool:
         v = q[i]
         t = tables[i]
         cands = self.grid.neighbours(v)
         cands.append(v)
-        cands.sort(key=lambda c: self._key(i, v, c, o, t))
-        occ_now, occ_next = self.occ_now, self.occ_next
+        pushed = parent != NIL
+        keys = {c: self._key(i, v, c, o, t, pushed) for c in cands}
+        if keys[v] >= 0.5 or pushed:  # not at its goal: waiting costs a step more than moving
+            keys[v] = 1 + min((keys[c] for c in cands if c != v), default=0.0)
+        cands.sort(key=keys.__getitem__)
+        on_stack = self.on_stack
+        on_stack.add(v)
+        try:
+            return self._try(i, v, cands, parent, q, o, q_to, tables)
+        finally:
+            on_stack.discard(v)
+
+    def _try(self, i: int, v: int, cands: list[int], parent: int, q, o, q_to, tables) -> bool:
+        occ_now, occ_next, on_stack = self.occ_now, self.occ_next, self.on_stack
         for c in cands:
             if occ_next[c] != NIL:
                 continue
-            if parent != NIL and c == q[parent]:
-                continue
+            if c != v and c in on_stack:
+                continue  # the cell of an agent pushing this one: a swap or a rotation cycle
             j = occ_now[c]
             if j != NIL and j != i and q_to[j] == v:
                 continue  # swap

@@ -77,6 +77,7 @@ class LifelongResult:
     delays: int
     handled: dict[str, int]
     waits_on_delayed: int
+    waits: dict[str, int]
     cycles_broken: int
     wall_time: float
     log: dict[str, Any] = field(repr=False, default_factory=dict)
@@ -97,6 +98,7 @@ class LifelongResult:
             "delays": self.delays,
             "handled": dict(self.handled),
             "waits_on_delayed": self.waits_on_delayed,
+            "waits": dict(self.waits),
             "planner_calls": len(pt),
             "planner_s_median": round(pt[len(pt) // 2], 4) if pt else 0.0,
             "planner_s_max": round(pt[-1], 4) if pt else 0.0,
@@ -184,6 +186,7 @@ def run_lifelong(
     lost = [0] * n  # delayed ticks on which the robot would have moved
     open_delay = [False] * n
     waits_on_delayed = 0
+    waits = {"delayed": 0, "blocked": 0, "idle": 0, "no_task": 0}
     cycles = 0
     n_delays = 0
     reveal(0)
@@ -238,23 +241,27 @@ def run_lifelong(
             open_delay[a] = True
             lost[a] = 0
         # commands from the state at the start of the tick (all robots at once) ...
-        cmds = [W] * n
+        delayed = [stream.delayed(i) for i in range(n)]
+        cmds = ex.commands(robots, delayed, k)
         for i in range(n):
             s = robots[i]
             if t % SEGMENT == 0:
                 r, c = divmod(s.loc, grid.cols)
                 snaps[i].append((r, c, s.ori, s.count))
-            if stream.delayed(i):
+            if delayed[i]:
                 if not ex.idle(i, s) and ex.command(i, s) != W:
                     lost[i] += 1
+                waits["delayed"] += 1
                 continue
             if open_delay[i]:  # its delay just ended
                 handled["slack" if lost[i] == 0 else "adg"] += 1
                 open_delay[i] = False
-            cmds[i] = ex.command(i, s)
-            b = ex.blocked_by[i]
-            if b >= 0 and stream.delayed(b):
-                waits_on_delayed += 1
+            if cmds[i] == W:
+                b = ex.blocked_by[i]
+                if b >= 0 and delayed[b]:
+                    waits_on_delayed += 1
+                idle_kind = "blocked" if b != -1 else "no_task" if current[i] < 0 else "idle"
+                waits[idle_kind] += 1
         # ... then the motion, then the cells released
         for i in range(n):
             s = robots[i]
@@ -276,6 +283,7 @@ def run_lifelong(
             tk = tasks[tid]
             if robots[i].loc == tk.errands[tk.next]:
                 tk.next += 1
+                prio[i] = rng.random()
                 if tk.next == len(tk.errands):
                     tk.done_at = ts
                     current[i] = -1
@@ -335,6 +343,7 @@ def run_lifelong(
         delays=n_delays,
         handled=handled,
         waits_on_delayed=waits_on_delayed,
+        waits=waits,
         cycles_broken=cycles,
         wall_time=time.perf_counter() - t0,
         log=out_log,
