@@ -40,6 +40,7 @@ COMMANDS = (
     "run",
     "bench",
     "sweep",
+    "lifelong",
 )
 
 

@@ -133,7 +133,8 @@ def parse_lorr_map(text: str, name: str = "<map>") -> tuple[int, int, np.ndarray
 
     Example
     -------
-    >>> rows, cols, blocked = parse_lorr_map("type octile\\nheight 2\\nwidth 3\\nmap\\n.@.\\nES.\\n")
+    >>> text = "type octile\\nheight 2\\nwidth 3\\nmap\\n.@.\\nES.\\n"
+    >>> rows, cols, blocked = parse_lorr_map(text)
     >>> rows, cols, blocked.nonzero()[0].tolist()
     (2, 3, [1])
     """
@@ -272,7 +273,8 @@ def load_problem(path: str | Path) -> LorrProblem:
     -------
     >>> import os, json, tempfile
     >>> d = tempfile.mkdtemp()
-    >>> _ = open(os.path.join(d, "m.map"), "w").write("type octile\\nheight 1\\nwidth 4\\nmap\\n....\\n")
+    >>> m = "type octile\\nheight 1\\nwidth 4\\nmap\\n....\\n"
+    >>> _ = open(os.path.join(d, "m.map"), "w").write(m)
     >>> _ = open(os.path.join(d, "a.agents"), "w").write("2\\n0\\n3\\n")
     >>> _ = open(os.path.join(d, "t.tasks"), "w").write("2\\n1,2\\n2\\n")
     >>> _ = open(os.path.join(d, "p.json"), "w").write(json.dumps({"mapFile": "m.map",
@@ -432,7 +434,7 @@ def read_log(path: str | Path) -> dict[str, Any]:
     >>> read_log(f)
     Traceback (most recent call last):
     ...
-    hierplan_opt.core.errors.InputError: ...o.json: not a LoRR log (expected an object with actualPaths)
+    hierplan_opt.core.errors.InputError: ...o.json: not a LoRR log (expected ...)
     """
     name = str(path)
     try:

@@ -22,7 +22,7 @@ Example
 >>> from hierplan_opt.io.lorr import DelayConfig
 >>> s = DelayStream(DelayConfig(seed=0, min_delay=1, max_delay=4, p_delay=0.5), 3)
 >>> [s.next_tick() for _ in range(3)]  # (robot, duration) events per tick
-[[(0, 2), (1, 4), (2, 1)], [], [(2, 2)]]
+[[], [(2, 2)], []]
 """
 
 from __future__ import annotations

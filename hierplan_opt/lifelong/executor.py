@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from hierplan_opt.lifelong.model import FW, NA, W, RobotState
+from hierplan_opt.lifelong.model import FW, NA, RobotState, W
 from hierplan_opt.lifelong.planner import WindowPlan
 
 
@@ -119,11 +119,11 @@ class ADGExecutor:
             self.blocked_by[i] = lead
             if lead >= 0 and len(q) > 1 and q[1] == i:  # type: ignore[arg-type]
                 a = robots[lead]
-                if a.loc == x and a.ori == s.ori and (a.cur == FW or a.count == 0):
-                    if decide(lead) == FW and a.count >= s.count:
-                        self.blocked_by[i] = -1
-                        out[i] = FW
-                        return FW
+                in_line = a.loc == x and a.ori == s.ori and (a.cur == FW or a.count == 0)
+                if in_line and decide(lead) == FW and a.count >= s.count:
+                    self.blocked_by[i] = -1
+                    out[i] = FW
+                    return FW
             return W
 
         for i in range(n):

@@ -67,7 +67,7 @@ def step_state(s: RobotState, action: int, moves: tuple[int, int, int, int], k: 
             s.cur = NA
         else:
             s.cur = FW
-    elif action == CR or action == CCR:
+    elif action in (CR, CCR):
         s.count += 1
         if s.count >= k:
             s.ori = (s.ori + (1 if action == CR else 3)) % 4

@@ -170,7 +170,9 @@ class WindowedPIBT:
                 d += self.congestion * self.traffic.get(c, 0.0)
         return d + self.rng.random() * 1e-3
 
-    def _turn_first(self, q: list[int], q_to: list[int], o: list[int], acts: list[list[int]]) -> None:
+    def _turn_first(
+        self, q: list[int], q_to: list[int], o: list[int], acts: list[list[int]]
+    ) -> None:
         """Agents whose chosen cell is not ahead turn towards it and stay this step;
         agents that were to enter a cell whose agent stays wait too (recursively)."""
         want = {q_to[j]: j for j in range(len(q)) if q_to[j] != q[j]}

@@ -62,8 +62,9 @@ def _interval(d0: float, dv: float, lo: float, hi: float) -> tuple[float, float]
     return (a, b) if a <= b else None
 
 
-def boxes_collide(a: tuple[float, float, float, float], b: tuple[float, float, float, float],
-                  size: float) -> bool:
+def boxes_collide(
+    a: tuple[float, float, float, float], b: tuple[float, float, float, float], size: float
+) -> bool:
     """Whether two squares of side ``size`` moving linearly from ``(x0, y0)`` to
     ``(x1, y1)`` over one tick overlap at some moment (the Start-Kit's swept test).
 
@@ -111,7 +112,9 @@ def check_log(problem: LorrProblem, log: dict[str, Any]) -> ReplayReport:
         (r, c, o, cnt), letters = decode_path(text, f"log: actualPaths[{i}]")
         if r * cols + c != problem.starts[i]:
             rep.invalid += 1
-            rep.note(f"robot {i} starts at ({r},{c}), the problem says {problem.rc(problem.starts[i])}")
+            rep.note(
+                f"robot {i} starts at ({r},{c}), the problem says {problem.rc(problem.starts[i])}"
+            )
         r_.append(r)
         c_.append(c)
         o_.append(o)
@@ -200,12 +203,15 @@ def _offset(o: int, cnt: int, cur: str, k: int) -> tuple[float, float]:
     return dc * f, dr * f
 
 
-def _check_events(problem: LorrProblem, log: dict[str, Any], at: dict[int, list[int]],
-                  rep: ReplayReport) -> None:
+def _check_events(
+    problem: LorrProblem, log: dict[str, Any], at: dict[int, list[int]], rep: ReplayReport
+) -> None:
     tasks: dict[int, list[int]] = {}
     for entry in log.get("tasks", []) or []:
         tid, _rev, flat = entry
-        tasks[int(tid)] = [int(flat[j]) * problem.cols + int(flat[j + 1]) for j in range(0, len(flat), 2)]
+        tasks[int(tid)] = [
+            int(flat[j]) * problem.cols + int(flat[j + 1]) for j in range(0, len(flat), 2)
+        ]
     done = 0
     for ev in log.get("events", []) or []:
         t, robot, tid, seq = (int(x) for x in ev)

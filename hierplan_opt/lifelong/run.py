@@ -26,10 +26,11 @@ from __future__ import annotations
 import logging
 import random
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.progress import tick
 from hierplan_opt.io.lorr import LorrProblem, encode_path
 from hierplan_opt.lifelong.delays import DelayStream
 from hierplan_opt.lifelong.executor import ADGExecutor
@@ -38,10 +39,10 @@ from hierplan_opt.lifelong.model import (
     FW,
     LETTERS,
     NA,
-    W,
     Distances,
     Grid,
     RobotState,
+    W,
     step_state,
 )
 from hierplan_opt.lifelong.planner import WindowedPIBT
@@ -110,21 +111,22 @@ def run_lifelong(
     problem: LorrProblem,
     *,
     ticks: int,
-    scheduler: str = "greedy",
+    scheduler: str = "hungarian",
     planner: str = "pibt",
     period: int = 10,
-    window: int = 4,
+    window: int = 6,
     seed: int = 0,
     congestion: float = 0.0,
     delays: DelayStream | None = None,
-    progress: Callable[[int, int, int], None] | None = None,
     max_table_bytes: int = 1 << 30,
     tables_per_call: int | None = None,
 ) -> LifelongResult:
     """Run the lifelong loop on ``problem`` for ``ticks`` ticks (see the module doc).
 
-    ``delays`` defaults to the problem's own ``delayConfig`` stream; ``progress`` is
-    called as ``progress(tick, ticks, tasks_finished)`` after every planning call.
+    ``delays`` defaults to the problem's own ``delayConfig`` stream. After every
+    planning call the active progress (:func:`hierplan_opt.core.progress.reporting`)
+    gets the tick and the tasks finished. Bad settings raise
+    :class:`~hierplan_opt.core.errors.InputError` before any work.
 
     Example
     -------
@@ -137,15 +139,21 @@ def run_lifelong(
     (4, 4)
     """
     if ticks < 1:
-        raise ValueError(f"ticks must be at least 1, got {ticks}")
+        raise InputError(f"ticks must be at least 1, got {ticks}")
     if scheduler not in SCHEDULERS:
-        raise ValueError(f"unknown scheduler {scheduler!r} (use: {', '.join(SCHEDULERS)})")
+        raise InputError(f"unknown scheduler {scheduler!r} (use: {', '.join(SCHEDULERS)})")
     if planner not in PLANNERS:
-        raise ValueError(f"unknown planner {planner!r} (use: {', '.join(PLANNERS)})")
+        raise InputError(f"unknown planner {planner!r} (use: {', '.join(PLANNERS)})")
     if period < 1 or window < 1:
-        raise ValueError("period and window must be at least 1")
+        raise InputError(f"period and window must be at least 1, got {period} and {window}")
+    if congestion < 0:
+        raise InputError(f"congestion must be >= 0, got {congestion}")
+    if delays is not None and delays.n != problem.team_size:
+        raise InputError(
+            f"the delays are for {delays.n} robots, the problem has {problem.team_size}"
+        )
     if problem.agent_size > 1.0:
-        raise ValueError(
+        raise InputError(
             f"agentSize {problem.agent_size} > 1: footprints reach into neighbouring cells, "
             "which the cell-based executor does not guard"
         )
@@ -233,8 +241,7 @@ def run_lifelong(
                     handled["replan"] += 1
                     open_delay[i] = False
             planner_times.append(time.perf_counter() - c0)
-            if progress is not None:
-                progress(t, ticks, finished)
+            tick("ticks", t, ticks, finished=finished)
         # ---- delays, commands, one tick of motion
         for a, _d in stream.next_tick():
             n_delays += 1
@@ -294,8 +301,7 @@ def run_lifelong(
     for i in range(n):
         if open_delay[i]:
             handled["slack" if lost[i] == 0 else "adg"] += 1
-    if progress is not None:
-        progress(ticks, ticks, finished)
+    tick("ticks", ticks, ticks, finished=finished)
 
     paths = [encode_path("".join(letters[i]), snaps[i], SEGMENT) for i in range(n)]
     out_log = {
@@ -310,9 +316,7 @@ def run_lifelong(
         "agentMaxCounter": k,
         "outputSegmentSize": SEGMENT,
         "delayIntervals": [[[a, b] for a, b in iv] for iv in stream.intervals],
-        "start": [
-            [*divmod(loc, grid.cols), "E"] for loc in problem.starts
-        ],
+        "start": [[*divmod(loc, grid.cols), "E"] for loc in problem.starts],
         "actualPaths": paths,
         "events": events,
         "tasks": [

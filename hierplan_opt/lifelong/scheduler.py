@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from hierplan_opt.core.errors import InputError
 from hierplan_opt.lifelong.model import Distances
 
 SCHEDULERS = ("greedy", "hungarian")
@@ -61,7 +62,7 @@ def assign(
     if not robots or not tasks:
         return {}
     if kind not in SCHEDULERS:
-        raise ValueError(f"unknown scheduler {kind!r} (use: {', '.join(SCHEDULERS)})")
+        raise InputError(f"unknown scheduler {kind!r} (use: {', '.join(SCHEDULERS)})")
     firsts = np.asarray([e[0] for e in task_errands], dtype=np.int64)
     dist.prefetch(firsts.tolist())
     chain_a = np.asarray(chain, dtype=np.int64)
