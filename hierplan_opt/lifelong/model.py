@@ -16,6 +16,7 @@ table is not affordable).
 from __future__ import annotations
 
 import logging
+import time
 from array import array
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -30,8 +31,8 @@ FW, CR, CCR, W, NA = 0, 1, 2, 3, 4
 #: One letter per action in the compressed path strings.
 LETTERS = "FRCWT"
 CODES = {c: i for i, c in enumerate(LETTERS)}
-#: A distance larger than any path (unreachable cells).
-FAR = 1 << 28
+#: The distance of unreachable cells (tables are 16-bit).
+FAR = 65535
 
 
 @dataclass
@@ -118,9 +119,12 @@ class Grid:
         d = v - u
         return 0 if d == 1 else 1 if d == self.cols else 2 if d == -1 else 3
 
-    def csr(self) -> csr_matrix:
-        """The free cells' adjacency as a sparse matrix (for breadth-first search)."""
+    def csr(self) -> tuple[csr_matrix, np.ndarray]:
+        """The free cells' adjacency (compact ids) and the compact id of every cell
+        (-1 for blocked cells), for breadth-first search."""
         idx = np.flatnonzero(~self.blocked)
+        cid = np.full(self.n, -1, dtype=np.int32)
+        cid[idx] = np.arange(len(idx), dtype=np.int32)
         r, c = np.divmod(idx, self.cols)
         rows_l, cols_l = [], []
         for dr, dc in ((0, 1), (1, 0)):
@@ -129,64 +133,84 @@ class Grid:
             a = idx[ok]
             b = nr[ok] * self.cols + nc[ok]
             keep = ~self.blocked[b]
-            rows_l += [a[keep], b[keep]]
-            cols_l += [b[keep], a[keep]]
+            a, b = cid[a[keep]], cid[b[keep]]
+            rows_l += [a, b]
+            cols_l += [b, a]
         ri = np.concatenate(rows_l)
         ci = np.concatenate(cols_l)
-        return csr_matrix((np.ones(len(ri), dtype=np.int8), (ri, ci)), shape=(self.n, self.n))
+        m = len(idx)
+        return csr_matrix((np.ones(len(ri), dtype=np.int8), (ri, ci)), shape=(m, m)), cid
 
 
 class Distances:
     """Exact distances to goals, cached (least recently used) up to ``max_bytes``.
 
-    ``table(goal)`` is an ``array('i')`` over all cells (:data:`FAR` where unreachable);
+    Tables cover the free cells only (``cid[cell]`` is a cell's compact id) and hold
+    16-bit distances (:data:`FAR` where unreachable): ``table(goal)[cid[cell]]``.
     ``estimate(a, b)`` uses ``b``'s table when cached and the Manhattan distance
-    otherwise. ``budget`` caps the number of new tables per :meth:`new_round` (one
-    planning call): beyond it :meth:`table` returns None and callers fall back to
-    Manhattan distances, so a huge map never stalls a planning call.
+    otherwise. ``seconds_per_call`` caps the time spent on new tables in one planning
+    call (:meth:`new_round` starts a call): beyond it :meth:`table` returns None and
+    callers fall back to Manhattan distances, so a huge map never stalls a call.
 
     Example
     -------
-    >>> g = Grid(1, 4, np.array([0, 0, 0, 0], dtype=bool))
-    >>> Distances(g).table(3).tolist()
-    [3, 2, 1, 0]
+    >>> g = Grid(1, 4, np.array([0, 1, 0, 0], dtype=bool))
+    >>> d = Distances(g)
+    >>> t = d.table(3)
+    >>> [t[d.cid[c]] for c in (0, 2, 3)], d.estimate(0, 3)
+    ([65535, 1, 0], 65535)
     """
 
-    def __init__(self, grid: Grid, max_bytes: int = 1 << 30, budget: int | None = None) -> None:
+    def __init__(
+        self, grid: Grid, max_bytes: int = 1 << 30, seconds_per_call: float | None = None
+    ) -> None:
         self.grid = grid
         self._csr: csr_matrix | None = None
+        m, cid = grid.csr()
+        self._csr = m
+        self.cid_np = cid
+        self.cid = array("i", cid.tobytes())
+        self.m = m.shape[0]
         self.cache: OrderedDict[int, array] = OrderedDict()
-        self.max_tables = max(8, max_bytes // (4 * grid.n))
-        self.budget = budget
-        self.made = 0
+        self.max_tables = max(8, max_bytes // (2 * max(1, self.m)))
+        self.seconds_per_call = seconds_per_call
+        self._call_start = time.perf_counter()
         self.made_total = 0
         self.fallbacks = 0
+        self.seconds = 0.0
 
     def new_round(self) -> None:
-        """Reset the per-call table budget."""
-        self.made = 0
+        """Start a planning call (its time budget for new tables)."""
+        self._call_start = time.perf_counter()
 
-    def prefetch(self, goals: list[int]) -> None:
-        """Make the tables of ``goals`` (batched; within the budget)."""
-        want = [g for g in dict.fromkeys(goals) if g not in self.cache]
-        if self.budget is not None:
-            want = want[: max(0, self.budget - self.made)]
-        want = want[: self.max_tables]
+    def _over_budget(self) -> bool:
+        lim = self.seconds_per_call
+        return lim is not None and time.perf_counter() - self._call_start > lim
+
+    def prefetch(self, goals: list[int], budget: float | None = None) -> None:
+        """Make the tables of ``goals`` (batched; within the call's time budget, or
+        within ``budget`` seconds when given)."""
+        want = [g for g in dict.fromkeys(goals) if g not in self.cache][: self.max_tables]
         if not want:
             return
-        if self._csr is None:
-            self._csr = self.grid.csr()
-        batch = max(1, min(len(want), (64 << 20) // (8 * self.grid.n)))
+        t0 = time.perf_counter()
+        batch = max(1, min(len(want), 64, (64 << 20) // (8 * self.m)))
         for s in range(0, len(want), batch):
+            if budget is not None and time.perf_counter() - t0 > budget:
+                break
+            if budget is None and self._over_budget():
+                break
             part = want[s : s + batch]
-            d = shortest_path(self._csr, directed=False, unweighted=True, indices=part)
+            d = shortest_path(
+                self._csr, directed=False, unweighted=True, indices=self.cid_np[part]
+            )
             d = np.atleast_2d(d)
             d[~np.isfinite(d)] = FAR
-            di = d.astype(np.int32)
+            di = np.minimum(d, FAR).astype(np.uint16)
             for g, row in zip(part, di, strict=True):
-                self._put(g, array("i", row.tobytes()))
-        self.made += len(want)
-        self.made_total += len(want)
+                self._put(g, array("H", row.tobytes()))
+            self.made_total += len(part)
+        self.seconds += time.perf_counter() - t0
 
     def _put(self, g: int, t: array) -> None:
         self.cache[g] = t
@@ -194,12 +218,12 @@ class Distances:
             self.cache.popitem(last=False)
 
     def table(self, goal: int) -> array | None:
-        """The distance table of ``goal``, or None when the budget is spent."""
+        """The distance table of ``goal``, or None when the call's budget is spent."""
         t = self.cache.get(goal)
         if t is not None:
             self.cache.move_to_end(goal)
             return t
-        if self.budget is not None and self.made >= self.budget:
+        if self._over_budget():
             self.fallbacks += 1
             return None
         self.prefetch([goal])
@@ -209,7 +233,7 @@ class Distances:
         """Distance from ``a`` to ``b``: exact when ``b``'s table is cached, else Manhattan."""
         t = self.cache.get(b)
         if t is not None:
-            return t[a]
+            return t[self.cid[a]]
         c = self.grid.cols
         ar, ac = divmod(a, c)
         br, bc = divmod(b, c)

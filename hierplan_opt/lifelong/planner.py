@@ -78,6 +78,7 @@ class WindowedPIBT:
         self.occ_next = [NIL] * grid.n
         self.traffic: dict[int, float] = {}
         self.on_stack: set[int] = set()
+        self.cid = dist.cid
 
     # ------------------------------------------------------------------ one call
     def plan(
@@ -159,7 +160,7 @@ class WindowedPIBT:
             cols = self.grid.cols
             d = abs(c // cols - t // cols) + abs(c % cols - t % cols)
         else:
-            d = t[c]
+            d = t[self.cid[c]]
         if c != v:
             dd = (self.grid.direction(v, c) - o[i]) % 4
             n_turns = 0 if dd == 0 else 2 if dd == 2 else 1

@@ -91,10 +91,11 @@ def _costs(dist: Distances, locs: np.ndarray, firsts: np.ndarray, chain: np.ndar
     cost = np.abs(locs[:, None] // cols - firsts[None, :] // cols) + np.abs(
         locs[:, None] % cols - firsts[None, :] % cols
     )
+    cids = dist.cid_np[locs]
     for k, g in enumerate(firsts.tolist()):
         t = dist.cache.get(g)
         if t is not None:
-            cost[:, k] = np.frombuffer(t, dtype=np.int32)[locs]
+            cost[:, k] = np.frombuffer(t, dtype=np.uint16)[cids]
     return cost + chain[None, :]
 
 
