@@ -26,6 +26,7 @@ AREAS = {
     "trajectory": "trajectory refinement (CasADi): formation and 200 robots, IPOPT vs fatrop",
     "lacam": "PIBT and LaCAM* on large fleets, side by side with lacam3 and the Python ports",
     "highways": "ECBS/CBS with user, crisscross and learned highways (Kiva, corridor)",
+    "lifelong": "LoRR problems: our lifelong loop beside the Start-Kit baseline (tasks, time)",
 }
 
 

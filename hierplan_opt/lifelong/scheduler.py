@@ -20,7 +20,7 @@ from hierplan_opt.lifelong.model import Distances
 
 SCHEDULERS = ("greedy", "hungarian")
 #: Most free robots matched at once (a larger call falls back to greedy).
-HUNGARIAN_MAX = 3000
+HUNGARIAN_MAX = 1000
 #: Robots per block of the greedy cost matrix.
 BLOCK = 512
 
