@@ -325,3 +325,14 @@ def test_cli_bad_input_one_line_no_file(tmp_path: Path, capsys) -> None:
     assert main(["lifelong", str(MAZE), "--out", str(tmp_path / "no" / "x.json")]) == 2
     assert "--out" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_bench_runs_ours_and_refuses_unknown_problems(capsys) -> None:
+    from hierplan_opt.bench.lifelong import main
+
+    assert main(["--instance", "maze", "--ticks", "30", "--no-baseline"]) == 0
+    out = capsys.readouterr().out
+    assert "ours (greedy)" in out and "ours (hungarian)" in out
+    assert out.count(" ok") == 2
+    with pytest.raises(InputError, match="--instance nowhere: unknown problem"):
+        main(["--instance", "nowhere", "--no-baseline"])

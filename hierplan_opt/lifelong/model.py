@@ -165,12 +165,11 @@ class Distances:
         self, grid: Grid, max_bytes: int = 1 << 30, seconds_per_call: float | None = None
     ) -> None:
         self.grid = grid
-        self._csr: csr_matrix | None = None
         m, cid = grid.csr()
-        self._csr = m
+        self._csr: csr_matrix = m
         self.cid_np = cid
         self.cid = array("i", cid.tobytes())
-        self.m = m.shape[0]
+        self.m = int(np.count_nonzero(cid >= 0))
         self.cache: OrderedDict[int, array] = OrderedDict()
         self.max_tables = max(8, max_bytes // (2 * max(1, self.m)))
         self.seconds_per_call = seconds_per_call
