@@ -193,7 +193,7 @@ class Distances:
         if not want:
             return
         t0 = time.perf_counter()
-        batch = max(1, min(len(want), 64, (64 << 20) // (8 * self.m)))
+        batch = max(1, min(len(want), 16, (64 << 20) // (8 * self.m)))
         for s in range(0, len(want), batch):
             if budget is not None and time.perf_counter() - t0 > budget:
                 break

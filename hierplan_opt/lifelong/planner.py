@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from hierplan_opt.lifelong.model import CCR, CR, FW, Distances, Grid
 
 NIL = -1
+#: Quarter turns between two orientations, by (want - have) mod 4.
+TURNS = (0, 1, 2, 1)
 #: Extra cost of a cell that needs a turn for an agent pushed out of its cell.
 PUSHED_TURN = 10.0
 
@@ -154,22 +156,56 @@ class WindowedPIBT:
             occ_next[v] = NIL
         return q_to
 
-    def _key(self, i: int, v: int, c: int, o: list[int], t, pushed: bool) -> float:
-        """Steps to the goal through ``c``: turns to face it, the move, its distance."""
-        if isinstance(t, int):
-            cols = self.grid.cols
-            d = abs(c // cols - t // cols) + abs(c % cols - t % cols)
-        else:
-            d = t[self.cid[c]]
-        if c != v:
-            dd = (self.grid.direction(v, c) - o[i]) % 4
-            n_turns = 0 if dd == 0 else 2 if dd == 2 else 1
-            d += 1 + self.turn_cost * n_turns
+    def _candidates(self, i: int, v: int, o: list[int], t, pushed: bool) -> list[int]:
+        """Agent ``i``'s cells, best first, by steps to the goal: turns to face a cell,
+        the move and the cell's distance; waiting costs a step more than the best move
+        (unless the agent is at its goal and not pushed)."""
+        grid = self.grid
+        cols = grid.cols
+        free = grid.free
+        r, col = divmod(v, cols)
+        oi = o[i]
+        table = not isinstance(t, int)
+        cid = self.cid
+        if not table:
+            tr, tc = divmod(t, cols)
+        rnd = self.rng.random
+        tc_ = self.turn_cost
+        cong = self.congestion
+        traffic = self.traffic
+        keyed: list[tuple[float, int]] = []
+        # east, south, west, north (the orientation codes)
+        for dirn, ok, c in (
+            (0, col + 1 < cols, v + 1),
+            (1, r + 1 < grid.rows, v + cols),
+            (2, col > 0, v - 1),
+            (3, r > 0, v - cols),
+        ):
+            if not ok or not free[c]:
+                continue
+            if table:
+                d = t[cid[c]]
+            else:
+                cr, cc = divmod(c, cols)
+                d = abs(cr - tr) + abs(cc - tc)
+            n_turns = TURNS[(dirn - oi) & 3]
+            k = d + 1 + tc_ * n_turns
             if n_turns and pushed:
-                d += PUSHED_TURN  # it could not make room this step
-            if self.congestion:
-                d += self.congestion * self.traffic.get(c, 0.0)
-        return d + self.rng.random() * 1e-3
+                k += PUSHED_TURN  # it could not make room this step
+            if cong:
+                k += cong * traffic.get(c, 0.0)
+            keyed.append((k + rnd() * 1e-3, c))
+        if table:
+            dv = t[cid[v]]
+        else:
+            dv = abs(r - tr) + abs(col - tc)
+        if dv > 0 or pushed:
+            stay = 1 + min(keyed)[0] if keyed else 0.0
+        else:
+            stay = 0.0
+        keyed.append((stay, v))
+        keyed.sort()
+        return [c for _, c in keyed]
 
     def _turn_first(
         self, q: list[int], q_to: list[int], o: list[int], acts: list[list[int]]
@@ -195,14 +231,7 @@ class WindowedPIBT:
 
     def _push(self, i: int, parent: int, q, o, q_to: list[int], tables) -> bool:
         v = q[i]
-        t = tables[i]
-        cands = self.grid.neighbours(v)
-        cands.append(v)
-        pushed = parent != NIL
-        keys = {c: self._key(i, v, c, o, t, pushed) for c in cands}
-        if keys[v] >= 0.5 or pushed:  # not at its goal: waiting costs a step more than moving
-            keys[v] = 1 + min((keys[c] for c in cands if c != v), default=0.0)
-        cands.sort(key=keys.__getitem__)
+        cands = self._candidates(i, v, o, tables[i], parent != NIL)
         on_stack = self.on_stack
         on_stack.add(v)
         try:

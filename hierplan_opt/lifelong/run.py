@@ -121,7 +121,7 @@ def run_lifelong(
     congestion: float = 0.0,
     delays: DelayStream | None = None,
     max_table_bytes: int = 1 << 30,
-    table_seconds: float | None = 0.5,
+    table_seconds: float | None = 0.3,
     preprocess_seconds: float = 30.0,
 ) -> LifelongResult:
     """Run the lifelong loop on ``problem`` for ``ticks`` ticks (see the module doc).
