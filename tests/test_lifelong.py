@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -235,6 +236,12 @@ def test_replay_finds_each_kind_of_violation() -> None:
     )
     r = check_log(p2, _log(["[(0,0,0,0,0):(F 1)]", "[(0,1,1,3,0):(F 1)]"], 1))
     assert r.collisions == 1
+    # point robots: meeting on one point, and passing through each other, both collide
+    tiny = replace(p, agent_size=1e-9)
+    r = check_log(tiny, _log(["[(0,0,0,0,0):(F 2)]", "[(0,0,2,2,0):(F 2)]"], 2))
+    assert r.collisions >= 1
+    r = check_log(tiny, _log(["[(0,0,0,0,0):(F 2)]", "[(0,0,2,0,0):(F 2)]"], 2))
+    assert r.ok
 
 
 # ---------------------------------------------------------------- parts of the loop
@@ -270,10 +277,8 @@ def test_run_is_safe_and_counts_tasks_on_the_maze() -> None:
 
 
 def test_run_under_heavy_delays_stays_safe() -> None:
-    # 60 robots on the maze with a delay on ~5 % of robot-ticks: the executor must stop
+    # 40 robots on the maze with a delay on ~5 % of robot-ticks: the executor must stop
     # followers behind every delayed robot, whatever the timing.
-    from dataclasses import replace
-
     p = load_problem(MAZE)
     p = replace(p, delay=replace(p.delay, p_delay=0.05, min_delay=1, max_delay=3))
     res = run_lifelong(p, ticks=120, window=6)
@@ -296,8 +301,6 @@ def test_run_refuses_bad_settings() -> None:
         run_lifelong(p, ticks=5, scheduler="x")
     with pytest.raises(InputError, match="ticks must be at least 1"):
         run_lifelong(p, ticks=0)
-    from dataclasses import replace
-
     with pytest.raises(InputError, match="agentSize 1.5 > 1"):
         run_lifelong(replace(p, agent_size=1.5), ticks=5)
 

@@ -200,9 +200,7 @@ class Distances:
             if budget is None and self._over_budget():
                 break
             part = want[s : s + batch]
-            d = shortest_path(
-                self._csr, directed=False, unweighted=True, indices=self.cid_np[part]
-            )
+            d = shortest_path(self._csr, directed=False, unweighted=True, indices=self.cid_np[part])
             d = np.atleast_2d(d)
             d[~np.isfinite(d)] = FAR
             di = np.minimum(d, FAR).astype(np.uint16)

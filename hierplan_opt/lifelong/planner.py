@@ -195,14 +195,10 @@ class WindowedPIBT:
             if cong:
                 k += cong * traffic.get(c, 0.0)
             keyed.append((k + rnd() * 1e-3, c))
-        if table:
-            dv = t[cid[v]]
-        else:
-            dv = abs(r - tr) + abs(col - tc)
-        if dv > 0 or pushed:
-            stay = 1 + min(keyed)[0] if keyed else 0.0
-        else:
-            stay = 0.0
+        dv = t[cid[v]] if table else abs(r - tr) + abs(col - tc)
+        stay = 0.0
+        if (dv > 0 or pushed) and keyed:
+            stay = 1 + min(keyed)[0]
         keyed.append((stay, v))
         keyed.sort()
         return [c for _, c in keyed]

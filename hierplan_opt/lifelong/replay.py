@@ -9,7 +9,8 @@ code with the loop that wrote the log). It reports:
   progress replaced by another one, a delayed robot that does not wait;
 * collisions: two footprints (squares of side ``agentSize``) whose swept boxes overlap
   during a tick, with the Start-Kit's own test (open intervals, a 1e-6 tolerance) --
-  touching is allowed, any overlap is not, whatever the size;
+  touching is allowed, any overlap is not; footprints below half a counter step are
+  checked at that size, so two robots on one point always collide, however small;
 * task events whose robot is not on the errand, and a finished count that does not
   match the events.
 
@@ -100,7 +101,10 @@ def check_log(problem: LorrProblem, log: dict[str, Any]) -> ReplayReport:
     (1, 'tick 0: robots 0 and 1 overlap')
     """
     rep = ReplayReport()
-    rows, cols, k, size = problem.rows, problem.cols, problem.agent_counter, problem.agent_size
+    rows, cols, k = problem.rows, problem.cols, problem.agent_counter
+    # Positions are multiples of 1/k: squares of half a step still catch two robots on
+    # one point (or passing through each other) when the footprint is smaller than that.
+    size = max(problem.agent_size, 0.5 / k)
     blocked = problem.blocked
     paths = log.get("actualPaths")
     if not isinstance(paths, list) or len(paths) != problem.team_size:
