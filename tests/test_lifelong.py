@@ -339,3 +339,12 @@ def test_bench_runs_ours_and_refuses_unknown_problems(capsys) -> None:
     assert out.count(" ok") == 2
     with pytest.raises(InputError, match="--instance nowhere: unknown problem"):
         main(["--instance", "nowhere", "--no-baseline"])
+
+
+def test_registry_guided_run_is_safe() -> None:
+    # the registry's lacam plans each call's guide paths; the run stays collision-free
+    p = load_problem(MAZE)
+    res = run_lifelong(p, ticks=40, planner="lacam")
+    assert check_log(p, res.log).ok
+    assert res.log["hierplan"]["guideCalls"] == 4
+    assert res.log["hierplan"]["guidePlans"] >= 1

@@ -71,11 +71,11 @@ def baseline(binary: Path, problem: Path, ticks: int, timeout: float) -> dict[st
         return {"log": json.loads(out.read_text()), "wall": wall}
 
 
-def ours(problem, ticks: int, scheduler: str, window: int) -> dict[str, Any]:
+def ours(problem, ticks: int, scheduler: str, window: int, planner: str = "pibt") -> dict[str, Any]:
     """One run of our loop (same process); its result and peak memory so far."""
     from hierplan_opt.lifelong import run_lifelong
 
-    res = run_lifelong(problem, ticks=ticks, scheduler=scheduler, window=window)
+    res = run_lifelong(problem, ticks=ticks, scheduler=scheduler, window=window, planner=planner)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {"res": res, "peak_mb": peak}
 
@@ -102,6 +102,12 @@ def main(argv: list[str] | None = None) -> int:
         help="our schedulers to run (repeatable; default both)",
     )
     ap.add_argument("--window", type=int, default=6, help="our planning window (default 6)")
+    ap.add_argument(
+        "--planner",
+        action="append",
+        choices=("pibt", "lacam", "pibt-guided"),
+        help="our planners (repeatable; default pibt; lacam: guided by the registry's lacam)",
+    )
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     args = ap.parse_args(argv)
     names = args.instance or (QUICK if args.quick else DEFAULT)
@@ -151,8 +157,8 @@ def main(argv: list[str] | None = None) -> int:
                 }
                 _print(row)
             rows.append(row)
-        for sched in schedulers:
-            o = ours(problem, ticks, sched, args.window)
+        for sched, planner in [(s_, p_) for p_ in (args.planner or ["pibt"]) for s_ in schedulers]:
+            o = ours(problem, ticks, sched, args.window, planner)
             res = o["res"]
             rep = check_log(problem, res.log)
             same = None
@@ -163,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
                 "problem": name,
                 "robots": problem.team_size,
                 "ticks": ticks,
-                "who": f"ours ({sched})",
+                "who": f"ours ({sched})" if planner == "pibt" else f"ours ({sched}+{planner})",
                 "tasks": res.tasks_finished,
                 "wall": res.wall_time,
                 "plan_med": s["planner_s_median"],

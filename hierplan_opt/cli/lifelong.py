@@ -39,6 +39,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="task assignment (default: hungarian, min-cost matching)",
     )
     p.add_argument(
+        "--planner",
+        choices=("pibt", "lacam", "pibt-guided"),
+        default="pibt",
+        help="windowed PIBT alone (default), or guided by the registry's lacam / pibt "
+        "plan of each call",
+    )
+    p.add_argument(
         "--period", type=positive_int, default=10, help="ticks between planning calls (default 10)"
     )
     p.add_argument(
@@ -104,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
             problem,
             ticks=args.ticks,
             scheduler=args.scheduler,
+            planner=args.planner,
             period=args.period,
             window=args.window,
             seed=args.seed,
@@ -132,7 +140,8 @@ def run(args: argparse.Namespace) -> int:
         pt = res.planner_times
         print(
             f"{problem.name}: {problem.team_size} robots, {res.ticks} ticks, "
-            f"scheduler {args.scheduler}, window {args.window}, period {args.period}"
+            f"scheduler {args.scheduler}, planner {args.planner}, window {args.window}, "
+            f"period {args.period}"
         )
         print(f"tasks finished {res.tasks_finished}, throughput {res.throughput:.4f} per tick")
         h = res.handled

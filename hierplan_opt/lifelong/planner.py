@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 from hierplan_opt.lifelong.model import CCR, CR, FW, Distances, Grid
 
 NIL = -1
+#: How much a guide path's next cell is preferred (in steps).
+GUIDE_BONUS = 0.5
 #: Quarter turns between two orientations, by (want - have) mod 4.
 TURNS = (0, 1, 2, 1)
 #: Extra cost of a cell that needs a turn for an agent pushed out of its cell.
@@ -80,6 +82,7 @@ class WindowedPIBT:
         self.occ_next = [NIL] * grid.n
         self.traffic: dict[int, float] = {}
         self.on_stack: set[int] = set()
+        self.guide: list[dict[int, int]] | None = None
         self.cid = dist.cid
 
     # ------------------------------------------------------------------ one call
@@ -89,12 +92,17 @@ class WindowedPIBT:
         oris: Sequence[int],
         errands: Sequence[Sequence[int]],
         priority: Sequence[float],
+        guide: list[dict[int, int]] | None = None,
     ) -> WindowPlan:
         """Plan ``window`` steps from the robots' committed cells and orientations.
 
         ``errands[i]`` is robot ``i``'s remaining errands (its goal is the first; empty:
-        no task, stay unless pushed); ``priority`` orders the robots (higher first).
+        no task, stay unless pushed); ``priority`` orders the robots (higher first);
+        ``guide[i]`` maps cells to robot ``i``'s preferred next cell (from a registry
+        solver's plan, :mod:`~hierplan_opt.lifelong.guidance`), favoured by
+        :data:`GUIDE_BONUS`.
         """
+        self.guide = guide
         n = len(locs)
         q = list(locs)
         o = list(oris)
@@ -200,6 +208,10 @@ class WindowedPIBT:
         if (dv > 0 or pushed) and keyed:
             stay = 1 + min(keyed)[0]
         keyed.append((stay, v))
+        if self.guide is not None:
+            g = self.guide[i].get(v)
+            if g is not None:
+                keyed = [(k - GUIDE_BONUS if c == g else k, c) for k, c in keyed]
         keyed.sort()
         return [c for _, c in keyed]
 

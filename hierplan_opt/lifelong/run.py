@@ -34,6 +34,7 @@ from hierplan_opt.core.progress import tick
 from hierplan_opt.io.lorr import LorrProblem, encode_path
 from hierplan_opt.lifelong.delays import DelayStream
 from hierplan_opt.lifelong.executor import ADGExecutor
+from hierplan_opt.lifelong.guidance import RegistryGuide
 from hierplan_opt.lifelong.model import (
     CR,
     FW,
@@ -50,7 +51,7 @@ from hierplan_opt.lifelong.scheduler import SCHEDULERS, assign, chain_length
 
 log = logging.getLogger(__name__)
 
-PLANNERS = ("pibt",)
+PLANNERS = ("pibt", "lacam", "pibt-guided")
 #: Output segment length of the Start-Kit's path strings (its ``simulate(..., 100)``).
 SEGMENT = 100
 
@@ -164,6 +165,9 @@ def run_lifelong(
     grid = Grid(problem.rows, problem.cols, problem.blocked)
     dist = Distances(grid, max_table_bytes, table_seconds)
     pl = WindowedPIBT(grid, dist, window=window, seed=seed, congestion=congestion)
+    guide = None
+    if planner != "pibt":  # guide paths from the registry's solver of that name
+        guide = RegistryGuide(grid, "pibt" if planner == "pibt-guided" else planner, seed=seed)
     ex = ADGExecutor(grid.moves)
     stream = delays if delays is not None else DelayStream(problem.delay, problem.team_size)
     n = problem.team_size
@@ -239,7 +243,8 @@ def run_lifelong(
                 tk = tasks.get(current[i])
                 errands.append(tk.errands[tk.next :] if tk is not None else ())
             dist.prefetch([e[0] for e in errands if e])
-            plan = pl.plan(locs, oris, errands, prio)
+            paths = guide.paths(locs, errands, prio) if guide is not None else None
+            plan = pl.plan(locs, oris, errands, prio, paths)
             cycles += plan.cycles_broken
             ex.load(plan, robots)
             for i in range(n):
@@ -346,6 +351,8 @@ def run_lifelong(
             "distanceTables": dist.made_total,
             "distanceSeconds": round(dist.seconds, 3),
             "distanceFallbacks": dist.fallbacks,
+            "guideCalls": guide.calls if guide is not None else 0,
+            "guidePlans": guide.solved if guide is not None else 0,
         },
     }
     return LifelongResult(
