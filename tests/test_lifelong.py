@@ -348,3 +348,13 @@ def test_registry_guided_run_is_safe() -> None:
     assert check_log(p, res.log).ok
     assert res.log["hierplan"]["guideCalls"] == 4
     assert res.log["hierplan"]["guidePlans"] >= 1
+
+
+@pytest.mark.slow
+def test_random_400_is_collision_free_and_keeps_finishing_tasks() -> None:
+    p = load_problem(RANDOM)
+    res = run_lifelong(p, ticks=400)
+    rep = check_log(p, res.log)
+    assert rep.ok, rep.problems
+    late = [e for e in res.log["events"] if e[0] > 300]
+    assert res.tasks_finished > 150 and late  # no gridlock: tasks still finish late on
