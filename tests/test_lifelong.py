@@ -285,6 +285,7 @@ def test_run_under_heavy_delays_stays_safe() -> None:
     rep = check_log(p, res.log)
     assert rep.ok, rep.problems
     assert res.delays > 100 and res.handled["adg"] > 0
+    assert sum(res.handled.values()) == res.delays  # each delay put down to one layer
     assert res.log["delayIntervals"] == [[list(iv) for iv in ivs] for ivs in _stream(p, 120)]
 
 

@@ -258,6 +258,8 @@ def run_lifelong(
         # ---- delays, commands, one tick of motion
         for a, _d in stream.next_tick():
             n_delays += 1
+            if open_delay[a]:  # back to back with its previous delay
+                handled["slack" if lost[a] == 0 else "adg"] += 1
             open_delay[a] = True
             lost[a] = 0
         # commands from the state at the start of the tick (all robots at once) ...
