@@ -151,6 +151,21 @@ def test_delays_identical_to_the_start_kit(fixture: str, problem: Path) -> None:
     assert ours == rec["delayIntervals"]
 
 
+def test_poisson_gaussian_delays_identical_to_the_start_kit() -> None:
+    # the warehouse example's stream (Poisson mean 7.5, shuffle, Gaussian 2..8) for its
+    # 2,500 robots, as the Start-Kit wrote it; the problem's delayConfig is in the fixture
+    from hierplan_opt.io.lorr import parse_delay_config
+
+    rec = json.loads((DATA / "lorr_warehouse2500_startkit_delays.json").read_text())
+    cfg = parse_delay_config(rec["delayConfig"])
+    assert (cfg.event_model, cfg.duration_model) == ("poisson", "gaussian")
+    s = DelayStream(cfg, rec["teamSize"])
+    for _ in range(rec["ticks"]):
+        s.next_tick()
+    assert s.exact and sum(map(len, s.intervals)) > 1000
+    assert [[list(iv) for iv in ivs] for ivs in s.intervals] == rec["delayIntervals"]
+
+
 def test_delay_durations_and_replay() -> None:
     cfg = DelayConfig(
         seed=3,
