@@ -59,7 +59,7 @@ def baseline(binary: Path, problem: Path, ticks: int, timeout: float) -> dict[st
     with tempfile.TemporaryDirectory() as d:
         out = Path(d) / "out.json"
         cmd = [str(binary), "--inputFile", str(problem), "-o", str(out)]
-        cmd += ["--simulationTime", str(ticks), "-c", "2", "-l", str(Path(d) / "log.txt")]
+        cmd += ["--simulationTime", str(ticks), "-c", "1", "-l", str(Path(d) / "log.txt")]
         t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, capture_output=True, timeout=timeout, check=False)
@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
                 log = b["log"]
                 rep = check_log(problem, log)
                 base_delays = log.get("delayIntervals")
-                pt = sorted(log.get("plannerTimes", []) or [0.0])
+                pt = sorted(log.get("plannerTimes", []) or [float("nan")])
                 row = {
                     "problem": name,
                     "robots": problem.team_size,
