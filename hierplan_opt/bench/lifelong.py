@@ -71,7 +71,9 @@ def baseline(binary: Path, problem: Path, ticks: int, timeout: float) -> dict[st
         return {"log": json.loads(out.read_text()), "wall": wall}
 
 
-def ours(problem, ticks: int, scheduler: str, window: int, planner: str = "pibt") -> dict[str, Any]:
+def ours(
+    problem, ticks: int, scheduler: str, window: int | None, planner: str = "pibt"
+) -> dict[str, Any]:
     """One run of our loop (same process); its result and peak memory so far."""
     from hierplan_opt.lifelong import run_lifelong
 
@@ -101,7 +103,9 @@ def main(argv: list[str] | None = None) -> int:
         choices=("greedy", "hungarian"),
         help="our schedulers to run (repeatable; default both)",
     )
-    ap.add_argument("--window", type=int, default=6, help="our planning window (default 6)")
+    ap.add_argument(
+        "--window", type=int, help="our planning window (default 6; 4 above 1,000 robots)"
+    )
     ap.add_argument(
         "--planner",
         action="append",

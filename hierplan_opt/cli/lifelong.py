@@ -49,7 +49,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--period", type=positive_int, default=10, help="ticks between planning calls (default 10)"
     )
     p.add_argument(
-        "--window", type=positive_int, default=6, help="actions planned per call (default 6)"
+        "--window",
+        type=positive_int,
+        help="actions planned per call (default 6; 4 above 1,000 robots)",
     )
     p.add_argument(
         "--congestion",
@@ -140,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
         pt = res.planner_times
         print(
             f"{problem.name}: {problem.team_size} robots, {res.ticks} ticks, "
-            f"scheduler {args.scheduler}, planner {args.planner}, window {args.window}, "
+            f"scheduler {args.scheduler}, planner {args.planner}, "
+            f"window {res.log['hierplan']['window']}, "
             f"period {args.period}"
         )
         print(f"tasks finished {res.tasks_finished}, throughput {res.throughput:.4f} per tick")

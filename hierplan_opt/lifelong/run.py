@@ -52,6 +52,10 @@ from hierplan_opt.lifelong.scheduler import SCHEDULERS, assign, chain_length
 log = logging.getLogger(__name__)
 
 PLANNERS = ("pibt", "lacam", "pibt-guided")
+#: Actions planned per call (default), and for fleets over LARGE_FLEET robots.
+WINDOW = 6
+WINDOW_LARGE = 4
+LARGE_FLEET = 1000
 #: Output segment length of the Start-Kit's path strings (its ``simulate(..., 100)``).
 SEGMENT = 100
 
@@ -117,7 +121,7 @@ def run_lifelong(
     scheduler: str = "hungarian",
     planner: str = "pibt",
     period: int = 10,
-    window: int = 6,
+    window: int | None = None,
     seed: int = 0,
     congestion: float = 0.0,
     delays: DelayStream | None = None,
@@ -127,7 +131,8 @@ def run_lifelong(
 ) -> LifelongResult:
     """Run the lifelong loop on ``problem`` for ``ticks`` ticks (see the module doc).
 
-    ``delays`` defaults to the problem's own ``delayConfig`` stream. After every
+    ``window`` defaults to 6 actions, 4 above 1,000 robots. ``delays`` defaults to the
+    problem's own ``delayConfig`` stream. After every
     planning call the active progress (:func:`hierplan_opt.core.progress.reporting`)
     gets the tick and the tasks finished. Bad settings raise
     :class:`~hierplan_opt.core.errors.InputError` before any work.
@@ -148,6 +153,8 @@ def run_lifelong(
         raise InputError(f"unknown scheduler {scheduler!r} (use: {', '.join(SCHEDULERS)})")
     if planner not in PLANNERS:
         raise InputError(f"unknown planner {planner!r} (use: {', '.join(PLANNERS)})")
+    if window is None:  # fewer steps for large fleets: a call must stay near a second
+        window = WINDOW if problem.team_size <= LARGE_FLEET else WINDOW_LARGE
     if period < 1 or window < 1:
         raise InputError(f"period and window must be at least 1, got {period} and {window}")
     if congestion < 0:
