@@ -75,7 +75,7 @@ def ours(
     problem, ticks: int, scheduler: str, window: int | None, planner: str = "pibt"
 ) -> dict[str, Any]:
     """One run of our loop (same process); its result and peak memory so far."""
-    from hierplan_opt.lifelong import run_lifelong
+    from hierplan_opt.lifelong import run_lifelong  # heavy module (scipy): on use only
 
     res = run_lifelong(problem, ticks=ticks, scheduler=scheduler, window=window, planner=planner)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -85,7 +85,7 @@ def ours(
 def main(argv: list[str] | None = None) -> int:
     from hierplan_opt.bench import BenchParser
     from hierplan_opt.io.lorr import load_problem
-    from hierplan_opt.lifelong import check_log
+    from hierplan_opt.lifelong import check_log  # heavy module (scipy): on use only
 
     ap = BenchParser(
         "lifelong",

@@ -419,7 +419,15 @@ def decode_path(text: str, where: str = "path") -> tuple[tuple[int, int, int, in
 
 
 def write_log(path: str | Path, log: dict[str, Any]) -> Path:
-    """Write a run's log (a dict in the Start-Kit's layout) atomically as one-line JSON."""
+    """Write a run's log (a dict in the Start-Kit's layout) atomically as one-line JSON.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> f = write_log(os.path.join(tempfile.mkdtemp(), "o.json"), {"actualPaths": []})
+    >>> read_log(f)
+    {'actualPaths': []}
+    """
     return write_text(path, json.dumps(log, separators=(",", ":")))
 
 

@@ -60,7 +60,17 @@ def turns(ori: int, want: int) -> list[int]:
 
 
 class WindowedPIBT:
-    """PIBT over ``window`` steps for all robots at once (see the module doc)."""
+    """PIBT over ``window`` steps for all robots at once (see the module doc).
+
+    Example
+    -------
+    >>> import numpy as np
+    >>> g = Grid(1, 4, np.zeros(4, dtype=bool))
+    >>> pl = WindowedPIBT(g, Distances(g), window=3)
+    >>> plan = pl.plan([0, 3], [0, 2], [[1], []], [1.0, 0.0])  # robot 1 has no task
+    >>> plan.actions, plan.order
+    ([[0], []], {1: [0]})
+    """
 
     def __init__(
         self,
