@@ -28,6 +28,7 @@ AREAS = {
     "highways": "ECBS/CBS with user, crisscross and learned highways (Kiva, corridor)",
     "physics": "robots in MuJoCo: paper warehouse, formation, 200 robots, spill, agreement",
     "view": "browser viewer: 10,000-robot load time and fps; 200-robot picture commands",
+    "lifelong": "LoRR problems: our lifelong loop beside the Start-Kit baseline (tasks, time)",
 }
 
 

@@ -41,6 +41,7 @@ COMMANDS = (
     "bench",
     "sweep",
     "view",
+    "lifelong",
 )
 
 

@@ -1,0 +1,148 @@
+"""The executor: staged actions kept safe under delays by an action dependency graph.
+
+The planner's window becomes, per robot, a queue of staged actions, and, per cell, the
+order in which robots enter it (the Type-2 dependencies of the temporal plan graph /
+action dependency graph of Hönig et al., RA-L 2019, reduced to cells). Every tick each
+robot that is not delayed either continues the action in progress, starts its next
+staged action, or waits:
+
+* a rotation may always start (the footprint stays in its cell);
+* a forward move into cell ``c`` may start only when the robot is first in ``c``'s
+  queue, i.e. every robot that the plan sends through ``c`` earlier has left it.
+
+A robot *holds* its cell and, while moving, the cell it moves into; a cell is held by
+at most one robot (the head of its queue), and a footprint of size at most one lies
+inside the cells its robot holds, so footprints never overlap, however the delays fall.
+Delays are absorbed here first: the delayed robot pauses and robots that depend on it
+wait (slack where nobody depends on it); what is left is absorbed by the next
+re-planning call, which plans from where the robots really are.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+from hierplan_opt.lifelong.model import FW, NA, RobotState, W
+from hierplan_opt.lifelong.planner import WindowPlan
+
+
+class ADGExecutor:
+    """Per-robot staged actions and per-cell visit queues (see the module doc).
+
+    Example
+    -------
+    >>> from hierplan_opt.lifelong.planner import WindowPlan
+    >>> ex = ADGExecutor((1, 3, -1, -3))
+    >>> robots = [RobotState(0), RobotState(1)]
+    >>> ex.load(WindowPlan([[FW], [FW]], [[1], [2]], {1: [0], 2: [1]}), robots)
+    >>> ex.command(0, robots[0]), ex.command(1, robots[1])  # 0 waits until 1 has left
+    (3, 0)
+    """
+
+    def __init__(self, moves: tuple[int, int, int, int]) -> None:
+        self.moves = moves
+        self.staged: list[deque[int]] = []
+        self.queues: dict[int, deque[int]] = {}
+        self.blocked_by: list[int] = []
+
+    def load(self, plan: WindowPlan, robots: list[RobotState]) -> None:
+        """Replace the staged actions by a new plan made from the robots' committed states."""
+        self.staged = [deque(a) for a in plan.actions]
+        self.blocked_by = [-1] * len(robots)
+        q: dict[int, deque[int]] = {}
+        # a robot leaving a cell comes before one following it in (at most one each)
+        for i, s in enumerate(robots):
+            q[s.loc] = deque([i])
+        for i, s in enumerate(robots):
+            if s.cur == FW and s.count > 0:
+                q.setdefault(s.loc + self.moves[s.ori], deque()).append(i)
+        for cell, who in plan.order.items():
+            q.setdefault(cell, deque()).extend(who)
+        self.queues = q
+
+    def command(self, i: int, s: RobotState) -> int:
+        """Robot ``i``'s action this tick by the cell rule alone (no following); W when
+        it must wait."""
+        self.blocked_by[i] = -1
+        if s.count > 0 and s.cur != NA:
+            return s.cur
+        st = self.staged[i]
+        if not st:
+            return W
+        a = st[0]
+        if a != FW:
+            return a
+        head = self.queues.get(s.loc + self.moves[s.ori])
+        if head and head[0] == i:
+            return a
+        self.blocked_by[i] = head[0] if head else -2
+        return W
+
+    def commands(self, robots: list[RobotState], delayed: list[bool], k: int) -> list[int]:
+        """Every robot's action this tick, decided together.
+
+        Besides the cell rule, a robot may *follow* the robot ahead into a cell that one
+        is leaving in the same direction, as long as the follower's progress never
+        passes the leader's (counter of the follower <= counter of the leader after
+        the tick): the two footprints then slide in step and never overlap. A leader
+        that pauses (delayed or blocked) stops its follower on the same tick.
+        """
+        n = len(robots)
+        out = [-1] * n
+        self.blocked_by = [-1] * n
+        moves = self.moves
+
+        def decide(i: int) -> int:
+            if out[i] >= 0:
+                return out[i]
+            out[i] = W  # provisional (no dependency cycles: followers look ahead in line)
+            s = robots[i]
+            if delayed[i]:
+                return W
+            busy = s.count > 0 and s.cur != NA
+            if busy and s.cur != FW:
+                out[i] = s.cur
+                return s.cur
+            if not busy:
+                st = self.staged[i]
+                if not st:
+                    return W
+                if st[0] != FW:
+                    out[i] = st[0]
+                    return st[0]
+            x = s.loc + moves[s.ori]
+            q = self.queues.get(x)
+            if q and q[0] == i:
+                out[i] = FW
+                return FW
+            lead = q[0] if q else -2
+            self.blocked_by[i] = lead
+            if lead >= 0 and len(q) > 1 and q[1] == i:  # type: ignore[arg-type]
+                a = robots[lead]
+                in_line = a.loc == x and a.ori == s.ori and (a.cur == FW or a.count == 0)
+                if in_line and decide(lead) == FW and a.count >= s.count:
+                    self.blocked_by[i] = -1
+                    out[i] = FW
+                    return FW
+            return W
+
+        for i in range(n):
+            decide(i)
+        return out
+
+    def started(self, i: int) -> None:
+        """Robot ``i`` began its next staged action this tick."""
+        self.staged[i].popleft()
+
+    def left(self, i: int, cell: int) -> None:
+        """Robot ``i`` finished moving out of ``cell``: the next robot may enter it."""
+        q = self.queues[cell]
+        if q and q[0] == i:
+            q.popleft()
+
+    def idle(self, i: int, s: RobotState) -> bool:
+        """Whether robot ``i`` has nothing to do (no action in progress, none staged)."""
+        return not self.staged[i] and not (s.count > 0 and s.cur != NA)
+
+
+__all__ = ["ADGExecutor"]
