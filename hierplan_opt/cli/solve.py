@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 from typing import Any
 
 from hierplan_opt.api import DEFAULT_TIME_LIMIT
@@ -201,6 +202,7 @@ def run(args: argparse.Namespace) -> int:
     instance = load_instance_from_args(args)
     instance = highway_options(args, instance, options)
     with progress_of(args, f"solve {args.solver}"):
+        cpu0 = time.process_time()
         result = hierplan_opt.solve(
             instance,
             args.solver,
@@ -209,8 +211,9 @@ def run(args: argparse.Namespace) -> int:
             objective=args.objective,
             **options,
         )
+        cpu = time.process_time() - cpu0  # the solve's CPU seconds (runtime is wall-clock)
         note(status=str(result.status), lb=result.lower_bound, best=result.cost)
-    line = summary(result, instance)
+    line = f"{summary(result, instance)} cpu={cpu:.3f}s"
     if result.plan is not None and args.out:
         save_plan(args.out, instance, result)
         line += f" -> {args.out}"

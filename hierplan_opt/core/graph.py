@@ -30,8 +30,11 @@ from hierplan_opt.core.errors import InputError
 #: Timestep distance of a vertex that cannot reach the target. Large, so that any
 #: sum of a few of them still fits in a Python int comparison without special cases.
 UNREACHABLE = 1 << 30
-#: Vertices times targets up to which a distance batch is a Python BFS (no scipy import).
-SMALL_BFS_WORK = 60_000
+#: Free vertices times targets up to which a distance batch is a Python BFS while scipy
+#: is not loaded: importing ``scipy.sparse.csgraph`` costs 0.15-0.5 s of a fresh process,
+#: the Python BFS about 0.35 us a free vertex (2 ms a table on the 5,699 free cells of
+#: ``warehouse-10-20-10-2-1``), so up to about 250k vertex-tables the BFS is cheaper.
+SMALL_BFS_WORK = 250_000
 #: Vertices up to which a table is a Python BFS also when scipy is loaded (9 us a table
 #: on 64 cells against 21 us for a scipy breadth-first order; even at about 180 cells).
 SMALL_BFS_CELLS = 128
@@ -617,7 +620,7 @@ class Graph:
         if self.directed:
             return False
         if "scipy.sparse.csgraph" not in sys.modules:
-            return self.n * count <= SMALL_BFS_WORK
+            return self.num_vertices * count <= SMALL_BFS_WORK
         return self.n <= SMALL_BFS_CELLS
 
     @cached_property
