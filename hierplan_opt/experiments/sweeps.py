@@ -26,7 +26,7 @@ from typing import Any
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.experiments import store
-from hierplan_opt.experiments.runner import run_task
+from hierplan_opt.experiments.runner import close_servers, run_task
 from hierplan_opt.experiments.spec import (
     InstanceSpec,
     SolverSpec,
@@ -193,7 +193,8 @@ def check_instances(spec: SweepSpec) -> dict[str, str]:
 
 # ---------------------------------------------------------------- backends
 class _Local:
-    """Threads on this machine, each waiting on one run's process."""
+    """Threads on this machine, each waiting on one run's process (forked from the
+    thread's warm worker, see :mod:`~hierplan_opt.experiments.runner`)."""
 
     def __init__(self, workers: int) -> None:
         self.pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="sweep")
@@ -209,6 +210,7 @@ class _Local:
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+        close_servers()
 
 
 class _Dask:
