@@ -5,8 +5,10 @@ the database are re-used, and the rest are handed to a backend: a pool of thread
 this machine that each wait on one run's process (``workers`` at a time), or a Dask
 cluster (``dask="local"`` starts a ``LocalCluster``; ``dask="tcp://HOST:PORT"`` joins a
 running scheduler). Either way each run is :func:`~hierplan_opt.experiments.runner.run_task`
-(a fresh process with a time and a memory limit) and its row comes back to this process,
-which alone writes the SQLite file, one committed row per finished run.
+(a process of its own with a time and a memory limit, forked from a warm worker that has
+the solvers loaded; ``HIERPLAN_SWEEP_WORKER=fresh``: a new interpreter per run) and its
+row comes back to this process, which alone writes the SQLite file, one committed row per
+finished run.
 """
 
 from __future__ import annotations
