@@ -692,3 +692,26 @@ def test_warm_worker_hands_back_a_task_over_its_memory_limit(
         assert ran == [64]
     finally:
         runner.close_servers()
+
+
+def test_a_warm_worker_that_cannot_start_is_not_retried(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", "fork")
+    monkeypatch.setattr(runner, "SERVE", ("-c", "raise SystemExit(1)"))
+    started = []
+    real = runner._Server.__init__
+
+    def counting(self, key):
+        started.append(key)
+        real(self, key)
+
+    monkeypatch.setattr(runner._Server, "__init__", counting)
+    monkeypatch.setattr(runner, "run_fresh", lambda task, python=None: {"status": "OPTIMAL"})
+    try:
+        for _ in range(3):
+            assert runner.run_task({"time_limit": 5}) == {"status": "OPTIMAL"}
+        assert len(started) == 1 and started[0] in runner._failed
+    finally:
+        runner.close_servers()
+        runner._failed.clear()

@@ -62,7 +62,8 @@ def run_task(task: dict[str, Any], python: str | None = None) -> dict[str, Any]:
     """
     fresh = os.environ.get("HIERPLAN_SWEEP_WORKER", "fork").strip().lower() == "fresh"
     if not fresh and (python is None or python == sys.executable):
-        out = _server().run(task)
+        srv = _server()
+        out = None if srv is None else srv.run(task)
         if out is not None:
             return out
     return run_fresh(task, python)
@@ -134,12 +135,17 @@ def _outcome(
     return _crashed(code, killed, stderr, wall, peak_mb, limit)
 
 
+#: Arguments of the interpreter that runs a warm worker.
+SERVE = ("-m", "hierplan_opt.experiments.worker", "--serve")
+
+
 class _Server:
     """A warm worker (``worker --serve``) and the pipe to it; one task at a time."""
 
-    def __init__(self) -> None:
+    def __init__(self, key: tuple[int, int]) -> None:
+        self.key = key
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "hierplan_opt.experiments.worker", "--serve"],
+            [sys.executable, *SERVE],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.DEVNULL,
@@ -160,7 +166,8 @@ class _Server:
         take it (the caller runs it in a fresh process)."""
         limit = hard_limit(float(task["time_limit"]))
         if not self.ready:
-            if self._answer() is None:  # the server died while loading
+            if self._answer() is None:  # the server died while loading: not again
+                _failed.add(self.key)
                 return None
             self.ready = True
         with tempfile.TemporaryDirectory(prefix="hierplan-run-") as tmp:
@@ -224,19 +231,24 @@ class _Server:
 
 _servers: dict[tuple[int, int], _Server] = {}
 _servers_lock = threading.Lock()
+#: Keys of warm workers that died while loading (their tasks run fresh).
+_failed: set[tuple[int, int]] = set()
 
 
-def _server() -> _Server:
+def _server() -> _Server | None:
     """This thread's warm worker, started with this process's environment as it is now
-    (a changed environment, e.g. PYTHONPATH, gets a new one)."""
+    (a changed environment, e.g. PYTHONPATH, gets a new one); None if such a worker
+    could not start."""
     key = (threading.get_ident(), hash(tuple(sorted(os.environ.items()))))
     with _servers_lock:
+        if key in _failed:
+            return None
         srv = _servers.get(key)
         if srv is not None and not srv.alive():
             srv.close()
             srv = None
         if srv is None:
-            srv = _servers[key] = _Server()
+            srv = _servers[key] = _Server(key)
     return srv
 
 
