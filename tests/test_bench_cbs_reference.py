@@ -100,3 +100,52 @@ def test_unsolved_side_runs_once(tmp_path, capsys) -> None:
     assert count.read_text().strip() == "1"
     assert cols[4] == "inf" and cols[5] == "-" and cols[6].endswith("/1")
     assert "CBSH2-RTC 0/1;" in out
+
+
+def _fake_peer(tmp_path, script: str):
+    fake = tmp_path / "peer"
+    fake.write_text("#!/bin/sh\n" + script)
+    fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
+    return fake
+
+
+def test_per_process_runs_hierplan_solve_beside_the_peer(tmp_path, capsys) -> None:
+    # Our side is a real `hierplan solve` process; the peer a stand-in that writes the
+    # statistics (0.02 s runtime) and a paths file, as CBSH2-RTC does.
+    if os.name != "posix":  # pragma: no cover
+        pytest.skip("shell script stand-in")
+    fake = _fake_peer(
+        tmp_path,
+        'while [ "$1" != "-o" ]; do shift; done\n'
+        f"printf '{HEADER},min f value\\n0.02,7,13,99,74,74\\n' > \"$2\"\n",
+    )
+    argv = ["--per-process", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
+    assert bench.main(argv) == 0
+    out = capsys.readouterr().out
+    cols = next(ln for ln in out.splitlines() if ln.startswith("empty-8-8-even-1:16")).split()
+    assert cols[1:4] == ["OPTIMAL", "74", "74"]
+    assert cols[5] == "0.0200" and float(cols[4]) > 0  # the solve's own CPU seconds
+    assert float(cols[7]) > float(cols[4])  # the process takes longer than its solve
+    assert "solved ours 1/1, C++ 1/1" in out
+    assert "optima differing from the known ones: 0" in out
+
+
+def test_per_process_ecbs_counts_bounded_plans(tmp_path, capsys) -> None:
+    from hierplan_opt.bench import ecbs
+
+    argv = ["--reference", "--per-process", "--instance", "empty-8-8-even-1:8"]
+    assert ecbs.main(argv + ["--time-limit", "10"]) == 0
+    out = capsys.readouterr().out
+    assert "solved ours 1/1, C++ 0/1 (w=1.2, within the bound)" in out
+    with pytest.raises(InputError, match="one solver at one w"):
+        ecbs.main(argv + ["--w", "1.1,1.2"])
+
+
+def test_summary_line_has_the_solve_cpu_seconds(capsys) -> None:
+    from hierplan_opt.cli import main
+    from hierplan_opt.experiments.data import movingai_files
+
+    mp, scen = movingai_files("empty-8-8-even-1")
+    assert main(["solve", str(mp), "--scen", str(scen), "--agents", "4"]) == 0
+    d = bench.parse_summary(capsys.readouterr().out.strip().splitlines()[-1])
+    assert d["status"] == "OPTIMAL" and d["cpu"].endswith("s") and float(d["cpu"][:-1]) >= 0

@@ -600,3 +600,118 @@ def test_solvers_are_paired_only_with_problems_they_solve(tmp_path: Path) -> Non
     pairs = {(r.solver.name, r.instance.name) for r in plan_runs(spec, problems)}
     assert pairs == {("cbs", "empty-8-8-even-1"), ("cbm", "empty-8-8-even-1"),
                      ("cbm", "figure3"), ("cbm", "warehouse(team_size=2)")}  # fmt: skip
+
+
+# ------------------------------------------------------------------ warm workers
+def _no_fresh(task, python=None):
+    raise AssertionError("ran in a fresh process, not forked from the warm worker")
+
+
+def test_warm_worker_rows_equal_fresh_rows(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Issue 35: runs forked from a warm worker give the rows a fresh process gives.
+    spec = {
+        "solvers": [{"name": "cbs"}, {"name": "eecbs", "options": {"w": 1.2}}],
+        "instances": [empty8([2, 5])],
+        "time_limit": 20,
+        "memory_limit_mb": 3000,
+        "workers": 1,
+    }
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", "fresh")
+    sweep({**spec, "db": str(tmp_path / "fresh.sqlite")}, progress=False)
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", "fork")
+    monkeypatch.setattr(runner, "run_fresh", _no_fresh)
+    sweep({**spec, "db": str(tmp_path / "warm.sqlite")}, progress=False)
+    assert not runner._servers  # the sweep stopped its warm worker
+    keys = ("label", "agents", "status", "cost", "lower_bound", "expanded", "generated")
+    rows = {}
+    for name in ("fresh", "warm"):
+        got = store.rows(store.open_existing(tmp_path / f"{name}.sqlite"))
+        rows[name] = sorted(tuple(r[k] for k in keys) for r in got)
+        assert all(r["peak_mb"] > 10 and 0 < r["runtime"] < r["wall"] for r in got)
+        assert all(r["versions"]["numpy"] and r["host"] for r in got)
+    assert rows["warm"] == rows["fresh"] and len(rows["warm"]) == 4
+
+
+def test_warm_worker_keeps_limits_kills_and_crash_classes(
+    tmp_path: Path, plugin: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # The crash test above, every run forked from the warm worker (a limit the
+    # server's address space leaves room in).
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", "fork")
+    monkeypatch.setattr(runner, "run_fresh", _no_fresh)
+    monkeypatch.setattr(runner, "GRACE", 2.0)
+    modes = ["hog", "numpy_hog", "abort", "raise", "sleep", "ok"]
+    spec = {
+        "solvers": [
+            {
+                "name": "plug",
+                "target": plugin,
+                "label": m,
+                "options": {"mode": m},
+                "time_limit": 1 if m == "sleep" else 20,
+            }
+            for m in modes
+        ],  # fmt: skip
+        "instances": [empty8([2])],
+        "memory_limit_mb": 1500,
+        "workers": 2,
+        "db": str(tmp_path / "r.sqlite"),
+    }
+    summary = sweep(spec, progress=False)
+    assert summary.total == summary.ran == len(modes)
+    rows = {r["label"]: r for r in store.rows(store.open_existing(tmp_path / "r.sqlite"))}
+    assert rows["hog"]["status"] == "MEMOUT" and "memory" in rows["hog"]["error"]
+    assert rows["numpy_hog"]["status"] == "MEMOUT"
+    assert rows["abort"]["status"] == "ERROR" and "SIGABRT" in rows["abort"]["error"]
+    assert rows["raise"]["error"] == "RuntimeError: bug in the solver"
+    assert rows["sleep"]["status"] == "TIME_LIMIT" and "hard limit" in rows["sleep"]["error"]
+    assert 3 <= rows["sleep"]["wall"] < 15
+    assert rows["ok"]["status"] == "OPTIMAL" and rows["ok"]["cost"] == 4
+
+
+def test_warm_worker_hands_back_a_task_over_its_memory_limit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # A limit below the warm worker's own address space: the task runs fresh instead.
+    ran = []
+
+    def fresh(task, python=None):
+        ran.append(task["memory_limit_mb"])
+        return {"status": "OPTIMAL"}
+
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", "fork")
+    monkeypatch.setattr(runner, "run_fresh", fresh)
+    mp, scen = data.movingai_files("empty-8-8-even-1")
+    task = {
+        "instance": {"kind": "movingai", "order": ["m.map", "s.scen"],
+                     "files": {"m.map": mp.read_text(), "s.scen": scen.read_text()}},
+        "agents": 2, "seed": 0, "solver": "cbs", "time_limit": 10, "memory_limit_mb": 64,
+    }  # fmt: skip
+    try:
+        assert runner.run_task(task) == {"status": "OPTIMAL"}
+        assert ran == [64]
+    finally:
+        runner.close_servers()
+
+
+def test_a_warm_worker_that_cannot_start_is_not_retried(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", "fork")
+    monkeypatch.setattr(runner, "SERVE", ("-c", "raise SystemExit(1)"))
+    started = []
+    real = runner._Server.__init__
+
+    def counting(self, key):
+        started.append(key)
+        real(self, key)
+
+    monkeypatch.setattr(runner._Server, "__init__", counting)
+    monkeypatch.setattr(runner, "run_fresh", lambda task, python=None: {"status": "OPTIMAL"})
+    try:
+        for _ in range(3):
+            assert runner.run_task({"time_limit": 5}) == {"status": "OPTIMAL"}
+        assert len(started) == 1 and started[0] in runner._failed
+    finally:
+        runner.close_servers()
+        runner._failed.clear()

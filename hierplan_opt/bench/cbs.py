@@ -26,6 +26,18 @@ each side runs again, interleaved, until it has spent ``REPEAT_BUDGET`` seconds 
 made ``REPEAT_MAX`` runs, each of ours on a freshly loaded instance (nothing cached); the
 table gives the median of each side's runs (column ``runs``: ours/C++); an instance
 that takes a side ``REPEAT_BUDGET`` or more is run once by it.
+
+``--per-process`` (with ``--reference``): every run is its own process, as a user runs
+the toolkit from a script: ``hierplan solve MAP --scen SCEN --agents K --out plan.json``
+beside ``cbs ... --outputPaths=paths.txt``, interleaved run by run. Each side repeats an
+instance while its processes have taken under ``PROCESS_BUDGET`` seconds of wall time in
+all (at most ``PROCESS_MAX`` runs); medians. Columns: the solve's own time (ours: the
+CPU seconds of ``hierplan_opt.solve`` in the process, printed by ``hierplan solve`` as
+``cpu=``, which counts everything the solve triggers -- distance tables, feasibility
+test, lazy imports and kernel loading on its path; the C++'s: ``runtime`` plus
+``preprocessing runtime``, CPU) and the whole process (wall-clock from start to exit,
+and the CPU seconds of user and system time from the kernel's accounting). The summary
+gives the geometric means of the three ratios over the instances both solve.
 """
 
 from __future__ import annotations
@@ -35,6 +47,7 @@ import json
 import math
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -70,6 +83,11 @@ REFERENCE_QUICK = [
     "den312d-even-2:20",
     "warehouse-10-20-10-2-1-even-1:30",
 ]
+#: ``--per-process``: each side repeats an instance while its processes took under this
+#: many wall seconds in all ...
+PROCESS_BUDGET = 3.0
+#: ... and at most this many times.
+PROCESS_MAX = 3
 #: ``--reference``: each side repeats an instance until it spent this much CPU (s) ...
 REPEAT_BUDGET = 0.5
 #: ... or made this many runs; the table gives the median.
@@ -102,7 +120,23 @@ def main(argv: list[str] | None = None) -> int:
         help="the 31 instances with known optima, beside CBSH2-RTC (see the module doc)",
     )
     p.add_argument("--anchor", metavar="PATH", help="a CBSH2-RTC binary to run beside ours")
+    p.add_argument(
+        "--per-process",
+        action="store_true",
+        help="with --reference: every run its own `hierplan solve` process (see the module doc)",
+    )
     args = p.parse_args(argv)
+    if args.per_process:
+        ref = reference_table()
+        names = args.instance or (REFERENCE_QUICK if args.quick else sorted(ref))
+        known = {}
+        for name in names:
+            if name not in ref:
+                raise InputError(f"--instance {name}: not a reference instance (SCEN:K)")
+            known[name] = ref[name]["optimal_soc"]
+        tl = time_limit(args.time_limit, False)
+        rows = per_process(names, "cbs", tl, args.anchor, known=known)
+        return 1 if any(r["wrong"] for r in rows) else 0
     if args.reference or args.anchor:
         return reference(args.instance, args.quick, args.time_limit, args.anchor)
 
@@ -189,6 +223,236 @@ def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
         "hl": f"{hl_exp}/{hl_gen}",
         "ll": int(float(row["#low-level expanded"])),
     }
+
+
+def _timed(cmd: list[str], timeout: float) -> tuple[str, float, float, bool]:
+    """Run ``cmd``: (stdout, wall seconds, CPU seconds of user and system time, whether it
+    was killed at ``timeout``)."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    except OSError as exc:
+        raise InputError(f"{cmd[0]}: {exc}") from None
+    killed = False
+    try:
+        out, _ = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, _ = proc.communicate()
+        killed = True
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return out.decode("utf-8", "replace"), wall, cpu, killed
+
+
+def parse_summary(line: str) -> dict[str, str]:
+    """The ``key=value`` fields of ``hierplan solve``'s summary line (``status``: the first word).
+
+    Example
+    -------
+    >>> d = parse_summary("OPTIMAL cost=8 lb=8 runtime=0.012s cpu=0.010s high_level_expanded=3")
+    >>> d["status"], d["cost"], d["cpu"], d["high_level_expanded"]
+    ('OPTIMAL', '8', '0.010s', '3')
+    """
+    words = line.split()
+    out = {"status": words[0] if words else "NO_OUTPUT"}
+    for w in words[1:]:
+        key, eq, value = w.partition("=")
+        if eq:
+            out[key] = value
+    return out
+
+
+def hierplan_command() -> list[str]:
+    """How to start ``hierplan`` beside this interpreter (its console script if present)."""
+    script = Path(sys.executable).with_name("hierplan")
+    return [str(script)] if script.is_file() else [sys.executable, "-m", "hierplan_opt"]
+
+
+def run_ours_process(
+    spec: str, solver: str, tl: float, tmp: Path, w: float | None = None
+) -> dict[str, Any]:
+    """One ``hierplan solve`` process on ``spec``: status, cost, solve CPU, process wall/CPU."""
+    from hierplan_opt.experiments.data import movingai_files
+
+    mp, scen = movingai_files(spec.partition(":")[0])
+    plan = tmp / "plan.json"
+    plan.unlink(missing_ok=True)
+    cmd = hierplan_command() + ["-q", "solve", str(mp), "--scen", str(scen)]
+    cmd += ["--agents", spec.partition(":")[2], "--solver", solver, "--time-limit", f"{tl:g}"]
+    cmd += ["--out", str(plan)] + ([] if w is None else ["--w", f"{w:g}"])
+    out, wall, pcpu, killed = _timed(cmd, 2 * tl + 60)
+    lines = [ln for ln in out.splitlines() if ln.strip()]
+    d = parse_summary(lines[-1] if lines and not killed else "KILLED")
+    stats: dict[str, Any] = {}
+    if plan.is_file():
+        stats = json.loads(plan.read_text(encoding="utf-8")).get("statistics", {})
+    solved = d["status"] in ("OPTIMAL", "FEASIBLE") and plan.is_file()
+    hl_e = stats.get("highLevelExpanded", d.get("high_level_expanded", "-"))
+    hl_g = stats.get("high_level_generated", d.get("high_level_generated", "-"))
+    return {
+        "solved": solved,
+        "status": d["status"],
+        "cost": int(float(d["cost"])) if "cost" in d else -1,
+        "lb": d.get("lb", "-"),
+        "time": float(d["cpu"].rstrip("s")) if "cpu" in d else math.inf,
+        "wall": wall,
+        "pcpu": pcpu,
+        "hl": f"{hl_e}/{hl_g}",
+        "ll": stats.get("lowLevelExpanded", d.get("low_level_expanded", "-")),
+        "plan_from": stats.get("plan_from", "search"),
+    }
+
+
+def run_anchor_process(
+    binary: str, spec: str, tl: float, tmp: Path, extra: list[str] | None = None
+) -> dict[str, Any]:
+    """One run of a C++ peer (CBSH2-RTC ``cbs`` or EECBS ``eecbs``; same command line and
+    statistics file) on ``spec``, writing its paths as a user would."""
+    from hierplan_opt.experiments.data import movingai_files
+
+    mp, scen = movingai_files(spec.partition(":")[0])
+    stats, paths = tmp / "stats.csv", tmp / "paths.txt"
+    stats.unlink(missing_ok=True)
+    cmd = [binary, "-m", str(mp), "-a", str(scen), "-k", spec.partition(":")[2]]
+    cmd += ["-t", f"{tl:g}", "-o", str(stats), f"--outputPaths={paths}", "-s", "0"]
+    _, wall, pcpu, killed = _timed(cmd + (extra or []), 2 * tl + 60)
+    if killed or not stats.is_file():
+        if not killed:
+            raise InputError(f"--anchor {binary}: wrote no statistics for {spec}")
+        return {"solved": False, "time": math.inf, "cost": -1, "hl": "-", "ll": "-",
+                "wall": wall, "pcpu": pcpu, "lb": "-"}  # fmt: skip
+    with stats.open(newline="") as fh:
+        row = next(csv.DictReader(fh))
+    cost = int(float(row["solution cost"]))
+    t = float(row["runtime"]) + float(row.get("preprocessing runtime") or 0)
+    return {
+        "solved": cost >= 0 and t < tl,
+        "time": t,
+        "cost": cost,
+        "lb": row.get("min f value", "-"),
+        "hl": f"{int(float(row['#high-level expanded']))}/"
+        f"{int(float(row['#high-level generated']))}",
+        "ll": int(float(row["#low-level expanded"])),
+        "wall": wall,
+        "pcpu": pcpu,
+    }
+
+
+def per_process(
+    names: list[str],
+    solver: str,
+    tl: float,
+    anchor: str | None,
+    *,
+    known: dict[str, int | None] | None = None,
+    w: float | None = None,
+    anchor_args: list[str] | None = None,
+) -> list[dict[str, Any]]:
+    """The per-process table (see the module doc): ours and the peer, interleaved run by
+    run, each run its own process. With ``w``, a solved run must be within ``w`` times
+    the peer's lower bound (``min f value``) when known; ``known`` gives the optima.
+    Returns one row per instance."""
+    head = (
+        f"{'instance':34} {'status':9} {'cost':>6} {'C++':>6} {'solve_s':>7} {'C++_s':>7} "
+        f"{'ratio':>6} {'proc_s':>6} {'C++_p':>6} {'ratio':>6} {'pcpu_s':>6} {'C++_c':>6} "
+        f"{'runs':>5} {'HL ours':>13} {'HL C++':>13}"
+    )
+    print(head)
+    print("-" * len(head))
+    rows: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="hierplan-bench-") as tmp_dir:
+        tmp = Path(tmp_dir)
+        for name in names:
+            ours: list[dict[str, Any]] = []
+            cpps: list[dict[str, Any]] = []
+
+            def more(runs: list[dict[str, Any]]) -> bool:
+                if not runs:
+                    return True
+                return (
+                    runs[-1]["solved"]
+                    and len(runs) < PROCESS_MAX
+                    and sum(r["wall"] for r in runs) < PROCESS_BUDGET
+                )
+
+            while more(ours) or (anchor is not None and more(cpps)):
+                if more(ours):
+                    ours.append(run_ours_process(name, solver, tl, tmp, w))
+                if anchor is not None and more(cpps):
+                    cpps.append(run_anchor_process(anchor, name, tl, tmp, anchor_args))
+            o = {**ours[-1]}
+            for key in ("time", "wall", "pcpu"):
+                o[key] = statistics.median(r[key] for r in ours)
+            o["solved"] = all(r["solved"] for r in ours)
+            c: dict[str, Any] = {"solved": False, "time": math.inf, "wall": math.nan,
+                                 "pcpu": math.nan, "cost": -1, "hl": "-"}  # fmt: skip
+            if cpps:
+                c = {**cpps[-1], "solved": all(r["solved"] for r in cpps)}
+                for key in ("time", "wall", "pcpu"):
+                    c[key] = statistics.median(r[key] for r in cpps)
+            wrong = False
+            opt = (known or {}).get(name)
+            if o["solved"] and opt is not None and w is None and o["cost"] != opt:
+                wrong = True
+            if o["solved"] and w is not None:
+                # within the bound: at most w times a proven lower bound (ours or the C++'s)
+                lbs = [_num(o["lb"])] + ([_num(c["lb"])] if c["solved"] else [])
+                o["over_bound"] = o["cost"] > w * max(lbs) + 1e-9
+            status = "WRONG" if wrong else o["status"][:9]
+            if o.get("over_bound"):
+                status = "OVER_W"
+            both = o["solved"] and c["solved"]
+            ratio = o["time"] / max(c["time"], 1e-4) if both else math.nan
+            pratio = o["wall"] / c["wall"] if both else math.nan
+            cratio = o["pcpu"] / max(c["pcpu"], 1e-3) if both else math.nan
+            rows.append({"name": name, "ours": o, "cpp": c, "wrong": wrong, "both": both,
+                         "ratio": ratio, "pratio": pratio, "cratio": cratio})  # fmt: skip
+            print(
+                f"{name:34} {status:9} {o['cost'] if o['solved'] else '-':>6} "
+                f"{c['cost'] if c['solved'] else '-':>6} "
+                f"{secs(o['time'] if o['solved'] else math.inf):>7} "
+                f"{secs(c['time'] if c['solved'] else math.inf):>7} {_x(ratio):>6} "
+                f"{o['wall']:>6.2f} {c['wall']:>6.2f} {_x(pratio):>6} {o['pcpu']:>6.2f} "
+                f"{c['pcpu']:>6.2f} {len(ours)}/{len(cpps):<3} {o['hl']:>13} {c['hl']:>13}",
+                flush=True,
+            )
+    both = [r for r in rows if r["both"]]
+    print(
+        f"solved ours {sum(r['ours']['solved'] and not r['ours'].get('over_bound') for r in rows)}"
+        f"/{len(rows)}, C++ {sum(r['cpp']['solved'] for r in rows)}/{len(rows)}"
+        f"{f' (w={w:g}, within the bound)' if w is not None else ''}; over the {len(both)} both "
+        f"solve, geometric means ours/C++: solve {geomean([r['ratio'] for r in both]):.2f}x "
+        f"(worst {max((r['ratio'] for r in both), default=math.nan):.1f}x), process wall "
+        f"{geomean([r['pratio'] for r in both]):.2f}x, process CPU "
+        f"{geomean([r['cratio'] for r in both]):.2f}x; optima differing from the known ones: "
+        f"{sum(r['wrong'] for r in rows)}; every run its own process (solve_s: CPU s of the "
+        f"solve, proc_s: process wall s, pcpu_s: process user+system CPU s), medians of the "
+        f"runs (ours/C++), time limit {tl:g} s"
+    )
+    return rows
+
+
+def _num(text: Any) -> float:
+    """A lower bound as printed (``-`` or empty: 0, i.e. none).
+
+    Example
+    -------
+    >>> _num("869"), _num("-")
+    (869.0, 0.0)
+    """
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return 0.0
+
+
+def _x(ratio: float) -> str:
+    return "-" if math.isnan(ratio) else f"{ratio:.1f}"
 
 
 def _again(times: list[float]) -> bool:

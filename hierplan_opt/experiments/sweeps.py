@@ -5,8 +5,10 @@ the database are re-used, and the rest are handed to a backend: a pool of thread
 this machine that each wait on one run's process (``workers`` at a time), or a Dask
 cluster (``dask="local"`` starts a ``LocalCluster``; ``dask="tcp://HOST:PORT"`` joins a
 running scheduler). Either way each run is :func:`~hierplan_opt.experiments.runner.run_task`
-(a fresh process with a time and a memory limit) and its row comes back to this process,
-which alone writes the SQLite file, one committed row per finished run.
+(a process of its own with a time and a memory limit, forked from a warm worker that has
+the solvers loaded; ``HIERPLAN_SWEEP_WORKER=fresh``: a new interpreter per run) and its
+row comes back to this process, which alone writes the SQLite file, one committed row per
+finished run.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import Any
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.experiments import store
-from hierplan_opt.experiments.runner import run_task
+from hierplan_opt.experiments.runner import close_servers, run_task
 from hierplan_opt.experiments.spec import (
     InstanceSpec,
     SolverSpec,
@@ -193,7 +195,8 @@ def check_instances(spec: SweepSpec) -> dict[str, str]:
 
 # ---------------------------------------------------------------- backends
 class _Local:
-    """Threads on this machine, each waiting on one run's process."""
+    """Threads on this machine, each waiting on one run's process (forked from the
+    thread's warm worker, see :mod:`~hierplan_opt.experiments.runner`)."""
 
     def __init__(self, workers: int) -> None:
         self.pool = cf.ThreadPoolExecutor(max_workers=workers, thread_name_prefix="sweep")
@@ -209,6 +212,7 @@ class _Local:
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
+        close_servers()
 
 
 class _Dask:
@@ -281,14 +285,30 @@ class SweepSummary:
     skipped: int
     statuses: dict[str, int]
     elapsed: float
+    #: Sums over the runs run now: their wall-clock seconds and their solvers' runtimes.
+    run_wall: float = 0.0
+    run_solve: float = 0.0
 
     def message(self) -> str:
-        """One summary line."""
+        """One summary line (with the mean wall time per run beyond its solve).
+
+        Example
+        -------
+        >>> s = SweepSummary("s", Path("r.sqlite"), 2, 0, 2, 0, {"OPTIMAL": 2}, 1.5, 1.2, 1.0)
+        >>> s.message().split("; ")[2]
+        'per run 0.600 s, 0.100 s beyond the solve'
+        """
         counts = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items()))
+        per_run = ""
+        if self.ran:
+            per_run = (
+                f"; per run {self.run_wall / self.ran:.3f} s, "
+                f"{(self.run_wall - self.run_solve) / self.ran:.3f} s beyond the solve"
+            )
         return (
             f"sweep {self.name}: {self.total} runs ({self.reused} re-used, {self.ran} run, "
-            f"{self.skipped} skipped) in {self.elapsed:.1f} s; {counts or 'nothing run'}; "
-            f"database {self.db}"
+            f"{self.skipped} skipped) in {self.elapsed:.1f} s; {counts or 'nothing run'}"
+            f"{per_run}; database {self.db}"
         )
 
 
@@ -385,7 +405,16 @@ def sweep(
             log.info("sweep %s: %d of %d runs already in %s", sp.name, reused, len(runs), sp.db)
         sweep_id = store.start_sweep(con, sp.name, sp.source, str(sp.folder.resolve()), len(runs))
         statuses: Counter[str] = Counter()
-        skipped = _execute(sp, todo, con, n_workers, dask, progress, statuses, on_row)
+        times = [0.0, 0.0]  # wall, solve runtime of the runs run now
+
+        def count(row: dict[str, Any]) -> None:
+            if row["status"] != SKIPPED:
+                times[0] += float(row.get("wall") or 0.0)
+                times[1] += float(row.get("runtime") or 0.0)
+            if on_row is not None:
+                on_row(row)
+
+        skipped = _execute(sp, todo, con, n_workers, dask, progress, statuses, count)
         store.finish_sweep(con, sweep_id)
     finally:
         con.close()
@@ -398,6 +427,8 @@ def sweep(
         skipped,
         dict(statuses),
         time.perf_counter() - t0,
+        times[0],
+        times[1],
     )
 
 

@@ -7,10 +7,23 @@ solves it through the front door and writes the outcome as JSON to
 ``task["result_path"]``. A ``MemoryError`` becomes MEMOUT; any other exception ERROR.
 A watchdog thread ends the process when the parent dies (so a killed sweep leaves no
 orphans) or when the hard wall-clock limit passes.
+
+``python -m hierplan_opt.experiments.worker --serve`` is the warm variant (a fork
+server, :func:`serve`): it imports the solvers, scipy's graph routines and (when numba's
+on-disk cache holds them) the compiled kernels once, then reads one request a line on
+stdin and forks one child per task. The child does exactly what a fresh worker does
+(memory limit, watchdog, solve, result file; its stderr goes to the request's file) and
+leaves with ``os._exit``; the server answers with the child's pid at once (so the parent
+can kill it at the hard limit) and, when it is done, with its wait status and peak
+resident memory. A child whose inherited address space leaves too little of its memory
+limit exits with :data:`TOO_BIG` at once (the parent then runs the task in a fresh
+process instead).
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import json
 import os
 import resource
@@ -22,6 +35,11 @@ from pathlib import Path
 from typing import Any
 
 MEMOUT = "MEMOUT"
+#: A forked child's exit code: the server's address space leaves too little of the
+#: task's memory limit; run the task in a fresh process instead.
+TOO_BIG = 75
+#: Megabytes of its memory limit a forked child must have left to start.
+HEADROOM_MB = 128
 #: Packages whose versions are stored with every run.
 VERSIONED = ("hierplan_opt", "numpy", "scipy", "networkx", "ortools", "highspy", "pyomo")
 
@@ -52,8 +70,10 @@ def watchdog(hard_limit: float | None, poll: float = 0.2) -> None:
     threading.Thread(target=watch, name="hierplan-watchdog", daemon=True).start()
 
 
+@functools.cache
 def versions() -> dict[str, str]:
-    """Versions of Python and of the packages in :data:`VERSIONED` that are installed."""
+    """Versions of Python and of the packages in :data:`VERSIONED` that are installed
+    (looked up once a process: 10-35 ms; a warm worker's children inherit them)."""
     from importlib import metadata
 
     out = {"python": sys.version.split()[0]}
@@ -131,8 +151,8 @@ def _json_safe(value: Any) -> bool:
     return True
 
 
-def main() -> int:
-    task = json.load(sys.stdin)
+def report(task: dict[str, Any]) -> None:
+    """Solve ``task`` (its memory limit and watchdog on) and write its outcome file."""
     limit_memory(task.get("memory_limit_mb"))
     watchdog(task.get("hard_limit"))
     out: dict[str, Any]
@@ -145,7 +165,7 @@ def main() -> int:
 
         out = {"status": "ERROR", "error": one_line(f"{type(exc).__name__}: {exc}")[:500]}
     out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-    out["versions"] = versions()
+    out["versions"] = dict(versions())
     import socket
 
     out["host"] = socket.gethostname()
@@ -153,7 +173,113 @@ def main() -> int:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(out, default=str), encoding="utf-8")
     os.replace(tmp, path)
+
+
+def main() -> int:
+    if sys.argv[1:] == ["--serve"]:
+        return serve()
+    report(json.load(sys.stdin))
     return 0
+
+
+def address_space_mb() -> float:
+    """This process's virtual memory size (what ``RLIMIT_AS`` caps), in MB (0 if unknown)."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as fh:
+            pages = int(fh.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return 0.0
+    return pages * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def preload() -> list[str]:
+    """Import what runs need (solvers, scipy's graph routines) and, if numba's on-disk
+    cache holds them, load the compiled kernels; the names of what was loaded."""
+    import importlib
+
+    done = []
+    for mod in (
+        "numpy",
+        "scipy.sparse.csgraph",
+        "hierplan_opt.api",
+        "hierplan_opt.io",
+        "hierplan_opt.experiments.generators",
+        "hierplan_opt.search.cbs",
+        "hierplan_opt.search.ecbs",
+        "hierplan_opt.search.eecbs",
+        "hierplan_opt.search.lacam",
+    ):
+        try:
+            importlib.import_module(mod)
+            done.append(mod)
+        except Exception:  # (a missing optional part: the child imports it)
+            continue
+    versions()
+    import socket  # noqa: F401  (the child's report needs it)
+
+    here = Path(__file__).resolve().parent.parent / "search" / "__pycache__"
+    if not os.environ.get("NUMBA_CACHE_DIR") and any(here.glob("_astar_kernel.*.nbi")):
+        try:
+            from hierplan_opt.search import jit
+
+            jit.load()
+            done.append("kernels")
+        except Exception:  # (auto mode falls back to Python in the child)
+            pass
+    return done
+
+
+def serve() -> int:
+    """The fork server (see the module doc); returns when stdin closes."""
+    import gc
+    import signal
+
+    preload()
+    # The children's collector need not scan (and copy, page by page) what they inherit.
+    gc.collect()
+    gc.freeze()
+    # Requests on fd 0, answers on a private copy of fd 1; fd 1 itself goes to /dev/null
+    # so that nothing a library prints can garble an answer.
+    inp = os.fdopen(0, "rb", buffering=0)
+    out = os.fdopen(os.dup(1), "wb", buffering=0)
+    null = os.open(os.devnull, os.O_RDWR)
+    os.dup2(null, 1)
+    watchdog(None)  # the sweep is gone: stop
+    out.write(b'{"ready": true}\n')
+    while True:
+        line = inp.readline()
+        if not line:
+            return 0
+        req = json.loads(line)
+        pid = os.fork()
+        if pid == 0:  # the child: never returns
+            code = 1
+            try:
+                inp.close()
+                out.close()
+                signal.signal(signal.SIGINT, signal.SIG_DFL)
+                err = os.open(req["stderr_path"], os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+                os.dup2(err, 2)
+                os.dup2(null, 0)
+                task = req["task"]
+                limit = task.get("memory_limit_mb")
+                if limit is not None and address_space_mb() + HEADROOM_MB > limit:
+                    code = TOO_BIG
+                else:
+                    report(task)
+                    code = 0
+            except BaseException:  # (reported through stderr and the code)
+                import traceback
+
+                traceback.print_exc()
+            finally:
+                with contextlib.suppress(Exception):
+                    sys.stderr.flush()
+                os._exit(code)
+        out.write(json.dumps({"pid": pid}).encode() + b"\n")
+        _, status, usage = os.wait4(pid, 0)
+        answer = {"status": status, "maxrss_kb": usage.ru_maxrss}
+        out.write(json.dumps(answer).encode() + b"\n")
 
 
 if __name__ == "__main__":
