@@ -91,7 +91,10 @@ def run(args: argparse.Namespace) -> int:
     from hierplan_opt.search.libmrp import annotated_violations, checked_form
 
     checked, as_plan = checked_form(instance, plan, disappear=args.disappear_at_goal)
-    violations: list[Violation | str] = [*validate(checked, as_plan), *annotated_violations(checked, plan)]
+    violations: list[Violation | str] = [
+        *validate(checked, as_plan),
+        *annotated_violations(checked, plan),
+    ]
     if violations:
         for line in [str(v) for v in violations] if args.all else [problems_line(violations)]:
             print(f"{args.plan}: {line}")
@@ -121,6 +124,9 @@ def problems_line(violations: Sequence[Violation | str]) -> str:
     first, rest = violations[0], violations[1:]
     if not rest:
         return str(first)
-    kinds = ", ".join(f"{n} {k}" for k, n in Counter(getattr(v, "kind", "annotated_conflict") for v in rest).most_common())
+    kinds = ", ".join(
+        f"{n} {k}"
+        for k, n in Counter(getattr(v, "kind", "annotated_conflict") for v in rest).most_common()
+    )
     word = "problem" if len(rest) == 1 else "problems"
     return f"{first} (and {len(rest)} further {word}: {kinds})"
