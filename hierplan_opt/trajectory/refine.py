@@ -52,10 +52,10 @@ AUTO_SOLVERS: tuple[str, ...] = ("ipopt",)
 #: Path-mode solvers without an NLP: the profile, and the profile polished by a QP.
 PROFILE_SOLVERS = ("profile", "profile+qp")
 #: ``solver="auto"`` in path mode: IPOPT up to this many robots, ``profile+qp`` beyond.
-#: IPOPT took 2.0 s on the 32-robot formation, 19-30 s on 50 warehouse robots (bench
-#: trajectory's ECBS plan, r 0.3 m) and 101 s on 200 (README), where profile+qp took
-#: 0.7-1.9 s, 6.7-7.4 s and 9.4-9.6 s: single runs on the shared 2-core machine, not
-#: under its CPU lock (issue 34). Corridor mode always needs the NLP.
+#: Medians of 3 in one warm process under the CPU lock (issue 34): IPOPT 0.89 s on the
+#: 32-robot formation, 7.5 s on 50 warehouse robots (bench trajectory's ECBS plan, r 0.3
+#: m), where profile+qp took 0.35 s and 1.75 s; on 200 robots IPOPT took 101 s and
+#: profile+qp 9.4-9.6 s (README). Corridor mode always needs the NLP.
 AUTO_NLP_ROBOTS = 32
 
 
