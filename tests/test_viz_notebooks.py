@@ -10,7 +10,7 @@ import pytest
 NOTEBOOKS = sorted((Path(__file__).resolve().parent.parent / "notebooks").glob("*.ipynb"))
 #: Calls that draw a figure in a cell's own code (not inside a function definition).
 DRAWS = ("plt.subplots(", "plot_plan(", "plot_gantt(", "plot_instance(", "plot_runtime_table(",
-         "plot_layers(", "plot_distance(", "plot_cactus(")  # fmt: skip
+         "plot_layers(", "plot_distance(", "plot_cactus(", "Figure(")  # fmt: skip
 
 
 def _images(cell: dict) -> int:

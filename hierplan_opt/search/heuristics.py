@@ -123,8 +123,25 @@ def _matching_bound(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
     return lb
 
 
+#: Branch-and-bound calls one exact cover may make before it settles for the matching
+#: bound (a dense conflict graph of a dozen agents took 0.2 s per cover, past time limits).
+EXACT_COVER_BUDGET = 20_000
+
+
+class _OverBudget(Exception):
+    pass
+
+
 def _exact_cover(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
+    try:
+        return _exact_cover_search(comp, adj)
+    except _OverBudget:
+        return _matching_bound(comp, adj)  # still admissible
+
+
+def _exact_cover_search(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
     order = sorted(comp, key=lambda v: -len(adj[v]))
+    calls = [0]
     pos = {v: k for k, v in enumerate(order)}
     value: dict[int, int] = {}
     best = [_matching_upper(order, adj)]
@@ -147,6 +164,9 @@ def _exact_cover(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
         return lb
 
     def rec(k: int, cost: int) -> None:
+        calls[0] += 1
+        if calls[0] > EXACT_COVER_BUDGET:
+            raise _OverBudget
         if cost >= best[0]:
             return
         if k == len(order):
