@@ -154,7 +154,8 @@ def _load(text: str, name: str) -> Any:
         node = loader.get_single_node()
         if node is None:
             return None
-        _check_aliases(node, name)
+        if "*" in text:  # no alias without its "*": nothing to expand otherwise
+            _check_aliases(node, name)
         return loader.construct_document(node)
     finally:
         loader.dispose()
