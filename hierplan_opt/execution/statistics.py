@@ -221,9 +221,7 @@ def finish(
     d_min, collisions, kept, worst = distances(exe, instance, required, slack)
     # A physical plant stops within its reach tolerance (metres) of a way-point.
     goal_tol = max(1e-6, float(getattr(plant, "reach_tol", 0.0)) / float(schedule.scale))
-    done, why, stranded = outcomes(
-        instance, sim, arrival, [tr[-1, 1:] for tr in traj], goal_tol
-    )
+    done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj], goal_tol)
     events = [e for e in sim.log if e.kind in DISTURBANCE_KINDS]
     handled = Counter(e.layer for e in events)
     replans = sum(e.kind == "replan" and e.layer == "replan" for e in sim.log)
