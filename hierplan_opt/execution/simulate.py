@@ -594,14 +594,17 @@ def simulate(
         :class:`~.disturbances.Slow`, :class:`~.disturbances.RandomDelays`.
     policy : {"slack", "stn", "replan", "reorder", "adg", "naive"}
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
-    mode : {"agent", "robot", "replay"}
+    mode : {"agent", "robot", "replay", "physics"}
         ``agent``: constant velocity between way-points (the discrete-event
         simulation); ``robot``: closed loop (:class:`.closed_loop.ClosedLoop`) over a
         :class:`.kinematic.KinematicPlant` - bounded acceleration, turning in place,
         slippery regions; the robots' lateness feeds back into slack, STN re-solve,
         re-ordering and re-planning; ``replay``: the same dynamics open loop on the
         agent run's event times (:mod:`.robot`; also what ``robot`` does when
-        following refined ``trajectories`` or under the ``naive`` policy).
+        following refined ``trajectories`` or under the ``naive`` policy);
+        ``physics``: the same closed loop over the MuJoCo plant
+        (:func:`hierplan_opt.physics.run.make_plant`), with the physics' measurements
+        in the statistics.
     seed : int
         Seeds random delays that give no seed of their own.
     dt : float
