@@ -13,8 +13,11 @@ Five tables, every run in one process, one after the other:
    LaCAM (first plan; the next seed when MAPF-POST finds a rotation that no clearance
    allows) + MAPF-POST: simulated seconds per wall second >= 1 on one core.
 4. **Spill vs no spill** on the paper warehouse (part 1, only the spill): which robots
-   were late, which layer absorbed each delay; the run without the spill has no spill
-   event.
+   were on the spill and how late, the layers of their ``late`` events (none: absorbed
+   within slack); the run without the spill has no robot on it.
+
+Tables 1-4 run ``simulate(..., mode="physics")``: the execution package's ClosedLoop
+over the MuJoCo plant.
 5. **Agreement** without disturbances, per drive type (youBot, Pioneer, Create 2,
    quadcopter; a 4-robot swap, a 3-robot 3D swap): largest |arrival - schedule| at any
    way-point and at the goals against the stated tolerances
