@@ -76,6 +76,13 @@ class ClosedLoop:
     horizon : float, optional
         Give up (robots not at their goals are reported) at this time; default three
         times the planned makespan plus 60 s.
+    mode : str
+        The execution mode reported (``robot``: a kinematic plant; ``physics``: MuJoCo).
+    wait_before : bool
+        A robot whose next node is gated waits at the node before it, not on it (as
+        on a plain TPG). On a margin-aware TPG a robot waiting *on* a gated node stands
+        exactly the clearance from the robot it waits for; a physical robot stops
+        within its reach tolerance and touches (the MuJoCo plant sets this).
     """
 
     def __init__(
@@ -91,8 +98,12 @@ class ClosedLoop:
         replan_time_limit: float = 30.0,
         dt: float = 0.1,
         horizon: float | None = None,
+        mode: str = "robot",
+        wait_before: bool = False,
     ) -> None:
         self.instance = instance
+        self.mode = mode
+        self.wait_before = wait_before
         self.schedule = schedule
         self.plant = plant
         self.dt = float(dt)
@@ -208,7 +219,7 @@ class ClosedLoop:
             self.instance,
             self.schedule,
             st.policy,
-            "robot",
+            self.mode,
             self.seed,
             self.dt,
             plant=self.plant,
@@ -446,8 +457,12 @@ class ClosedLoop:
             while v < end - 1 and self._ready(v, now):
                 v += 1
             gate = v
-            if tpg.regime == "none" and gate < end - 1 and not self._ready(gate, now):
-                gate = max(gate - 1, r)  # plain TPG: wait before the vertex, not on it
+            if (
+                (self.wait_before or tpg.regime == "none")
+                and gate < end - 1
+                and not self._ready(gate, now)
+            ):
+                gate = max(gate - 1, r)  # wait before the gated node, not on it
             if j in self.block_limit:
                 gate = min(gate, self.block_limit[j])
             if self.replan_pending:

@@ -594,14 +594,17 @@ def simulate(
         :class:`~.disturbances.Slow`, :class:`~.disturbances.RandomDelays`.
     policy : {"slack", "stn", "replan", "reorder", "adg", "naive"}
         ``replan`` (default) is the hierarchy slack -> stn -> replan.
-    mode : {"agent", "robot", "replay"}
+    mode : {"agent", "robot", "replay", "physics"}
         ``agent``: constant velocity between way-points (the discrete-event
         simulation); ``robot``: closed loop (:class:`.closed_loop.ClosedLoop`) over a
         :class:`.kinematic.KinematicPlant` - bounded acceleration, turning in place,
         slippery regions; the robots' lateness feeds back into slack, STN re-solve,
         re-ordering and re-planning; ``replay``: the same dynamics open loop on the
         agent run's event times (:mod:`.robot`; also what ``robot`` does when
-        following refined ``trajectories`` or under the ``naive`` policy).
+        following refined ``trajectories`` or under the ``naive`` policy);
+        ``physics``: the same closed loop over the MuJoCo plant
+        (:func:`hierplan_opt.physics.run.make_plant`), with the physics' measurements
+        in the statistics.
     seed : int
         Seeds random delays that give no seed of their own.
     dt : float
@@ -683,54 +686,38 @@ def _physics(
     replan_time_limit: float,
     dt: float,
 ) -> Execution:
-    """``mode="physics"``: the robots in MuJoCo, closed loop with slack -> STN re-solve
-    -> re-plan (:func:`hierplan_opt.physics.loop.closed_loop`; ``reorder`` runs as
-    ``replan``, ``adg``/``naive`` are refused), as an :class:`Execution` with the
-    physics' measurements (engine contacts, every pair at every physics step, tracking
-    error, real-time factor) in its statistics."""
-    from hierplan_opt.physics.loop import closed_loop  # heavy module (MuJoCo)
+    """``mode="physics"``: the robots in MuJoCo (:func:`hierplan_opt.physics.run.make_plant`)
+    driven by the same monitor as ``robot`` mode (:class:`.closed_loop.ClosedLoop`: slack
+    -> re-order -> STN re-solve -> re-plan); ``naive`` is refused. The statistics add
+    the physics' measurements (:func:`hierplan_opt.physics.run.measured`: engine
+    contacts, every pair at every physics step, tracking error, real-time factor);
+    ``collisions`` counts the one definition's collisions on the sampled motion plus
+    the robot pairs the engine saw in contact."""
+    from hierplan_opt.physics.run import make_plant, measured  # heavy module (MuJoCo)
 
-    if policy in ("adg", "naive"):
-        raise OptionError(f"physics mode runs slack, stn, replan and reorder, not {policy!r}")
-    pol = "replan" if policy == "reorder" else policy
-    run, events = closed_loop(
+    if policy == "naive":
+        raise OptionError("physics mode runs a closed loop: use a policy other than 'naive'")
+    t0 = time.perf_counter()
+    plant = make_plant(instance, schedule, disturbances, seed=seed, monitor=True)
+    loop = ClosedLoop(
         instance,
         schedule,
-        disturbances,
-        policy=pol,
+        plant,
+        disturbances=disturbances,
+        policy=policy,
         seed=seed,
-        dt=dt,
         solver=solver,
         replan_time_limit=replan_time_limit,
+        dt=dt,
+        mode="physics",
+        wait_before=True,
     )
-    st = dict(run.statistics)
-    names = run.names
-    arrival = np.array([r[-1] if len(r) else np.nan for r in run.reach])
-    ok = arrival[~np.isnan(arrival)]
-    broken = [n for n, c in st["disturbed"].items() if "breakdown" in c]
-    stranded = [n for n, a in zip(names, arrival, strict=True) if np.isnan(a) and n not in broken]
-    why = {n: "broke down" for n in broken}
-    why.update({n: "never at its goal" for n in stranded})
-    handled = {"slack": 0, "reorder": 0, "stn": 0, "replan": 0, "none": 0, **st["handled"]}
-    st.update(
-        collisions=len(st["contact_pairs"]),
-        arrival_avg=float(ok.mean()) if len(ok) else math.nan,
-        arrival_max=float(ok.max()) if len(ok) else math.nan,
-        arrival_sum=float(ok.sum()),
-        broken=broken,
-        stranded=stranded,
-        unfinished=broken + stranded,
-        why_unfinished=why,
-        handled=handled,
-        disturbances=len(events),
-        runtime={"slack": 0.0, "reorder": 0.0, "stn": 0.0, "replan": 0.0, "simulation": st["wall"]},
-        reorders=0,
-    )
-    scale = float(schedule.scale)
-    dim = schedule.dim
-    traj = tuple(
-        np.column_stack([run.samples_t, run.samples_p[:, i, :dim] / scale])
-        for i in range(len(names))
-    )
-    log_ = tuple(Event(e.time, e.agent, e.kind, e.layer, e.delay, e.detail) for e in events)
-    return Execution(policy, "physics", seed, names, traj, schedule, (), log_, st, arrival)
+    ex = loop.run()
+    wall = time.perf_counter() - t0
+    st = ex.statistics
+    me = measured(plant, schedule, wall)
+    st.update(me)
+    st["sim_time"] = float(plant.time)
+    st["wall"] = wall
+    st["collisions"] = int(st["collisions"]) + len(me["contact_pairs"])
+    return ex

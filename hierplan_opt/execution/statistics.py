@@ -113,13 +113,19 @@ def distances(
 
 
 def outcomes(
-    instance: Instance, sim: ExecState, arrival: np.ndarray, finals: list[np.ndarray]
+    instance: Instance,
+    sim: ExecState,
+    arrival: np.ndarray,
+    finals: list[np.ndarray],
+    goal_tol: float = 1e-6,
 ) -> tuple[np.ndarray, dict[str, str], list[str]]:
     """``(at_goal, why, stranded)``: which robots ended at a goal of their own (or of
     their team), why each other one did not, and the working robots among them (those
     that did not break down).
 
-    ``finals`` are the robots' last positions (instance coordinates).
+    ``finals`` are the robots' last positions (instance coordinates); a robot is at a
+    goal within ``goal_tol`` (instance coordinates; a physical plant stops within its
+    ``reach_tol`` metres, that is ``reach_tol / scale`` here).
     """
     g = instance.graph
     K = len(sim.names)
@@ -135,7 +141,7 @@ def outcomes(
         else:
             goals = []
         p = np.asarray(finals[k], dtype=float)
-        here = [v for v in goals if float(np.linalg.norm(g.coords[v] - p)) <= 1e-6]
+        here = [v for v in goals if float(np.linalg.norm(g.coords[v] - p)) <= goal_tol]
         if here and not np.isnan(arrival[k]):
             at_goal[k] = True
             continue
@@ -213,7 +219,9 @@ def finish(
         guaranteed = min(guaranteed, low)
     exe = executed_schedule(sim.names, traj, base, policy)
     d_min, collisions, kept, worst = distances(exe, instance, required, slack)
-    done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj])
+    # A physical plant stops within its reach tolerance (metres) of a way-point.
+    goal_tol = max(1e-6, float(getattr(plant, "reach_tol", 0.0)) / float(schedule.scale))
+    done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj], goal_tol)
     events = [e for e in sim.log if e.kind in DISTURBANCE_KINDS]
     handled = Counter(e.layer for e in events)
     replans = sum(e.kind == "replan" and e.layer == "replan" for e in sim.log)
