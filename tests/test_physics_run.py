@@ -232,3 +232,34 @@ def test_paper_warehouse_with_disturbances_in_physics_keeps_clearance():
     assert st["finished"] == len(ex.agent_names) - 1
     assert st["handled"]["none"] == 0 and st["handled"]["replan"] >= 1
     assert st["real_time_factor"] > 1 and st["tracking_error_max"] > 0
+
+
+def test_spill_delays_are_named_and_absorbed_and_dry_run_has_none() -> None:
+    """The water spill of the paper's warehouse makes the robots on it late: each such
+    delay is an event named ``spill`` with the layer that handled it; the same run
+    without the spill has no such event."""
+    from pathlib import Path
+
+    from hierplan_opt.execution import simulate
+    from hierplan_opt.execution.disturbances import load_disturbances
+    from hierplan_opt.io import load_instance
+
+    paper = Path(__file__).resolve().parent.parent / "instances" / "paper"
+    inst = load_instance(paper / "warehouse-part1.yaml")
+    dist = load_disturbances(paper / "warehouse-disturbances.yaml")
+    spills = [d for d in dist if isinstance(d, Slow)]
+    plan = solve(inst, "cbm").plan
+    assert plan is not None and spills
+    sched = postprocess(inst, plan)
+    wet = simulate(inst, sched, disturbances=spills, mode="physics")
+    dry = simulate(inst, sched, disturbances=[], mode="physics")
+    on = {n for n, c in wet.statistics["disturbed"].items() if "spill" in c}
+    events = [e for e in wet.log if e.kind == "spill"]
+    assert events and {e.agent for e in events} <= on
+    assert all(e.layer in ("slack", "reorder", "stn", "replan") and e.delay > 0 for e in events)
+    assert wet.statistics["disturbances"] == len(
+        [e for e in wet.log if e.kind in ("spill", "late", "stop", "breakdown", "random")]
+    )
+    assert not [e for e in dry.log if e.kind == "spill"]
+    assert not dry.statistics["disturbed"]
+    assert wet.statistics["contacts"] == 0 and dry.statistics["contacts"] == 0

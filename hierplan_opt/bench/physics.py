@@ -13,8 +13,9 @@ Five tables, every run in one process, one after the other:
    LaCAM (first plan; the next seed when MAPF-POST finds a rotation that no clearance
    allows) + MAPF-POST: simulated seconds per wall second >= 1 on one core.
 4. **Spill vs no spill** on the paper warehouse (part 1, only the spill): which robots
-   were on the spill and how late, the layers of their ``late`` events (none: absorbed
-   within slack); the run without the spill has no robot on it.
+   were on the spill and how late, and the layer that handled each delay the spill
+   caused (``spill`` events: slack when it absorbed them); the run without the spill
+   has no robot on it and no such event.
 
 Tables 1-4 run ``simulate(..., mode="physics")``: the execution package's ClosedLoop
 over the MuJoCo plant.
@@ -247,8 +248,9 @@ def spill(limit: float) -> None:
         runs[label] = ex
         st = ex.statistics
         on = [n for n, c in st["disturbed"].items() if "spill" in c]
-        # The physics' own delays reach the monitor as lateness ("late" events).
-        wet = [e for e in ex.log if e.kind == "late" and e.agent in on]
+        # The physics' own delays reach the monitor as lateness, named after the spill
+        # that acted on the robot (events of kind "spill", whichever layer handled them).
+        wet = [e for e in ex.log if e.kind in ("spill", "late") and e.agent in on]
         layers = sorted({e.layer for e in wet})
         print(
             f"{label:9} late events of robots on the spill {len(wet):>3} (layers "

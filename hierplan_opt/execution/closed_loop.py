@@ -53,6 +53,12 @@ from hierplan_opt.schedule.stn import STN
 MAX_REPLANS = 8
 
 
+#: Disturbances a plant makes itself (physics): a delay they cause is named after them.
+PHYSICAL_KINDS = ("spill", "payload", "weak_motor", "wind")
+#: Smallest lateness (seconds) at a node worth an event when slack absorbed it.
+ABSORBED_MIN = 0.2
+
+
 def _pad3(p: np.ndarray) -> np.ndarray:
     p = np.asarray(p, dtype=float)
     if p.shape[-1] == 3:
@@ -120,6 +126,8 @@ class ClosedLoop:
         self.replan_pending = ""
         self.block_limit: dict[int, int] = {}  # robot (phase index) -> last node it may reach
         self.late_logged: set[int] = set()
+        #: (robot, physical disturbance) pairs whose delay has been logged once.
+        self.cause_logged: set[tuple[int, str]] = set()
         self.last_motion = 0.0
         #: While a re-plan is pending: the node each robot (phase index) stops at.
         self.frontier: dict[int, int] = {}
@@ -250,11 +258,40 @@ class ClosedLoop:
             v = st.last_happened(j) + 1
             while v <= r and v < end and self._ready(v, now):
                 st.t[v] = self._event_time(v, now)
+                self._absorbed(g, v)
                 if v == end - 1:
                     st.arrival[g] = now
                 elif st.S.is_vertex[v]:
                     self._random_delays(j, g, v, now)
                 v += 1
+
+    def _physical_cause(self, g: int) -> str:
+        """The physical disturbance (a plant's own: spill, payload, weak motor, wind)
+        that acted on robot ``g`` in the last seconds, or ``""``; plants without
+        physical disturbances have no ``cause``."""
+        cause = getattr(self.plant, "cause", None)
+        kind = cause(g) if cause is not None else ""
+        return kind if kind in PHYSICAL_KINDS else ""
+
+    def _absorbed(self, g: int, v: int) -> None:
+        """Log, once per robot and physical disturbance, a delay it caused that slack
+        absorbed (node ``v`` passed late but within its window: no layer above ran)."""
+        st = self.state
+        late = float(st.t[v] - st.T[v])
+        if late <= ABSORBED_MIN or v in self.late_logged:
+            return
+        kind = self._physical_cause(g)
+        if not kind or (g, kind) in self.cause_logged:
+            return
+        self.cause_logged.add((g, kind))
+        st.log_event(
+            float(st.t[v]),
+            st.names[g],
+            kind,
+            "slack",
+            late,
+            f"{late:.3g} s late after the {kind}; absorbed by slack",
+        )
 
     def _event_time(self, v: int, now: float) -> float:
         """When node ``v`` counts as passed: now, but never before its own robot's
@@ -379,7 +416,10 @@ class ClosedLoop:
             halt = max(now, float(self.halt_until[g])) + self.halt_pending.get(g, 0.0)
             predicted = halt + rest
             if predicted > st.latest[n] + 1e-6 and predicted > st.T[n] + 1e-6:
-                self._react(j, g, n, now, "late", f"{predicted - st.T[n]:.3g} s behind")
+                kind = self._physical_cause(g)
+                if kind:
+                    self.cause_logged.add((g, kind))
+                self._react(j, g, n, now, kind or "late", f"{predicted - st.T[n]:.3g} s behind")
 
     def _react(self, j: int, g: int, n: int, now: float, kind: str, detail: str) -> None:
         """Node ``n`` of robot ``g`` may now be late: the policy's layers handle it."""

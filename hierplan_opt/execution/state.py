@@ -32,7 +32,17 @@ POLICIES = ("slack", "stn", "replan", "reorder", "adg", "naive")
 #: Event kinds that are disturbances (``late``: the closed loop saw a robot late beyond
 #: its slack; the others - ``replan``, ``goal``, ``trajectories``, ``horizon`` - record
 #: what the layers did).
-DISTURBANCE_KINDS = ("stop", "breakdown", "slow", "random", "late")
+DISTURBANCE_KINDS = (
+    "stop",
+    "breakdown",
+    "slow",
+    "random",
+    "late",
+    "spill",
+    "payload",
+    "weak_motor",
+    "wind",
+)
 MODES = ("agent", "robot", "replay", "physics")
 LAYERS = {
     "slack": ("slack",),
