@@ -311,7 +311,6 @@ def test_reorder_lets_the_robot_behind_a_late_one_pass_first(radius):
     assert phase.stn.topo.is_dag and check_bounds(phase.stn, phase.times) == []
 
 
-
 def test_reorder_keeps_a_robot_that_comes_back_ordered():
     """Issue 30: agent1 passes (2, 1) twice in a row (to (2, 2) and back), agent0 once
     before it. Switching agent0 behind agent1's first passage treated agent1 as the last
@@ -338,6 +337,7 @@ def test_reorder_keeps_a_robot_that_comes_back_ordered():
     ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
     f = np.clip(-np.einsum("ij,ij->i", d0, e) / ee, 0.0, 1.0)
     assert np.linalg.norm(d0 + f[:, None] * e, axis=1).min() > 0.1  # never on one point
+
 
 def _max_acceleration(tr: np.ndarray, scale: float, dt: float) -> float:
     """Largest |acceleration| (vector, m/s^2) of a trajectory sampled every ``dt``."""
