@@ -20,6 +20,13 @@ Candidates: both claims not entered yet, neither a start nor a goal claim; the
 missing marker of a claim is replaced by the vertex before (enter) or after (leave),
 which lies outside the claimed disc (tight regime) — a conservative choice. Point
 robots (plain TPG): a claim is the visit node itself. Not in the general regime.
+A pair is switched only when the lock's arcs touching the two claims are exactly the
+arc between them and the arcs to their neighbours, and a claim without a neighbour
+really is the first (last) of its robot at the lock (:func:`_simple`): a robot that
+passes a lock twice in a row has no arc between its passages, and treating its first
+passage as the last one left the second unordered with the robot switched behind it
+(two point robots on one vertex, issue 30). In the plain TPG a robot already on its way
+into the vertex is not switched either (it has no place to wait).
 """
 
 from __future__ import annotations
@@ -135,9 +142,9 @@ def _simple(
         touch = ((src >= lo) & (src <= hi)) | ((dst >= lo) & (dst <= hi))
         if not set(same[touch].tolist()) <= allowed:
             return False
-    if before >= 0 and (int(stn.arc_dst[before]) != a[0] or int(stn.arc_src[before]) == a[1]):
-        return False
-    if after >= 0 and (int(stn.arc_src[after]) != b[1] or int(stn.arc_dst[after]) == b[0]):
+    if before >= 0 and int(stn.arc_dst[before]) != a[0]:
+        return False  # the predecessor of an earlier claim (or of a marker inside)
+    if after >= 0 and int(stn.arc_src[after]) != b[1]:
         return False
     lock = int(sim.locks[arc])
     ja, jb = int(tpg.node_agent[a[0]]), int(tpg.node_agent[b[0]])
