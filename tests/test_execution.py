@@ -311,6 +311,34 @@ def test_reorder_lets_the_robot_behind_a_late_one_pass_first(radius):
     assert phase.stn.topo.is_dag and check_bounds(phase.stn, phase.times) == []
 
 
+def test_reorder_keeps_a_robot_that_comes_back_ordered():
+    """Issue 30: agent1 passes (2, 1) twice in a row (to (2, 2) and back), agent0 once
+    before it. Switching agent0 behind agent1's first passage treated agent1 as the last
+    at the lock and left its second passage unordered with agent0: with both held up,
+    the two point robots met on (2, 1). The claims of a lock must stay totally ordered."""
+    g = Graph.grid(5, 3)
+    kin = Kinematics("disc", v_max=1.0, radius=0.0)
+    inst = Instance.mapf(g, [(0, 1), (2, 0)], [(4, 1), (2, 0)], kinematics=kin)
+    a = [g.vertex((x, 1)) for x in range(5)]
+    b = [g.vertex(c) for c in [(2, 0)] * 4 + [(2, 1)] + [(2, 2)] * 10 + [(2, 1), (2, 0)]]
+    s = postprocess(inst, Plan.from_paths([a, b]))
+    stops = [
+        Stop("agent0", 10.0, at_time=0.5),
+        Stop("agent0", 20.0, at_waypoint=2),  # it halts on (2, 1)
+        Stop("agent1", 20.0, at_waypoint=2),
+    ]
+    ex = simulate(inst, s, disturbances=stops, policy="reorder")
+    assert ex.statistics["collisions"] == 0
+    ta, tb = ex.trajectories
+    ts = np.union1d(ta[:, 0], tb[:, 0])
+    pa = np.column_stack([np.interp(ts, ta[:, 0], ta[:, k]) for k in (1, 2)])
+    pb = np.column_stack([np.interp(ts, tb[:, 0], tb[:, k]) for k in (1, 2)])
+    d0, e = (pa - pb)[:-1], np.diff(pa - pb, axis=0)  # relative motion, piecewise linear
+    ee = np.maximum(np.einsum("ij,ij->i", e, e), 1e-300)
+    f = np.clip(-np.einsum("ij,ij->i", d0, e) / ee, 0.0, 1.0)
+    assert np.linalg.norm(d0 + f[:, None] * e, axis=1).min() > 0.1  # never on one point
+
+
 def _max_acceleration(tr: np.ndarray, scale: float, dt: float) -> float:
     """Largest |acceleration| (vector, m/s^2) of a trajectory sampled every ``dt``."""
     t, p = tr[:, 0], tr[:, 1:] * scale

@@ -20,6 +20,13 @@ Candidates: both claims not entered yet, neither a start nor a goal claim; the
 missing marker of a claim is replaced by the vertex before (enter) or after (leave),
 which lies outside the claimed disc (tight regime) — a conservative choice. Point
 robots (plain TPG): a claim is the visit node itself. Not in the general regime.
+A pair is switched only when the lock's arcs touching the two claims are exactly the
+arc between them and the arcs to their neighbours, and a claim without a neighbour
+really is the first (last) of its robot at the lock (:func:`_simple`): a robot that
+passes a lock twice in a row has no arc between its passages, and treating its first
+passage as the last one left the second unordered with the robot switched behind it
+(two point robots on one vertex, issue 30). In the plain TPG a robot already on its way
+into the vertex is not switched either (it has no place to wait).
 """
 
 from __future__ import annotations
@@ -104,7 +111,54 @@ def _claim_ends(stn: STN, sim: ExecState, arc: int) -> _Pair | None:
         return None  # start and goal claims stay where they are
     if not (np.isnan(sim.t[a_enter]) and np.isnan(sim.t[w])):
         return None  # a claim already entered
+    if plain and not (np.isnan(sim.phys[a_enter]) and np.isnan(sim.phys[w])):
+        return None  # a robot already on its way into the vertex (no place to wait)
+    if not _simple(stn, sim, same, arc, (a_enter, u), (w, b_leave), before, after):
+        return None
     return _Pair(arc, a_enter, u, w, b_leave, lock, before, after)
+
+
+def _simple(
+    stn: STN,
+    sim: ExecState,
+    same: np.ndarray,
+    arc: int,
+    a: tuple[int, int],
+    b: tuple[int, int],
+    before: int,
+    after: int,
+) -> bool:
+    """Whether the switch of claims ``a`` and ``b`` (node ranges enter..leave of the
+    two robots) keeps every claim of the lock ordered: the lock's arcs that touch the
+    two claims are exactly ``before`` (into A's enter), ``arc`` (A -> B) and ``after``
+    (out of B's leave), and A (B) has no other claim of the lock before (after) it
+    when it has no neighbour there. Anything else (rotation markers, several
+    predecessors, a robot's own earlier or later visit of the lock) is not switched:
+    dropping ``before`` or ``after`` there would leave two claims unordered."""
+    tpg = stn.tpg
+    src, dst = stn.arc_src[same], stn.arc_dst[same]
+    allowed = {arc, before, after} - {-1}
+    for lo, hi in (a, b):
+        touch = ((src >= lo) & (src <= hi)) | ((dst >= lo) & (dst <= hi))
+        if not set(same[touch].tolist()) <= allowed:
+            return False
+    if before >= 0 and int(stn.arc_dst[before]) != a[0]:
+        return False  # the predecessor of an earlier claim (or of a marker inside)
+    if after >= 0 and int(stn.arc_src[after]) != b[1]:
+        return False
+    lock = int(sim.locks[arc])
+    ja, jb = int(tpg.node_agent[a[0]]), int(tpg.node_agent[b[0]])
+    a0, b1 = int(tpg.agent_ptr[ja]), int(tpg.agent_ptr[jb + 1])
+    if before < 0:
+        # A first at the lock: no earlier claim of A there (an arc or a visit).
+        earlier = ((dst >= a0) & (dst < a[0])) | ((src >= a0) & (src < a[0]))
+        if earlier.any() or np.any(tpg.node_vertex[a0 : a[0]] == lock):
+            return False
+    if after < 0:
+        later = ((dst > b[1]) & (dst < b1)) | ((src > b[1]) & (src < b1))
+        if later.any() or np.any(tpg.node_vertex[b[1] + 1 : b1] == lock):
+            return False
+    return True
 
 
 def try_reorder(sim: ExecState, now: float) -> tuple[STN, np.ndarray, np.ndarray, int] | None:
