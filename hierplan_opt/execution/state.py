@@ -157,22 +157,30 @@ class Execution:
         """``{statistics, events, schedule}``: the YAML report (plain values)."""
         d = self.schedule.to_dict()
         return {
-            "statistics": _plain(self.statistics),
+            "statistics": plain_values(self.statistics),
             "events": [e.as_dict() for e in self.log],
             "schedule": d["schedule"],
         }
 
 
-def _plain(x: Any) -> Any:
+def plain_values(x: Any, digits: int = 9) -> Any:
+    """Statistics as file values: string keys, lists, ints, floats rounded to
+    ``digits`` decimals, non-finite floats as None.
+
+    Example
+    -------
+    >>> plain_values({1: (np.int64(2), 0.1234567, float("inf"))}, digits=3)
+    {'1': [2, 0.123, None]}
+    """
     if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
+        return {str(k): plain_values(v, digits) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
+        return [plain_values(v, digits) for v in x]
     if isinstance(x, (np.integer,)):
         return int(x)
     if isinstance(x, (float, np.floating)):
         f = float(x)
-        return round(f, 9) if math.isfinite(f) else None
+        return round(f, digits) if math.isfinite(f) else None
     return x
 
 

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.execution.state import plain_values
 from hierplan_opt.physics.disturbances import PhysicalDisturbance, from_execution
 from hierplan_opt.physics.models import robot_model
 from hierplan_opt.physics.plant import MujocoPlant
@@ -178,7 +179,7 @@ class PhysicsRun:
 
     def report(self) -> dict[str, Any]:
         """Plain values (YAML)."""
-        return {"statistics": _plain(self.statistics)}
+        return {"statistics": plain_values(self.statistics, digits=6)}
 
 
 def follow(
@@ -324,19 +325,6 @@ def statistics(
         "physics_steps": int(me.steps),
         "disturbed": {plant.names[i]: sorted(plant.causes[i]) for i in range(K) if plant.causes[i]},
     }
-
-
-def _plain(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        f = float(x)
-        return round(f, 6) if math.isfinite(f) else None
-    return x
 
 
 def measured(plant: MujocoPlant, schedule: Schedule, wall: float) -> dict[str, Any]:
