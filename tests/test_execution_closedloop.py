@@ -185,3 +185,36 @@ def test_dynamics_feed_back_into_the_layers(warehouse) -> None:
     late = [e for e in ex.log if e.kind == "late" and e.agent == "youbot1"]
     assert late and {e.layer for e in late} <= {"slack", "stn"} and "stn" in {e.layer for e in late}
     assert ex.statistics["collisions"] == 0 and ex.statistics["stn_resolves"] >= 1
+
+
+def test_point_robot_waits_before_a_gated_goal() -> None:
+    """Point robots at margin 0 (plain TPG): b's goal is a vertex that a passes first.
+    a is held, so b is early; it must wait before its goal, not on it (the monitor never
+    gated a route's last node, and b stood on the vertex a drove through)."""
+    from hierplan_opt.execution import Stop
+
+    g = hp.Graph.grid(5, 2)
+    inst = hp.Instance.mapf(g, [(0, 0), (2, 1)], [(4, 0), (2, 0)])
+    plan = hp.solve(inst, "cbs").plan
+    assert plan is not None
+    s = postprocess(inst, plan, margin=0)
+    assert s.stn is not None and s.stn.tpg.regime == "none"
+    names = [a.name for a in inst.agents]
+    hold = [Stop(names[0], 4.0, at_time=0.5)]
+    ex = simulate(inst, s, disturbances=hold, policy="slack", mode="robot", dt=0.05)
+    ta, tb = ex.trajectories
+    ts = np.union1d(ta[:, 0], tb[:, 0])
+    gap = [
+        float(
+            np.linalg.norm(
+                [
+                    np.interp(t, ta[:, 0], ta[:, k]) - np.interp(t, tb[:, 0], tb[:, k])
+                    for k in (1, 2)
+                ]
+            )
+        )
+        for t in ts
+    ]
+    assert min(gap) > 1e-6
+    assert ex.statistics["collisions"] == 0
+    assert np.allclose(tb[-1, 1:3], [2, 0])  # b still reaches its goal

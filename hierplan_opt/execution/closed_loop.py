@@ -499,7 +499,7 @@ class ClosedLoop:
             gate = v
             if (
                 (self.wait_before or tpg.regime == "none")
-                and gate < end - 1
+                and gate < end  # the last node (its goal) too: it may be gated
                 and not self._ready(gate, now)
             ):
                 gate = max(gate - 1, r)  # wait before the gated node, not on it

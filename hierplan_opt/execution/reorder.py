@@ -45,8 +45,11 @@ log = logging.getLogger(__name__)
 
 #: Receding horizon (seconds after now) of the model.
 HORIZON = 20.0
-#: CP-SAT time limit per decision (seconds).
-TIME_LIMIT = 1.0
+#: CP-SAT work limit per decision, in CP-SAT's deterministic seconds: a run's switches
+#: do not depend on the machine's load (a wall-clock limit made them differ run to run).
+WORK_LIMIT = 1.0
+#: Wall-clock safety net per decision (seconds); reached only on a starved machine.
+TIME_LIMIT = 10.0
 #: Smallest improvement of the objective worth a switch (seconds).
 GAIN = 1e-3
 
@@ -273,6 +276,7 @@ def _solve(
         lasts.append(int(node_set[agents == j].max()))
     m.minimize(sum(t[idx[v]] for v in lasts))
     solver = cp_model.CpSolver()
+    solver.parameters.max_deterministic_time = WORK_LIMIT
     solver.parameters.max_time_in_seconds = TIME_LIMIT
     solver.parameters.num_workers = 1
     solver.parameters.random_seed = 0
