@@ -52,13 +52,12 @@ def _ok(flag: bool) -> str:
 
 
 def _plan(inst: Any, solver: str, limit: float, **options: Any) -> Any:
-    from hierplan_opt.api import solve
-    from hierplan_opt.schedule.post import postprocess
+    from hierplan_opt.execution.chain import plan_and_post
 
-    r = solve(inst, solver, time_limit=limit, **options)
-    if r.plan is None:
-        raise RuntimeError(f"{solver} found no plan for {inst.name} ({r.status.value})")
-    return postprocess(inst, r.plan)
+    planned = plan_and_post(inst, solver, time_limit=limit, **options)
+    if planned.schedule is None:
+        raise RuntimeError(f"{inst.name}: {planned.why}")
+    return planned.schedule
 
 
 def _planned_min(sched: Any, t: np.ndarray) -> float:
@@ -171,12 +170,10 @@ def formation(limit: float) -> None:
 
 
 def fleet(n: int, limit: float) -> None:
-    from hierplan_opt.api import solve
     from hierplan_opt.core.instance import Kinematics
+    from hierplan_opt.execution.chain import plan_and_post
     from hierplan_opt.execution.simulate import simulate
     from hierplan_opt.io.movingai import load_movingai
-    from hierplan_opt.schedule.clearance import ClearanceError
-    from hierplan_opt.schedule.post import postprocess
 
     print(
         f"\n3. {n} differential drives (Create 2 size) on warehouse-10-20-10-2-1, LaCAM + "
@@ -189,18 +186,16 @@ def fleet(n: int, limit: float) -> None:
     inst = replace(inst, agents=tuple(replace(a, kinematics=k) for a in inst.agents))
     sched = None
     for seed in range(10):
-        r = solve(inst, "lacam", time_limit=limit, anytime=0, seed=seed)
-        if r.plan is None:
+        planned = plan_and_post(inst, "lacam", time_limit=limit, seed=seed, anytime=0)
+        plan = planned.result.plan
+        if plan is None:
             continue
-        try:
-            sched = postprocess(inst, r.plan)
-            print(
-                f"LaCAM seed {seed}: plan makespan {r.plan.makespan}, schedule "
-                f"{sched.makespan:.1f} s"
-            )
-            break
-        except ClearanceError:
-            print(f"LaCAM seed {seed}: a rotation no clearance allows, next seed")
+        if planned.schedule is None:
+            print(f"LaCAM seed {seed}: {planned.why}; next seed")
+            continue
+        sched = planned.schedule
+        print(f"LaCAM seed {seed}: plan makespan {plan.makespan}, schedule {sched.makespan:.1f} s")
+        break
     if sched is None:
         print("no schedule")
         return
@@ -268,11 +263,9 @@ def spill(limit: float) -> None:
 
 
 def agreement() -> None:
-    from hierplan_opt.api import solve
     from hierplan_opt.core.graph import Graph
     from hierplan_opt.core.instance import Instance, Kinematics
     from hierplan_opt.physics.run import AGREEMENT, GOAL_TOL, follow
-    from hierplan_opt.schedule.post import postprocess
 
     print("\n5. agreement with the schedule, no disturbance (4-robot swap; 3D: 3 robots)")
     kinds = [
@@ -300,9 +293,7 @@ def agreement() -> None:
             inst = Instance.mapf(
                 g, [(0, 0), (4, 0), (0, 3), (4, 3)], [(4, 3), (0, 3), (4, 0), (0, 0)], kinematics=k
             )
-        plan = solve(inst, "cbs", time_limit=10).plan
-        assert plan is not None
-        sched = postprocess(inst, plan)
+        sched = _plan(inst, "cbs", 10)
         run = follow(inst, sched)
         dev = max(
             float(np.nanmax(np.abs(r - p))) for r, p in zip(run.reach, run.planned, strict=True)
