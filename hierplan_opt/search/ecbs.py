@@ -44,6 +44,7 @@ import time
 from heapq import heappop, heappush
 from typing import Any
 
+from hierplan_opt import registry
 from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
@@ -644,10 +645,10 @@ def _lacam_plan(
     """LaCAM's first plan for ``mode`` (None when not asked for or not found in time)."""
     if mode == "off" or (mode == "fallback" and time_limit is None):
         return None
-    from hierplan_opt.search.lacam import solve as lacam_solve
-
     budget = None if time_limit is None else LACAM_SHARE * time_limit
-    # The bare function: the front door has checked the instance already.
+    # Through the registry (solvers do not import each other); the bare function: the
+    # front door has checked the instance already.
+    lacam_solve = registry.get("lacam").load()
     r = lacam_solve.fn(instance, time_limit=budget, seed=seed, anytime=0)
     stats["lacam_status"] = r.status.value
     stats["lacam_time"] = r.stats.get("first_time", budget)
