@@ -25,10 +25,10 @@ from hierplan_opt.core.highways import (
     highway_share,
     reversed_highways,
 )
+from hierplan_opt.core.highways_learned import flow, learned, min_cut_labels, traffic
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Status
 from hierplan_opt.core.validate import validate
-from hierplan_opt.formulations.highways import flow, learned, min_cut_labels, traffic
 from hierplan_opt.io import load_instance
 from hierplan_opt.io.highways import (
     edges_text,

@@ -31,7 +31,10 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections.abc import Sequence
 from heapq import heapify, heappop, heappush
+from typing import Any, Protocol
 
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
 from hierplan_opt.search.reservations import Reservations
@@ -328,3 +331,61 @@ def focal_path(
     if stats is not None:
         stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
     return out
+
+
+# ---------------------------------------------------------------- the low level as a strategy
+class LowLevelHost(Protocol):
+    """What a low level reads of (and may set on) the high-level search that calls it
+    (:class:`~hierplan_opt.search.ecbs._ECBS` and its subclasses)."""
+
+    instance: Instance
+    adj: list[list[int]]
+    starts: list[int]
+    goals: list[int]
+    dists: list[list[int]]
+    res: Reservations
+    w: float
+    w_high: float
+    deadline: Deadline
+    stats: dict[str, Any]
+
+
+class FocalLowLevel:
+    """ECBS's low level: :func:`focal_path` on the true distances, ``f_min`` as the
+    agent's lower bound. The high levels take a low level as a strategy object (this
+    one by default; :class:`~hierplan_opt.search.highways.HighwayLowLevel` for
+    highways) instead of being subclassed for each.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.search.ecbs import _ECBS
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> search = _ECBS(inst, Deadline(None), w=1.0, polish=False, bypass=False)
+    >>> FocalLowLevel().plan(search, 0, AgentConstraints())
+    ((0, 1, 2), 2)
+    """
+
+    def prepare(self, search: LowLevelHost) -> None:
+        """Set up for ``search`` (called once, at the end of its construction)."""
+
+    def plan(
+        self, search: LowLevelHost, a: int, cons: AgentConstraints, partner: int = -1
+    ) -> tuple[tuple[int, ...], int] | None:
+        """Agent ``a``'s path around ``search.res`` and a lower bound on its cost."""
+        search.stats["low_level_calls"] += 1
+        return focal_path(
+            search.adj,
+            search.starts[a],
+            search.goals[a],
+            search.dists[a],
+            cons,
+            search.res,
+            w=search.w,
+            deadline=search.deadline,
+            stats=search.stats,
+            partner=partner,
+        )
+
+    def annotate(self, stats: dict[str, Any], plan: Plan) -> None:
+        """Add this low level's figures of the returned ``plan`` to ``stats``."""
