@@ -111,6 +111,10 @@ class HighwayHeuristic:
 
 
 # ---------------------------------------------------------------- the edge-cost variant
+# The inner loop of the cost-mode low level, in one body with its relax/push closures
+# (complexity 27): the same reason as the note above astar.space_time_astar (a call or
+# an attribute lookup more per successor costs measurable time); its successor rule and
+# conflict counts are focal.focal_path's, which tests/test_search_core.py checks.
 def inflated_focal_path(
     adj: Sequence[Sequence[int]],
     start: int,
