@@ -146,6 +146,9 @@ def space_time_astar(
     return found
 
 
+# The hot loop of space_time_astar (see the note above it): complexity 25 because the
+# successor rule of constraints.Moves and the conflict counts are written out here;
+# tests/test_search_core.py and tests/test_jit_astar.py tie it to Moves and the kernel.
 def _search(
     adj: Sequence[Sequence[int]],
     start: int,
