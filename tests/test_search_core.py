@@ -3,7 +3,7 @@
 The A* (pure Python and compiled), the MDD builders, the focal search and the
 highway-inflated focal search each expand states in their own hot loop, written out for
 speed; these tests tie the loops to the one rule, :class:`~hierplan_opt.search.
-constraints.Moves` (which move is allowed at which time, with which lower bound):
+spacetime.Moves` (which move is allowed at which time, with which lower bound):
 
 * the compiled kernel's rule (``_move_h``, shared by its A* and its MDD builder) gives
   exactly ``Moves.at`` for every state of random instances and constraint sets;
@@ -35,12 +35,12 @@ from hierplan_opt.search.constraints import (
     POS_E,
     POS_V,
     AgentConstraints,
-    Moves,
 )
 from hierplan_opt.search.focal import focal_path
 from hierplan_opt.search.highways import inflated_focal_path
 from hierplan_opt.search.mdd import build_mdd
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import Moves
 
 
 def grid(rng: random.Random) -> tuple[Graph, list[int]]:

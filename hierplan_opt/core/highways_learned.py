@@ -104,7 +104,7 @@ def min_cut_labels(
     >>> lab.tolist(), round(e, 3)
     ([0, 1, 0], 1.5)
     """
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # heavy module (scipy): loaded only for learned highways
     from scipy.sparse.csgraph import breadth_first_order, maximum_flow
 
     m = len(unary)

@@ -8,7 +8,7 @@ compare them call by call.
 
 Data layout (all ``int64`` unless said otherwise):
 
-- ``ptr, idx``: the successor lists of :func:`.constraints.successors` (neighbours then
+- ``ptr, idx``: the successor lists of :func:`.spacetime.successors` (neighbours then
   the vertex itself) as CSR; a move ``v -> idx[j]`` is identified by its position ``j``.
 - ``vkeys, ekeys``: the agent's vertex / edge constraint keys, sorted.
 - ``ff``: ``forbid_from`` per vertex (:data:`NEVER` where absent).
@@ -60,7 +60,7 @@ def _move_h(
 ):
     """``h`` of the move ``v -> u`` arriving at ``t``, -1 if it is not allowed.
 
-    The rule of ``constraints.Moves`` (shared by the A* and the MDD kernels).
+    The rule of ``spacetime.Moves`` (shared by the A* and the MDD kernels).
     """
     if need >= 0 and u != need:
         return -1

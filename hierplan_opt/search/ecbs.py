@@ -57,10 +57,11 @@ from hierplan_opt.registry import solver
 from hierplan_opt.search.cbs import _CBS, PAIR_NODE_LIMIT
 from hierplan_opt.search.conflicts import EDGE, TARGET, Conflict
 from hierplan_opt.search.constraints import NEG_E, NEG_V, AgentConstraints, Constraint
-from hierplan_opt.search.focal import FocalLowLevel, SearchTimeout, focal_path
+from hierplan_opt.search.focal import FocalLowLevel, focal_path
 from hierplan_opt.search.heuristics import min_vertex_cover
 from hierplan_opt.search.highways import HighwayLowLevel
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import SearchTimeout
 
 log = logging.getLogger(__name__)
 

@@ -36,8 +36,9 @@ from typing import Any, Protocol
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
+from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import SearchTimeout, successors, unwind
 
 #: Secondary FOCAL key: ``(f + h) * _TIE - t``, i.e. by ``g + 2h`` (leaning towards the
 #: goal like weighted A*), deeper first. Any order keeps the bound; this one reaches a
@@ -50,27 +51,6 @@ PARTNER_WEIGHT = 1 << 10
 
 #: Expansions after which FOCAL gives up trading cost for conflicts (see ``budget``).
 DEFAULT_BUDGET = 10_000
-
-
-class SearchTimeout(Exception):
-    """Raised by the low level when the deadline expires mid-search."""
-
-
-def unwind(parent: dict[int, int], key: int, goal: int, n: int) -> list[int]:
-    """The path to terminal ``key`` (parked at ``goal``) from the ``parent`` links.
-
-    Example
-    -------
-    >>> unwind({-9: 4, 4: 0, 0: -1}, -9, 2, 3)  # keys t * n + v; terminal -(key + 1)
-    [0, 1, 2]
-    """
-    path = [goal]
-    k = parent[key]
-    while k >= 0:
-        path.append(k % n)
-        k = parent[k]
-    path.reverse()
-    return path
 
 
 def focal_path(

@@ -49,9 +49,10 @@ from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.highways import Highways, highway_share
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
-from hierplan_opt.search.focal import FocalLowLevel, LowLevelHost, SearchTimeout, unwind
+from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints
+from hierplan_opt.search.focal import FocalLowLevel, LowLevelHost
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import SearchTimeout, successors, unwind
 
 
 class HighwayHeuristic:
@@ -68,7 +69,7 @@ class HighwayHeuristic:
     """
 
     def __init__(self, graph: Graph, highways: Iterable[tuple[int, int]], w_hwy: float) -> None:
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # heavy module (scipy): loaded only with highways
 
         self.graph = graph
         self.w_hwy = float(w_hwy)
@@ -86,7 +87,7 @@ class HighwayHeuristic:
 
     def precompute(self, goals: Iterable[int]) -> None:
         """Compute the tables of every goal not cached yet (one C-level batch)."""
-        from scipy.sparse.csgraph import dijkstra
+        from scipy.sparse.csgraph import dijkstra  # heavy module (scipy)
 
         todo = [t for t in dict.fromkeys(goals) if t not in self._exact]
         if not todo:

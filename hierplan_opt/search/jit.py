@@ -52,8 +52,9 @@ import numpy as np
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.search.conflicts import Conflict
-from hierplan_opt.search.constraints import AgentConstraints, Moves, successors
+from hierplan_opt.search.constraints import AgentConstraints
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import Moves, successors
 
 log = logging.getLogger(__name__)
 

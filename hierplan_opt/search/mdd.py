@@ -23,8 +23,8 @@ from hierplan_opt.search.constraints import (
     POS_V,
     AgentConstraints,
     Constraint,
-    Moves,
 )
+from hierplan_opt.search.spacetime import Moves
 
 
 class MDD:
