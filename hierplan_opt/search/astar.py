@@ -99,19 +99,16 @@ def space_time_astar(
     lms = cons.landmarks
     moves = Moves(adj, goal, dist, cons, dist_of)
     nxt = moves.nxt
-    n_lm = len(nxt)
     if lms and 0 in lms and lms[0] != start:
         return None, 0
-    tcap = max(cons.tmax, minf, n_lm) + 1
+    tcap = moves.horizon()
     succ = moves.succ
 
     # Final arrival at time 0: every landmark must then be at the goal.
     if start == goal and minf <= 0 and all(v == goal for v in lms.values()):
         return (start,), 0
 
-    h0 = dist[start]
-    if minf > h0:
-        h0 = minf
+    h0 = moves.h0(start)
     if h0 > maxf:
         return None, 0
     memo = None

@@ -560,9 +560,8 @@ def run(
 ) -> tuple[tuple[int, ...] | None, int]:
     """The search of ``space_time_astar`` (after its early exits) in the kernel ``k``."""
     if nxt is None or tcap is None or h0 is None:  # a direct call (the warm-up)
-        nxt = Moves(adj, goal, dist, cons, dist_of).nxt
-        tcap = max(cons.tmax, cons.min_finish, len(nxt)) + 1
-        h0 = max(dist[start], cons.min_finish)
+        moves = Moves(adj, goal, dist, cons, dist_of)
+        nxt, tcap, h0 = moves.nxt, moves.horizon(), moves.h0(start)
     g, args, off = _search_args(adj, start, goal, dist, cons, nxt, h0)
     if res is not None:
         m = _mirror(k, g, res)

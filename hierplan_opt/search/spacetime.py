@@ -144,6 +144,15 @@ class Moves:
         self.tfree = cons.tmax + 1
         self.free: dict[int, list[tuple[int, int]]] = {}
 
+    def horizon(self) -> int:
+        """The time from which the search merges states by vertex (nothing depends on
+        time any more: after every constraint, ``min_finish`` and landmark)."""
+        return max(self.cons.tmax, self.minf, len(self.nxt)) + 1
+
+    def h0(self, start: int) -> int:
+        """``h`` of the start state: ``max(dist(start, goal), min_finish)``."""
+        return max(self.dist[start], self.minf)
+
     def at(self, v: int, t: int) -> list[tuple[int, int]]:
         """The allowed moves out of ``v`` arriving at ``t``: ``[(u, h_u), ...]``."""
         return self.layer((v,), t)[0]
