@@ -94,6 +94,8 @@ def solve(
           edges cost this much more
         - hwy_mode: heuristic|cost (default heuristic) -- inflate the heuristic or the
           edge costs off the highways
+        - bypass: true/false (default false) -- adopt a child's path when it lowers the
+          conflicts in the bound
     ``eecbs`` (MAPF, bounded): Explicit-estimation CBS: cost <= w * optimal.
         - w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w *
           optimum

@@ -3,6 +3,7 @@ highways, the CLI and the shipped instances."""
 
 from __future__ import annotations
 
+import ast
 import importlib.util
 import itertools
 import random
@@ -25,10 +26,10 @@ from hierplan_opt.core.highways import (
     highway_share,
     reversed_highways,
 )
+from hierplan_opt.core.highways_learned import flow, learned, min_cut_labels, traffic
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Status
 from hierplan_opt.core.validate import validate
-from hierplan_opt.formulations.highways import flow, learned, min_cut_labels, traffic
 from hierplan_opt.io import load_instance
 from hierplan_opt.io.highways import (
     edges_text,
@@ -39,6 +40,7 @@ from hierplan_opt.io.highways import (
     save_highways,
     yaml_text,
 )
+from hierplan_opt.search import highways as search_highways
 from hierplan_opt.search.constraints import AgentConstraints
 from hierplan_opt.search.highways import HighwayHeuristic, inflated_focal_path
 from hierplan_opt.search.reservations import Reservations
@@ -300,6 +302,39 @@ def test_options_are_checked() -> None:
         hp.solve(inst, "cbs", highways="crisscross", objective="makespan")
     with pytest.raises(OptionError, match="unknown option|does not know|highways"):
         hp.solve(inst, "cbm", highways="crisscross")
+
+
+def test_cbs_names_itself_when_the_instance_has_no_highways() -> None:
+    # cbs hands highways to ecbs through the registry; the error still names cbs.
+    inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    with pytest.raises(OptionError, match="^cbs option highways='instance'"):
+        hp.solve(inst, "cbs", highways="instance")
+
+
+@pytest.mark.parametrize("mode", ["heuristic", "cost"])
+def test_cbs_with_highways_is_ecbs_1_with_the_highway_low_level(mode: str) -> None:
+    # CBS+HWY(w_hwy) runs ECBS(1)+HWY(w_hwy) with CBS's bypass and no polish: the same
+    # plan and counts as asking ecbs for that directly.
+    inst = load_instance(DATA / "corridor-5x20.map", scen=DATA / "corridor-5x20.scen")
+    inst = replace(inst, highways=load_highways(DATA / "corridor-5x20.hwy", inst.graph))
+    opts = {"highways": "instance", "w_hwy": 2.0, "hwy_mode": mode}
+    a = hp.solve(inst, "cbs", time_limit=None, **opts)
+    b = hp.solve(
+        inst, "ecbs", time_limit=None, w=1.0, polish=False, lacam="off", bypass=True, **opts
+    )
+    assert a.plan == b.plan and a.cost == b.cost and a.lower_bound == b.lower_bound
+    counts = ("high_level_expanded", "high_level_generated", "low_level_expanded", "bypasses")
+    assert [a.stats[k] for k in counts] == [b.stats[k] for k in counts]
+    assert a.stats["hwy_mode"] == mode and a.stats["bound"] == 2.0
+
+
+def test_highway_low_level_imports_no_solver() -> None:
+    # The low level sits below the high levels: search/highways.py imports none of them.
+    tree = ast.parse(Path(search_highways.__file__).read_text())
+    names = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    solvers = {f"hierplan_opt.search.{m}" for m in ("cbs", "ecbs", "eecbs", "lacam")}
+    assert names & solvers == set()
+    assert not any((m or "").startswith("hierplan_opt.formulations") for m in names)
 
 
 def test_head_on_conflicts_are_counted() -> None:

@@ -5,8 +5,10 @@ graph (the type of :attr:`Instance.highways <hierplan_opt.core.instance.Instance
 This module holds what only needs the graph: the check, the per-cell directions of
 4-connected 2D grids (the character grid of Kei18/pibt's iECBS), the two generators
 ``crisscross`` and ``corridors``, and the share of a plan's moves on highway edges.
-The highway heuristic and the solvers are in :mod:`hierplan_opt.search.highways`,
-learned highways in :mod:`hierplan_opt.formulations.highways`.
+The learned generators and the generators by name are in
+:mod:`hierplan_opt.core.highways_learned`, the file formats in
+:mod:`hierplan_opt.io.highways`, the highway heuristic and low level of the solvers in
+:mod:`hierplan_opt.search.highways`.
 """
 
 from __future__ import annotations

@@ -7,15 +7,20 @@ The shared layer (what a new search solver builds on):
 * :mod:`.reservations`: :class:`~.reservations.Reservations`, the one table of other
   agents' paths (vertex-time and move keys, parked goals) with ``add``, ``remove``,
   ``sync(paths)``, ``visits(v)`` and ``conflicts_of(agent, path)``.
-* :mod:`.constraints`: the constraint tuples (``NEG_V``, ``NEG_E``, ``POS_V``, ...),
-  :class:`~.constraints.AgentConstraints` (one agent's compiled constraints) and
-  :class:`~.constraints.Moves` (allowed moves with admissible h values).
-* The space-time search family, all on ``AgentConstraints`` and ``Reservations``:
-  :func:`.astar.space_time_astar` (optimal, ties by conflicts),
+* :mod:`.constraints`: the constraint tuples (``NEG_V``, ``NEG_E``, ``POS_V``, ...) and
+  :class:`~.constraints.AgentConstraints` (one agent's compiled constraints).
+* :mod:`.spacetime`: the space-time core, :func:`~.spacetime.successors` (move order)
+  and :class:`~.spacetime.Moves` (the successor rule: allowed moves with admissible h
+  values), terminal nodes and the deadline.
+* The space-time search family over that core, all on ``AgentConstraints`` and
+  ``Reservations``: :func:`.astar.space_time_astar` (optimal, ties by conflicts),
   :func:`.focal.focal_path` (bounded by ``w``, FOCAL by conflicts; ``avoid=True`` is
-  prioritized planning), :func:`.mdd.build_mdd` (all optimal paths).
+  prioritized planning), :func:`.highways.inflated_focal_path` (edge costs),
+  :func:`.mdd.build_mdd` (all optimal paths).
 * High levels shaped alike: ``cbs._CBS``, ``ecbs._ECBS`` (``eecbs._EECBS`` subclasses
-  it), ``cbm._CBM``; each solver's ``solve`` is declared with its options by
-  :func:`hierplan_opt.registry.solver` and reaches other solvers through
-  :func:`hierplan_opt.registry.run`.
+  it), ``cbm._CBM``; ECBS and EECBS take their low level as a strategy object
+  (:class:`.focal.FocalLowLevel`, :class:`.highways.HighwayLowLevel`). Each solver's
+  ``solve`` is declared with its options by :func:`hierplan_opt.registry.solver` and
+  reaches other solvers through the registry (:func:`hierplan_opt.registry.run`,
+  :func:`hierplan_opt.registry.get`).
 """

@@ -8,7 +8,7 @@ compare them call by call.
 
 Data layout (all ``int64`` unless said otherwise):
 
-- ``ptr, idx``: the successor lists of :func:`.constraints.successors` (neighbours then
+- ``ptr, idx``: the successor lists of :func:`.spacetime.successors` (neighbours then
   the vertex itself) as CSR; a move ``v -> idx[j]`` is identified by its position ``j``.
 - ``vkeys, ekeys``: the agent's vertex / edge constraint keys, sorted.
 - ``ff``: ``forbid_from`` per vertex (:data:`NEVER` where absent).
@@ -60,7 +60,7 @@ def _move_h(
 ):
     """``h`` of the move ``v -> u`` arriving at ``t``, -1 if it is not allowed.
 
-    The rule of ``constraints.Moves`` (shared by the A* and the MDD kernels).
+    The rule of ``spacetime.Moves`` (shared by the A* and the MDD kernels).
     """
     if need >= 0 and u != need:
         return -1
@@ -95,6 +95,59 @@ def _less(pf, pc, pn, a, b):
     if pn[a] != pn[b]:
         return pn[a] < pn[b]
     return a < b
+
+
+@_njit
+def _sift_down(heap, size, pf, pc, pn):
+    """After a pop: move ``heap[size]`` (the last entry) down from the root."""
+    if size > 0:
+        last = heap[size]
+        i = 0
+        while True:
+            c1 = 2 * i + 1
+            if c1 >= size:
+                break
+            c2 = c1 + 1
+            m = c1
+            if c2 < size and _less(pf, pc, pn, heap[c2], heap[c1]):
+                m = c2
+            if _less(pf, pc, pn, heap[m], last):
+                heap[i] = heap[m]
+                i = m
+            else:
+                break
+        heap[i] = last
+
+
+@_njit
+def _sift_up(heap, i, x, pf, pc, pn):
+    """Push entry ``x`` at position ``i`` (the heap's size) and move it up."""
+    while i > 0:
+        par = (i - 1) >> 1
+        if _less(pf, pc, pn, x, heap[par]):
+            heap[i] = heap[par]
+            i = par
+        else:
+            break
+    heap[i] = x
+
+
+@_njit
+def _path_of(pv, pp, top):
+    """The vertices from the root entry to ``top`` along the parent links ``pp``."""
+    length = 0
+    e = top
+    while e >= 0:
+        length += 1
+        e = pp[e]
+    path = np.empty(length, np.int64)
+    e = top
+    k = length - 1
+    while e >= 0:
+        path[k] = pv[e]
+        k -= 1
+        e = pp[e]
+    return path
 
 
 @_njit
@@ -160,43 +213,14 @@ def astar(
     expanded = 0
     empty = np.empty(0, np.int64)
     while size > 0:
-        # pop
         top = heap[0]
         size -= 1
-        if size > 0:
-            last = heap[size]
-            i = 0
-            while True:
-                c1 = 2 * i + 1
-                if c1 >= size:
-                    break
-                c2 = c1 + 1
-                m = c1
-                if c2 < size and _less(pf, pc, pn, heap[c2], heap[c1]):
-                    m = c2
-                if _less(pf, pc, pn, heap[m], last):
-                    heap[i] = heap[m]
-                    i = m
-                else:
-                    break
-            heap[i] = last
+        _sift_down(heap, size, pf, pc, pn)
         v = pv[top]
         t = pt[top]
         conf = pc[top]
         if pn[top] == TERMINAL:
-            length = 0
-            e = top
-            while e >= 0:
-                length += 1
-                e = pp[e]
-            path = np.empty(length, np.int64)
-            e = top
-            k = length - 1
-            while e >= 0:
-                path[k] = pv[e]
-                k -= 1
-                e = pp[e]
-            return expanded, path
+            return expanded, _path_of(pv, pp, top)
         key = (t if t < tcap else tcap) * n + v
         if _get(bkeys, bvals, key) == _CLOSED:
             continue
@@ -263,17 +287,8 @@ def astar(
                 pv[cnt] = u
                 pt[cnt] = t1
                 pp[cnt] = top
-                # push
-                i = size
+                _sift_up(heap, size, cnt, pf, pc, pn)
                 size += 1
-                while i > 0:
-                    par = (i - 1) >> 1
-                    if _less(pf, pc, pn, cnt, heap[par]):
-                        heap[i] = heap[par]
-                        i = par
-                    else:
-                        break
-                heap[i] = cnt
     return expanded, empty
 
 
@@ -547,6 +562,9 @@ def mdd(
     return ov, ks, ke, kids, lo, hi, last
 
 
+# Complexity 35: mdd.restrict's two passes (and the compaction of the arrays) in one
+# compiled body, step by step like the Python ones so that tests/test_jit_astar.py can
+# compare their levels and orders; splitting it would pass the dozen arrays around.
 @_njit
 def mdd_restrict(ov, ks, ke, kids, lo, hi, last, cost, goal, drop_t, drop_v, only, cut):
     """The two passes of ``mdd.restrict`` on :func:`mdd`'s arrays (same orders).

@@ -15,7 +15,7 @@ always terminates, also when no path exists.
 Ties between equal-cost paths are broken by the number of conflicts with the other
 agents' paths (a :class:`~hierplan_opt.search.reservations.Reservations` table used as
 conflict-avoidance table), which keeps the high level small. The moves and heuristic
-values come from :class:`~hierplan_opt.search.constraints.Moves`, shared with the MDDs.
+values come from :class:`~hierplan_opt.search.spacetime.Moves`, shared with the MDDs.
 The focal variant for bounded-suboptimal search is :mod:`hierplan_opt.search.focal`.
 """
 
@@ -27,8 +27,9 @@ from time import perf_counter
 
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.search import jit
-from hierplan_opt.search.constraints import AgentConstraints, Moves
+from hierplan_opt.search.constraints import AgentConstraints
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import Moves
 
 #: Third heap key of a final-arrival entry (smaller than any ``-t``).
 TERMINAL = -(1 << 50)
@@ -98,19 +99,16 @@ def space_time_astar(
     lms = cons.landmarks
     moves = Moves(adj, goal, dist, cons, dist_of)
     nxt = moves.nxt
-    n_lm = len(nxt)
     if lms and 0 in lms and lms[0] != start:
         return None, 0
-    tcap = max(cons.tmax, minf, n_lm) + 1
+    tcap = moves.horizon()
     succ = moves.succ
 
     # Final arrival at time 0: every landmark must then be at the goal.
     if start == goal and minf <= 0 and all(v == goal for v in lms.values()):
         return (start,), 0
 
-    h0 = dist[start]
-    if minf > h0:
-        h0 = minf
+    h0 = moves.h0(start)
     if h0 > maxf:
         return None, 0
     memo = None
@@ -146,6 +144,9 @@ def space_time_astar(
     return found
 
 
+# The hot loop of space_time_astar (see the note above it): complexity 25 because the
+# successor rule of spacetime.Moves and the conflict counts are written out here;
+# tests/test_search_core.py and tests/test_jit_astar.py tie it to Moves and the kernel.
 def _search(
     adj: Sequence[Sequence[int]],
     start: int,
@@ -215,7 +216,7 @@ def _search(
         bv = (base + v) * n  # + u: the key of the move v -> u arriving at t1
         mt = minf - t1
         for u in cands:
-            # The rule of constraints.Moves (which the MDDs use), written out: a call per
+            # The rule of spacetime.Moves (which the MDDs use), written out: a call per
             # expansion made CBS about 25 % slower on `hierplan bench cbs`.
             if base + u in vc:
                 continue

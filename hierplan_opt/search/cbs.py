@@ -43,9 +43,11 @@ import time
 from heapq import heappop, heappush
 from typing import Any
 
+from hierplan_opt import registry
 from hierplan_opt.core.collector import relaxed_gc
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.highways import HIGHWAY_OPTIONS
+from hierplan_opt.core.highways_learned import check_spec
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
@@ -904,11 +906,13 @@ def solve(
     if highways is not None:
         if objective != "soc":
             raise OptionError("cbs with highways optimises the sum of costs only (objective soc)")
-        from hierplan_opt.search.highways import solve_with_highways
-
-        return solve_with_highways(
-            "cbs", instance, time_limit=time_limit, highways=highways, w_hwy=w_hwy,
-            hwy_mode=hwy_mode, polish=False, bypass=bypass,
+        check_spec(instance, highways, "cbs")
+        # CBS+HWY(w_hwy) is ECBS(1)+HWY(w_hwy) (search.highways), reached through the
+        # registry: solvers do not import each other.
+        ecbs = registry.get("ecbs").load()
+        return ecbs.fn(
+            instance, time_limit=time_limit, w=1.0, polish=False, lacam="off",
+            highways=highways, w_hwy=w_hwy, hwy_mode=hwy_mode, bypass=bypass,
         )  # fmt: skip
     opts = dict(
         prioritize=prioritize_conflicts,

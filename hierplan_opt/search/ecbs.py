@@ -44,7 +44,9 @@ import time
 from heapq import heappop, heappush
 from typing import Any
 
+from hierplan_opt import registry
 from hierplan_opt.core.highways import HIGHWAY_OPTIONS
+from hierplan_opt.core.highways_learned import resolve
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
@@ -55,9 +57,11 @@ from hierplan_opt.registry import solver
 from hierplan_opt.search.cbs import _CBS, PAIR_NODE_LIMIT
 from hierplan_opt.search.conflicts import EDGE, TARGET, Conflict
 from hierplan_opt.search.constraints import NEG_E, NEG_V, AgentConstraints, Constraint
-from hierplan_opt.search.focal import SearchTimeout, focal_path
+from hierplan_opt.search.focal import FocalLowLevel, focal_path
 from hierplan_opt.search.heuristics import min_vertex_cover
+from hierplan_opt.search.highways import HighwayLowLevel
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import SearchTimeout
 
 log = logging.getLogger(__name__)
 
@@ -239,6 +243,7 @@ class _ECBS:
         bypass: bool,
         lacam: str = "off",
         incumbent: Result | None = None,
+        low: FocalLowLevel | None = None,
     ) -> None:
         g = instance.graph
         g.precompute_distances(instance.goals)  # one batch
@@ -284,24 +289,15 @@ class _ECBS:
         self.lacam = lacam
         self.inc_plan = incumbent.plan if incumbent is not None else None
         self.inc_cost = int(incumbent.cost or 0) if incumbent is not None else 0
+        # The low level (a strategy: plain focal search, or with highways).
+        self.low = low if low is not None else FocalLowLevel()
+        self.low.prepare(self)
 
     # ------------------------------------------------------------------ low level
     def plan(self, a: int, cons: AgentConstraints, partner: int = -1) -> tuple[Path, int] | None:
-        """Agent ``a``'s focal path around the paths in ``self.res`` and its lower bound
-        (conflicts with ``partner`` weigh more in FOCAL)."""
-        self.stats["low_level_calls"] += 1
-        return focal_path(
-            self.adj,
-            self.starts[a],
-            self.goals[a],
-            self.dists[a],
-            cons,
-            self.res,
-            w=self.w,
-            deadline=self.deadline,
-            stats=self.stats,
-            partner=partner,
-        )
+        """Agent ``a``'s path from the low level around the paths in ``self.res`` and its
+        lower bound (conflicts with ``partner`` weigh more in FOCAL)."""
+        return self.low.plan(self, a, cons, partner)
 
     # ------------------------------------------------------------------ root
     def root(self) -> _Node | None:
@@ -623,6 +619,8 @@ class _ECBS:
     def result(
         self, status: Status, plan: Plan | None, cost: float | None = None, lb: float | None = None
     ) -> Result:
+        if plan is not None:
+            self.low.annotate(self.stats, plan)
         self.stats["runtime"] = self.deadline.elapsed()
         return Result(status, plan, cost, lb, stats=self.stats, objective="soc")
 
@@ -644,10 +642,10 @@ def _lacam_plan(
     """LaCAM's first plan for ``mode`` (None when not asked for or not found in time)."""
     if mode == "off" or (mode == "fallback" and time_limit is None):
         return None
-    from hierplan_opt.search.lacam import solve as lacam_solve
-
     budget = None if time_limit is None else LACAM_SHARE * time_limit
-    # The bare function: the front door has checked the instance already.
+    # Through the registry (solvers do not import each other); the bare function: the
+    # front door has checked the instance already.
+    lacam_solve = registry.get("lacam").load()
     r = lacam_solve.fn(instance, time_limit=budget, seed=seed, anytime=0)
     stats["lacam_status"] = r.status.value
     stats["lacam_time"] = r.stats.get("first_time", budget)
@@ -683,7 +681,45 @@ def run_search(
     return search.search()
 
 
-@solver("ecbs", W_OPTION, POLISH_OPTION, LACAM_OPTION, *HIGHWAY_OPTIONS)
+def run_with_highways(
+    cls: type[_ECBS],
+    instance: Instance,
+    time_limit: float | None,
+    *,
+    highways: str,
+    w_hwy: float,
+    hwy_mode: str,
+    w: float,
+    polish: bool,
+    bypass: bool,
+) -> Result:
+    """The search ``cls`` with the highway low level (:mod:`hierplan_opt.search.highways`):
+    ECBS(w)+HWY(w_hwy), EECBS(w)+HWY(w_hwy), or CBS+HWY(w_hwy) as ECBS(1)+HWY(w_hwy).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
+    >>> inst = Instance.mapf(g, [(0, 0), (4, 0)], [(4, 0), (0, 0)])
+    >>> r = run_with_highways(_ECBS, inst, 10, highways="crisscross", w_hwy=2.0,
+    ...                       hwy_mode="heuristic", w=1.2, polish=True, bypass=False)
+    >>> r.stats["bound"], r.cost <= 2.4 * r.lower_bound
+    (2.4, True)
+    """
+    deadline = Deadline(time_limit)
+    low = HighwayLowLevel(resolve(instance, highways, cls.name), w_hwy, hwy_mode)
+    search = cls(instance, deadline, w=w, polish=polish, bypass=bypass, low=low)
+    search.stats["highway_time"] = deadline.elapsed()
+    return search.search()
+
+
+#: ECBS's option ``bypass`` (off by default; CBS+HWY runs ECBS(1) with CBS's bypass).
+BYPASS_OPTION = Option(
+    "bypass", "bool", "adopt a child's path when it lowers the conflicts in the bound"
+)
+
+
+@solver("ecbs", W_OPTION, POLISH_OPTION, LACAM_OPTION, *HIGHWAY_OPTIONS, BYPASS_OPTION)
 def solve(
     instance: Instance,
     *,
@@ -696,6 +732,7 @@ def solve(
     highways: str | None = None,
     w_hwy: float = 2.0,
     hwy_mode: str = "heuristic",
+    bypass: bool = False,
 ) -> Result:
     """ECBS(w): a plan whose sum of costs is at most ``w`` times the optimum.
 
@@ -715,6 +752,10 @@ def solve(
     highways, w_hwy, hwy_mode
         ECBS(w)+HWY(w_hwy) (:mod:`hierplan_opt.search.highways`): prefer these directed
         edges; the bound becomes ``w * w_hwy`` (LaCAM is not used then).
+    bypass
+        Adopt a child's path in its parent when that lowers the number of conflicts
+        within the bound (as EECBS does by default; CBS with highways runs this search
+        with ``w = 1`` and its own ``bypass``).
 
     Returns
     -------
@@ -736,12 +777,10 @@ def solve(
     """
     del objective  # the sum of costs only; the seed is LaCAM's
     if highways is not None:
-        from hierplan_opt.search.highways import solve_with_highways
-
-        return solve_with_highways(
-            "ecbs", instance, time_limit=time_limit, highways=highways, w_hwy=w_hwy,
-            hwy_mode=hwy_mode, w=w, polish=polish,
+        return run_with_highways(
+            _ECBS, instance, time_limit, highways=highways, w_hwy=w_hwy, hwy_mode=hwy_mode,
+            w=w, polish=polish, bypass=bypass,
         )  # fmt: skip
     return run_search(
-        _ECBS, instance, time_limit, seed, w=w, polish=polish, bypass=False, lacam=lacam
+        _ECBS, instance, time_limit, seed, w=w, polish=polish, bypass=bypass, lacam=lacam
     )

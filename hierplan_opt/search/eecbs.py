@@ -31,7 +31,15 @@ from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
-from hierplan_opt.search.ecbs import _ECBS, LACAM_OPTION, POLISH_OPTION, W_OPTION, _Node, run_search
+from hierplan_opt.search.ecbs import (
+    _ECBS,
+    LACAM_OPTION,
+    POLISH_OPTION,
+    W_OPTION,
+    _Node,
+    run_search,
+    run_with_highways,
+)
 
 #: Cap on the learned one-step error of "conflicts left" as a distance-to-go. The
 #: estimate ``d / (1 - eps_d)`` explodes as ``eps_d -> 1`` (resolving one conflict often
@@ -145,11 +153,9 @@ def solve(
     """
     del objective  # the sum of costs only; the seed is LaCAM's
     if highways is not None:
-        from hierplan_opt.search.highways import solve_with_highways
-
-        return solve_with_highways(
-            "eecbs", instance, time_limit=time_limit, highways=highways, w_hwy=w_hwy,
-            hwy_mode=hwy_mode, w=w, polish=polish, bypass=bypass,
+        return run_with_highways(
+            _EECBS, instance, time_limit, highways=highways, w_hwy=w_hwy, hwy_mode=hwy_mode,
+            w=w, polish=polish, bypass=bypass,
         )  # fmt: skip
     return run_search(
         _EECBS, instance, time_limit, seed, w=w, polish=polish, bypass=bypass, lacam=lacam

@@ -31,10 +31,14 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections.abc import Sequence
 from heapq import heapify, heappop, heappush
+from typing import Any, Protocol
 
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
+from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import SearchTimeout, successors, unwind
 
 #: Secondary FOCAL key: ``(f + h) * _TIE - t``, i.e. by ``g + 2h`` (leaning towards the
 #: goal like weighted A*), deeper first. Any order keeps the bound; this one reaches a
@@ -49,29 +53,6 @@ PARTNER_WEIGHT = 1 << 10
 DEFAULT_BUDGET = 10_000
 
 
-class SearchTimeout(Exception):
-    """Raised by the low level when the deadline expires mid-search."""
-
-
-def unwind(parent: dict[int, int], key: int, goal: int, n: int) -> list[int]:
-    """The path to terminal ``key`` (parked at ``goal``) from the ``parent`` links.
-
-    Example
-    -------
-    >>> unwind({-9: 4, 4: 0, 0: -1}, -9, 2, 3)  # keys t * n + v; terminal -(key + 1)
-    [0, 1, 2]
-    """
-    path = [goal]
-    k = parent[key]
-    while k >= 0:
-        path.append(k % n)
-        k = parent[k]
-    path.reverse()
-    return path
-
-
-# See the note above astar.space_time_astar: one of the two hot inner loops, written out
-# in one body on purpose.
 def focal_path(
     adj: Sequence[Sequence[int]],
     start: int,
@@ -139,91 +120,163 @@ def focal_path(
     """
     if cons.landmarks or cons.forbid_from or cons.max_finish != NO_BOUND:
         raise ValueError("focal_path supports vertex and edge constraints only")
-    succ = successors(adj)
     n = len(adj)
-    h = dist
-    vcons = cons.vertex
-    econs = cons.edge
     hold = cons.min_finish  # earliest time the agent may stay at its goal forever
     if max_t is None:
         max_t = cons.tmax + n + 1
-    goal_times = res.visits(goal)
-    vt = res.vt
-    et = res.et
-    park_t = res.park_t
-    n_goal_times = len(goal_times)
-    pw = PARTNER_WEIGHT
     partner_path = res.paths[partner] if 0 <= partner < len(res.paths) else None
     partner_goal = partner_path[-1] if partner_path is not None else -1
     # the partner's visits to this agent's goal (it would meet the parked agent there)
     partner_times = (
         [t for t, x in enumerate(partner_path) if x == goal] if partner_path is not None else []
     )
+    out, expanded = _focal_loop(
+        successors(adj), n, start, goal, dist, cons.vertex, cons.edge, hold, max_t,
+        res.visits(goal), res.vt, res.et, res.park_t, partner, partner_goal, partner_times,
+        w, deadline, budget, avoid, limit,
+    )  # fmt: skip
+    if stats is not None:
+        stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
+    return out
+
+
+def _raise_bound(
+    live: dict[int, int],
+    buckets: dict[int, list[tuple[int, int, int, int]]],
+    focal: list[tuple[int, int, int, int]],
+    fmin: int,
+    bound: int,
+    w: float,
+) -> tuple[int, int]:
+    """Raise ``f_min`` to the next live f and admit the states the new bound allows:
+    the new ``(f_min, bound)``."""
+    if not live.get(fmin):
+        # f_min := max(f_min, smallest live f). With a consistent heuristic that is the
+        # next live f; with the highway heuristic f can drop along a path, and the
+        # largest true f_min seen is still a valid input to the bound (each one is
+        # <= w_hwy * C*).
+        fmin = max(fmin, min(f for f, k in live.items() if k))
+    new_bound = int(w * fmin + 1e-9)
+    for f in range(bound + 1, new_bound + 1):
+        b = buckets.pop(f, None)
+        if b:
+            for e in b:
+                heappush(focal, e)
+    return fmin, max(bound, new_bound)
+
+
+def _fallback_order(
+    focal: list[tuple[int, int, int, int]], buckets: dict[int, list[tuple[int, int, int, int]]]
+) -> list[tuple[int, int, int, int]]:
+    """FOCAL and the waiting buckets re-keyed by ``g + 2h`` first (see ``budget``)."""
+    focal = [(e[1], e[0], e[2], e[3]) for e in focal]
+    heapify(focal)
+    for fb, b in buckets.items():
+        buckets[fb] = [(e[1], e[0], e[2], e[3]) for e in b]
+    return focal
+
+
+def _park(
+    tk: int,
+    tc: int,
+    key: int,
+    nt: int,
+    fallback: bool,
+    bound: int,
+    best: dict[int, int],
+    parent: dict[int, int],
+    live: dict[int, int],
+    focal: list[tuple[int, int, int, int]],
+    buckets: dict[int, list[tuple[int, int, int, int]]],
+) -> int:
+    """Offer the terminal node ``tk`` (parked at the goal from ``nt`` on, ``tc``
+    conflicts, reached from ``key``); 1 if it is a new live state, else 0."""
+    old = best.get(tk)
+    if old is not None and tc >= old:
+        return 0
+    best[tk] = tc
+    parent[tk] = key
+    entry = (nt * _TIE - nt, tc, nt, tk) if fallback else (tc, nt * _TIE - nt, nt, tk)
+    if nt <= bound:
+        heappush(focal, entry)
+    else:
+        b = buckets.get(nt)
+        if b is None:
+            buckets[nt] = [entry]
+        else:
+            b.append(entry)
+    if old is not None:
+        return 0
+    live[nt] = live.get(nt, 0) + 1
+    return 1
+
+
+# See the note above astar.space_time_astar: one of the hot inner loops, its state
+# expansion written out in one body on purpose (complexity 34: a call per successor
+# costs measurable time on `hierplan bench ecbs`); the rare steps are the helpers above.
+def _focal_loop(
+    succ: list[tuple[int, ...]],
+    n: int,
+    start: int,
+    goal: int,
+    h: Sequence[int],
+    vcons: set[int] | frozenset[int],
+    econs: set[int] | frozenset[int],
+    hold: int,
+    max_t: int,
+    goal_times: list[int],
+    vt: dict[int, list[int]],
+    et: dict[int, list[int]],
+    park_t: list[int],
+    partner: int,
+    partner_goal: int,
+    partner_times: list[int],
+    w: float,
+    deadline: Deadline | None,
+    budget: int,
+    avoid: bool,
+    limit: int,
+) -> tuple[tuple[tuple[int, ...], int] | None, int]:
+    """The search of :func:`focal_path`: ``(its result, expansions)``."""
+    n_goal_times = len(goal_times)
+    pw = PARTNER_WEIGHT
     has_v = bool(vcons)
     has_e = bool(econs)
-
-    best: dict[int, int] = {}  # key -> fewest conflicts found so far
-    parent: dict[int, int] = {}
+    best: dict[int, int] = {start: 0}  # key -> fewest conflicts found so far
+    parent: dict[int, int] = {start: -1}
     closed: set[int] = set()
-    live: dict[int, int] = {}  # f -> number of generated, never expanded states
-    n_live = 0
-    buckets: dict[int, list[tuple[int, int, int, int]]] = {}
-    focal: list[tuple[int, int, int, int]] = []
-
     f0 = max(h[start], hold)
+    live: dict[int, int] = {f0: 1}  # f -> number of generated, never expanded states
+    n_live = 1
+    buckets: dict[int, list[tuple[int, int, int, int]]] = {}  # by f, above the bound
+    focal: list[tuple[int, int, int, int]] = [(0, (f0 + h[start]) * _TIE, f0, start)]
     fmin = f0
     bound = int(w * fmin + 1e-9)
-    best[start] = 0
-    parent[start] = -1
-    live[f0] = 1
-    n_live = 1
-    heappush(focal, (0, (f0 + h[start]) * _TIE, f0, start))
     c = n_goal_times - bisect_right(goal_times, 0)
     if start == goal and hold == 0 and not (avoid and c):
-        tk = -(start + 1)
-        best[tk] = c
-        parent[tk] = start
-        live[0] = live.get(0, 0) + 1
-        n_live += 1
-        heappush(focal, (c, 0, 0, tk))
-    out: tuple[tuple[int, ...], int] | None = None  # no path within max_t (or limit)
+        n_live += _park(-(start + 1), c, start, 0, False, bound, best, parent, live, focal, buckets)
     expanded = 0
     fallback = False
     raise_fmin = False  # the last state of f = f_min was expanded
     while True:
         if raise_fmin or not focal:
-            # Raise f_min to the next live f and admit the states the new bound allows.
             raise_fmin = False
             if n_live == 0:
                 if not focal:
                     break
             else:
-                if not live.get(fmin):
-                    # f_min := max(f_min, smallest live f). With a consistent heuristic
-                    # that is the next live f; with the highway heuristic f can drop
-                    # along a path, and the largest true f_min seen is still a valid
-                    # input to the bound (each one is <= w_hwy * C*).
-                    fmin = max(fmin, min(f for f, k in live.items() if k))
-                new_bound = int(w * fmin + 1e-9)
-                for f in range(bound + 1, new_bound + 1):
-                    b = buckets.pop(f, None)
-                    if b:
-                        for e in b:
-                            heappush(focal, e)
-                bound = max(bound, new_bound)
+                fmin, bound = _raise_bound(live, buckets, focal, fmin, bound, w)
                 if not focal:
                     continue
         x0, x1, f, key = heappop(focal)
         c = x1 if fallback else x0
         if best[key] != c:
             continue  # stale entry
-        if key < 0:
-            # Terminal node: the agent parks at its goal from time f on.
+        if key < 0:  # terminal node: the agent parks at its goal from time f on
             path = unwind(parent, key, goal, n)
             while len(path) > 1 and path[-2] == goal:
                 path.pop()  # cannot happen (hold logic), kept for safety
-            out = tuple(path), fmin
-            break
+            return (tuple(path), fmin), expanded
         first = key not in closed
         if first:
             closed.add(key)
@@ -239,10 +292,7 @@ def focal_path(
             # only f <= w * f_min, so the path still costs <= w * f_min (admitting
             # everything here once returned paths beyond that).
             fallback = True
-            focal = [(e[1], e[0], e[2], e[3]) for e in focal]
-            heapify(focal)
-            for fb, b in buckets.items():
-                buckets[fb] = [(e[1], e[0], e[2], e[3]) for e in b]
+            focal = _fallback_order(focal, buckets)
         if deadline is not None and not expanded & 1023 and deadline.expired():
             raise SearchTimeout
         t = key // n
@@ -297,34 +347,72 @@ def focal_path(
                         else:
                             b.append(entry)
                 if u == goal and nt >= hold:
-                    tk = -(nk + 1)
                     tc = nc + n_goal_times - bisect_right(goal_times, nt)
                     if partner_times:
                         tc += pw * (len(partner_times) - bisect_right(partner_times, nt))
-                    if avoid and tc:
-                        continue
-                    old = best.get(tk)
-                    if old is None or tc < old:
-                        if old is None:
-                            live[nt] = live.get(nt, 0) + 1
-                            n_live += 1
-                        best[tk] = tc
-                        parent[tk] = key
-                        entry = (
-                            (nt * _TIE - nt, tc, nt, tk)
-                            if fallback
-                            else (tc, nt * _TIE - nt, nt, tk)
-                        )
-                        if nt <= bound:
-                            heappush(focal, entry)
-                        else:
-                            b = buckets.get(nt)
-                            if b is None:
-                                buckets[nt] = [entry]
-                            else:
-                                b.append(entry)
+                    if not (avoid and tc):
+                        n_live += _park(
+                            -(nk + 1), tc, key, nt, fallback, bound, best, parent, live,
+                            focal, buckets,
+                        )  # fmt: skip
         if first and f == fmin and not live[f]:
             raise_fmin = True
-    if stats is not None:
-        stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
-    return out
+    return None, expanded  # no path within max_t (or limit)
+
+
+# ---------------------------------------------------------------- the low level as a strategy
+class LowLevelHost(Protocol):
+    """What a low level reads of (and may set on) the high-level search that calls it
+    (:class:`~hierplan_opt.search.ecbs._ECBS` and its subclasses)."""
+
+    instance: Instance
+    adj: list[list[int]]
+    starts: list[int]
+    goals: list[int]
+    dists: list[list[int]]
+    res: Reservations
+    w: float
+    w_high: float
+    deadline: Deadline
+    stats: dict[str, Any]
+
+
+class FocalLowLevel:
+    """ECBS's low level: :func:`focal_path` on the true distances, ``f_min`` as the
+    agent's lower bound. The high levels take a low level as a strategy object (this
+    one by default; :class:`~hierplan_opt.search.highways.HighwayLowLevel` for
+    highways) instead of being subclassed for each.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.search.ecbs import _ECBS
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> search = _ECBS(inst, Deadline(None), w=1.0, polish=False, bypass=False)
+    >>> FocalLowLevel().plan(search, 0, AgentConstraints())
+    ((0, 1, 2), 2)
+    """
+
+    def prepare(self, search: LowLevelHost) -> None:
+        """Set up for ``search`` (called once, at the end of its construction)."""
+
+    def plan(
+        self, search: LowLevelHost, a: int, cons: AgentConstraints, partner: int = -1
+    ) -> tuple[tuple[int, ...], int] | None:
+        """Agent ``a``'s path around ``search.res`` and a lower bound on its cost."""
+        search.stats["low_level_calls"] += 1
+        return focal_path(
+            search.adj,
+            search.starts[a],
+            search.goals[a],
+            search.dists[a],
+            cons,
+            search.res,
+            w=search.w,
+            deadline=search.deadline,
+            stats=search.stats,
+            partner=partner,
+        )
+
+    def annotate(self, stats: dict[str, Any], plan: Plan) -> None:
+        """Add this low level's figures of the returned ``plan`` to ``stats``."""

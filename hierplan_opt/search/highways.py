@@ -28,6 +28,11 @@ at most ``w_hwy`` times the optimum. Its high level uses the freedom the bound l
 (fewest conflicts among the nodes within ``w_hwy * LB_min``) rather than the paper's
 best-first order by cost, which on the 5 x 20 corridor ran out of 20 s where this
 order takes 0.3 s (``docs/highways.md``).
+
+This module is a low level only: :class:`HighwayLowLevel` is the strategy object the
+high levels take (:func:`hierplan_opt.search.ecbs.run_with_highways`); it imports no
+solver. The highway sets (generators, learned ones, by name) are in
+:mod:`hierplan_opt.core.highways` and :mod:`hierplan_opt.core.highways_learned`.
 """
 
 from __future__ import annotations
@@ -36,62 +41,18 @@ import math
 from bisect import bisect_right
 from collections.abc import Iterable, Sequence
 from heapq import heappop, heappush
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
-from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
-from hierplan_opt.core.highways import (
-    GENERATORS,
-    Highways,
-    corridors,
-    crisscross,
-    highway_share,
-)
-from hierplan_opt.core.instance import Instance
-from hierplan_opt.core.result import Result
+from hierplan_opt.core.highways import Highways, highway_share
+from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints, successors
-from hierplan_opt.search.ecbs import _ECBS, Path
-from hierplan_opt.search.eecbs import _EECBS
-from hierplan_opt.search.focal import SearchTimeout, unwind
+from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints
+from hierplan_opt.search.focal import FocalLowLevel, LowLevelHost
 from hierplan_opt.search.reservations import Reservations
-
-
-def resolve(instance: Instance, spec: object, solver: str = "solver") -> Highways:
-    """The highway set named by the ``highways`` option.
-
-    ``"instance"`` is the instance's own set (:attr:`Instance.highways`, e.g. read from a
-    file), ``"crisscross"`` and ``"corridors"`` the generators of
-    :mod:`hierplan_opt.core.highways`, ``"learned"`` and ``"flow"`` those of
-    :mod:`hierplan_opt.formulations.highways`.
-
-    Example
-    -------
-    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
-    >>> sorted(resolve(inst, "crisscross"))
-    [(0, 1), (1, 2)]
-    >>> resolve(inst, "instance", "ecbs")
-    Traceback (most recent call last):
-    ...
-    hierplan_opt.core.errors.OptionError: ecbs option highways='instance': the instance has no ...
-    """
-    if spec == "instance":
-        if instance.highways is None:
-            raise OptionError(f"{solver} option highways='instance': the instance has no highways")
-        return instance.highways
-    if spec == "crisscross":
-        return crisscross(instance.graph)
-    if spec == "corridors":
-        return corridors(instance.graph)
-    if spec in ("learned", "flow"):
-        from hierplan_opt.formulations import highways as learn
-
-        return learn.learned(instance) if spec == "learned" else learn.flow(instance)
-    raise OptionError(
-        f"{solver} option highways must be one of {', '.join(GENERATORS)}, got {spec!r}"
-    )
+from hierplan_opt.search.spacetime import SearchTimeout, successors, unwind
 
 
 class HighwayHeuristic:
@@ -108,7 +69,7 @@ class HighwayHeuristic:
     """
 
     def __init__(self, graph: Graph, highways: Iterable[tuple[int, int]], w_hwy: float) -> None:
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # heavy module (scipy): loaded only with highways
 
         self.graph = graph
         self.w_hwy = float(w_hwy)
@@ -126,7 +87,7 @@ class HighwayHeuristic:
 
     def precompute(self, goals: Iterable[int]) -> None:
         """Compute the tables of every goal not cached yet (one C-level batch)."""
-        from scipy.sparse.csgraph import dijkstra
+        from scipy.sparse.csgraph import dijkstra  # heavy module (scipy)
 
         todo = [t for t in dict.fromkeys(goals) if t not in self._exact]
         if not todo:
@@ -151,6 +112,10 @@ class HighwayHeuristic:
 
 
 # ---------------------------------------------------------------- the edge-cost variant
+# The inner loop of the cost-mode low level, in one body with its relax/push closures
+# (complexity 27): the same reason as the note above astar.space_time_astar (a call or
+# an attribute lookup more per successor costs measurable time); its successor rule and
+# conflict counts are focal.focal_path's, which tests/test_search_core.py checks.
 def inflated_focal_path(
     adj: Sequence[Sequence[int]],
     start: int,
@@ -281,134 +246,84 @@ def inflated_focal_path(
     return result
 
 
-# ---------------------------------------------------------------- the searches
-class _HighwayMixin:
-    """Highway low level and the factor ``W = w * w_hwy`` for an ECBS-family search.
+# ---------------------------------------------------------------- the low level
+class HighwayLowLevel(FocalLowLevel):
+    """The highway low level and the factor ``W = w * w_hwy`` of an ECBS-family search.
 
-    Mixed in before :class:`~hierplan_opt.search.ecbs._ECBS` (or a subclass): replaces
-    the low level's distance tables by the highway heuristic (mode ``"heuristic"``) or
-    the low level itself (mode ``"cost"``), and turns its ``f_min`` into the agent's
-    lower bound (see the module docstring).
+    A strategy given to :class:`~hierplan_opt.search.ecbs._ECBS` (or a subclass):
+    replaces the search's distance tables by the highway heuristic (mode
+    ``"heuristic"``) or the low level itself by :func:`inflated_focal_path` (mode
+    ``"cost"``), and turns its ``f_min`` into the agent's lower bound (see the module
+    docstring).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.instance import Instance
+    >>> from hierplan_opt.search.ecbs import _ECBS
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> low = HighwayLowLevel(frozenset({(0, 1), (1, 2)}), 2.0, "cost")
+    >>> search = _ECBS(inst, Deadline(None), w=1.0, polish=False, bypass=False, low=low)
+    >>> search.w_high, low.plan(search, 0, AgentConstraints())
+    (2.0, ((0, 1, 2), 2))
     """
 
-    # attributes of _ECBS used here
-    instance: Instance
-    goals: list[int]
-    starts: list[int]
-    dists: list[list[int]]
-    adj: list[list[int]]
-    w: float
-    w_high: float
-    res: Reservations
-    deadline: Deadline
-    stats: dict[str, Any]
-
-    def use_highways(self, highways: Highways, w_hwy: float, mode: str) -> None:
+    def __init__(self, highways: Highways, w_hwy: float, mode: str) -> None:
         self.highways = highways
         self.w_hwy = w_hwy
         self.mode = mode
-        self.hwy = HighwayHeuristic(self.instance.graph, highways, w_hwy)
-        self.hwy.precompute(self.goals)
-        self.true_dists = self.dists
-        if mode == "heuristic":
-            self.dists = [self.hwy.table(x) for x in self.goals]
-        self.w_high = self.w * w_hwy
-        self.stats.update(
-            bound=self.w_high, w_hwy=w_hwy, hwy_mode=mode, highway_edges=len(highways)
+        self.true_dists: list[list[int]] = []
+
+    def prepare(self, search: LowLevelHost) -> None:
+        self.hwy = HighwayHeuristic(search.instance.graph, self.highways, self.w_hwy)
+        self.hwy.precompute(search.goals)
+        self.true_dists = search.dists
+        if self.mode == "heuristic":
+            search.dists = [self.hwy.table(x) for x in search.goals]
+        search.w_high = search.w * self.w_hwy
+        search.stats.update(
+            bound=search.w_high,
+            w_hwy=self.w_hwy,
+            hwy_mode=self.mode,
+            highway_edges=len(self.highways),
         )
 
-    def plan(self, a: int, cons: AgentConstraints, partner: int = -1) -> tuple[Path, int] | None:
+    def plan(
+        self, search: LowLevelHost, a: int, cons: AgentConstraints, partner: int = -1
+    ) -> tuple[tuple[int, ...], int] | None:
+        start, goal = search.starts[a], search.goals[a]
         if self.mode == "heuristic":
-            out: tuple[Path, float] | None = super().plan(a, cons, partner)  # type: ignore[misc]
+            out: tuple[tuple[int, ...], float] | None = super().plan(search, a, cons, partner)
         else:
-            self.stats["low_level_calls"] += 1
+            search.stats["low_level_calls"] += 1
             out = inflated_focal_path(
-                self.adj,
-                self.starts[a],
-                self.goals[a],
-                self.hwy.exact(self.goals[a]),
+                search.adj,
+                start,
+                goal,
+                self.hwy.exact(goal),
                 self.highways,
                 self.w_hwy,
                 cons,
-                self.res,
-                w=self.w,
-                deadline=self.deadline,
-                stats=self.stats,
+                search.res,
+                w=search.w,
+                deadline=search.deadline,
+                stats=search.stats,
             )
         if out is None:
             return None
         path, fmin = out
         lb = max(
-            self.true_dists[a][self.starts[a]],
+            self.true_dists[a][start],
             cons.min_finish,
             math.ceil(fmin / self.w_hwy - 1e-9),
         )
         return path, lb
 
-    def result(self, status: Any, plan: Any, cost: Any = None, lb: Any = None) -> Result:
-        if plan is not None:
-            self.stats["highway_share"] = highway_share(plan, self.highways)
-        return super().result(status, plan, cost, lb)  # type: ignore[misc]
-
-
-class _ECBSHwy(_HighwayMixin, _ECBS):
-    """ECBS(w)+HWY(w_hwy)."""
-
-    name = "ecbs"
-
-
-class _EECBSHwy(_HighwayMixin, _EECBS):
-    """EECBS(w)+HWY(w_hwy)."""
-
-    name = "eecbs"
-
-
-class _CBSHwy(_HighwayMixin, _ECBS):
-    """CBS+HWY(w_hwy): ECBS+HWY's search with ``w = 1`` (plain A* on ``t + h_hwy``,
-    ties by conflicts); the high level takes the node with fewest conflicts among those
-    within ``w_hwy * LB_min``."""
-
-    name = "cbs"
-
-
-_CLASSES: dict[str, type[_ECBS]] = {"ecbs": _ECBSHwy, "eecbs": _EECBSHwy, "cbs": _CBSHwy}
-
-
-def solve_with_highways(
-    name: str,
-    instance: Instance,
-    *,
-    time_limit: float | None,
-    highways: str,
-    w_hwy: float,
-    hwy_mode: str,
-    w: float = 1.0,
-    polish: bool = True,
-    bypass: bool = False,
-) -> Result:
-    """Run solver ``name`` (``cbs``, ``ecbs`` or ``eecbs``) with highways (module doc).
-
-    Example
-    -------
-    >>> g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
-    >>> inst = Instance.mapf(g, [(0, 0), (4, 0)], [(4, 0), (0, 0)])
-    >>> r = solve_with_highways("ecbs", inst, time_limit=10, highways="crisscross",
-    ...                         w_hwy=2.0, hwy_mode="heuristic", w=1.2)
-    >>> r.stats["bound"], r.cost <= 2.4 * r.lower_bound
-    (2.4, True)
-    """
-    deadline = Deadline(time_limit)
-    hw = resolve(instance, highways, name)
-    search = _CLASSES[name](instance, deadline, w=w, polish=polish, bypass=bypass)
-    mixin = cast(_HighwayMixin, search)
-    mixin.use_highways(hw, w_hwy, hwy_mode)
-    search.stats["highway_time"] = deadline.elapsed()
-    return search.search()
+    def annotate(self, stats: dict[str, Any], plan: Plan) -> None:
+        stats["highway_share"] = highway_share(plan, self.highways)
 
 
 __all__ = [
     "HighwayHeuristic",
+    "HighwayLowLevel",
     "inflated_focal_path",
-    "resolve",
-    "solve_with_highways",
 ]

@@ -45,17 +45,16 @@ import sys
 import threading
 from collections.abc import Callable, Sequence
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+import numpy as np
 
 from hierplan_opt.core.errors import OptionError
-from hierplan_opt.core.graph import UNREACHABLE
+from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.search.conflicts import Conflict
-from hierplan_opt.search.constraints import AgentConstraints, successors
-
-if TYPE_CHECKING:
-    import numpy as np
-
-    from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.constraints import AgentConstraints
+from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import Moves, successors
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +151,7 @@ def load() -> ModuleType:
         if _kernel is not None:
             return _kernel
         try:
-            from hierplan_opt.search import _astar_kernel as k
+            from hierplan_opt.search import _astar_kernel as k  # heavy module: numba
 
             _warm_up(k)
         except Exception:
@@ -208,9 +207,6 @@ def _load_cached() -> None:
 
 def _warm_up(k: ModuleType) -> None:
     """One tiny call of every kernel with the argument types real calls use."""
-    from hierplan_opt.core.graph import Graph
-    from hierplan_opt.search.reservations import Reservations
-
     g = Graph.grid(3, 1)
     res = Reservations(g.n)
     res.add(0, (2, 1, 0))
@@ -232,8 +228,6 @@ class _Graph:
     __slots__ = ("adj", "ptr", "idx")
 
     def __init__(self, adj: Sequence[Sequence[int]]) -> None:
-        import numpy as np
-
         succ = successors(adj)
         self.adj = adj
         self.ptr = np.zeros(len(succ) + 1, np.int64)
@@ -260,8 +254,6 @@ def _array(lst: Sequence[int]) -> np.ndarray:
     hit = _ARRAYS.get(id(lst))
     if hit is not None and hit[0] is lst:
         return hit[1]
-    import numpy as np
-
     if len(_ARRAYS) > 1024:
         _ARRAYS.clear()
     arr = np.asarray(lst, np.int64)
@@ -279,8 +271,6 @@ def _cons_arrays(
     per vertex, distance rows of the landmarks) are made per call, so the cache stays
     small on large maps.
     """
-    import numpy as np
-
     hit = _CONS.get(cons.ver)
     if hit is None or hit[0] != goal or hit[1] != n:
         lms = cons.landmarks
@@ -364,8 +354,6 @@ def _never(n: int) -> np.ndarray:
     """A shared read-only array of ``n`` times NEVER (no ``forbid_from``)."""
     a = _NEVER.get(n)
     if a is None:
-        import numpy as np
-
         a = _NEVER[n] = np.full(n, NEVER, np.int64)
     return a
 
@@ -387,8 +375,6 @@ class CatMirror:
     __slots__ = ("graph", "k", "n", "h", "vt", "et", "park_t", "owner")
 
     def __init__(self, k: ModuleType, graph: _Graph) -> None:
-        import numpy as np
-
         self.graph = graph
         self.k = k
         self.n = len(graph.ptr) - 1
@@ -399,8 +385,6 @@ class CatMirror:
         self.owner: Reservations | None = None
 
     def _grow(self, need: int) -> None:
-        import numpy as np
-
         h = max(need, 2 * self.h, 64)
         vt = np.zeros(h * self.n, np.int16)
         vt[: self.vt.shape[0]] = self.vt
@@ -409,8 +393,6 @@ class CatMirror:
         self.vt, self.et, self.h = vt, et, h
 
     def _count(self, path: Sequence[int], delta: int) -> None:
-        import numpy as np
-
         if len(path) > self.h:
             self._grow(len(path))
         g = self.graph
@@ -460,8 +442,6 @@ class DenseMirror(CatMirror):
     __slots__ = ("pos", "plen", "stamp", "park_a")
 
     def __init__(self, k: ModuleType, graph: _Graph, res: Reservations) -> None:
-        import numpy as np
-
         super().__init__(k, graph)
         self._grow(res.horizon + 1)
         rows = max(len(res.paths), 1)
@@ -481,8 +461,6 @@ class DenseMirror(CatMirror):
         self.owner = res
 
     def _apply(self, agent: int, path: Sequence[int], delta: int, stamp: int) -> None:
-        import numpy as np
-
         n_t = len(path)
         if n_t > self.h:
             self._grow(n_t)
@@ -515,8 +493,6 @@ class DenseMirror(CatMirror):
         self, r: int, path: Sequence[int], skip: set[int] | frozenset[int]
     ) -> list[Conflict]:
         """``Reservations.conflicts_of`` from the arrays: same conflicts, same order."""
-        import numpy as np
-
         rows = self.plen.shape[0]
         mask = np.zeros(rows, np.bool_)
         for b in skip:
@@ -543,7 +519,7 @@ _mirrors: list[CatMirror] = []  # most recently used last
 def _mirror(k: ModuleType, g: _Graph, res: Reservations) -> CatMirror:
     if res.dense_ok:
         d = res.dense
-        if d is None or d.graph is not g:
+        if not isinstance(d, DenseMirror) or d.graph is not g:
             res.undense()
             if res.mirror is not None:
                 res.mirror.detach()
@@ -552,7 +528,7 @@ def _mirror(k: ModuleType, g: _Graph, res: Reservations) -> CatMirror:
             res.vt, res.et, res.parked = {}, {}, {}
         return d
     m = res.mirror
-    if m is not None and m.owner is res and m.graph is g:
+    if isinstance(m, CatMirror) and m.owner is res and m.graph is g:
         if _mirrors[-1] is not m:
             _mirrors.remove(m)
             _mirrors.append(m)
@@ -583,14 +559,9 @@ def run(
     h0: int | None = None,
 ) -> tuple[tuple[int, ...] | None, int]:
     """The search of ``space_time_astar`` (after its early exits) in the kernel ``k``."""
-    import numpy as np
-
     if nxt is None or tcap is None or h0 is None:  # a direct call (the warm-up)
-        from hierplan_opt.search.constraints import Moves
-
-        nxt = Moves(adj, goal, dist, cons, dist_of).nxt
-        tcap = max(cons.tmax, cons.min_finish, len(nxt)) + 1
-        h0 = max(dist[start], cons.min_finish)
+        moves = Moves(adj, goal, dist, cons, dist_of)
+        nxt, tcap, h0 = moves.nxt, moves.horizon(), moves.h0(start)
     g, args, off = _search_args(adj, start, goal, dist, cons, nxt, h0)
     if res is not None:
         m = _mirror(k, g, res)
@@ -630,7 +601,6 @@ def build_mdd(
     :func:`mdd_levels` makes the levels of them, :func:`mdd_singles` the one-vertex
     levels.
     """
-    from hierplan_opt.search.constraints import Moves
 
     nxt = Moves(adj, goal, dist, cons, dist_of).nxt
     _, args, _ = _search_args(adj, start, goal, dist, cons, nxt, cost)
@@ -649,8 +619,6 @@ def mdd_restrict(
     """The passes of ``mdd.restrict`` on :func:`build_mdd`'s arrays; None if the cost is
     gone. ``drop``, ``only`` and ``cut`` as that function makes them; ``k`` the kernel
     (default: the loaded one, which made the arrays)."""
-    import numpy as np
-
     k = k or _kernel
     assert k is not None
     dt = [t for t, d in enumerate(drop) if d is not None for _ in d]

@@ -33,12 +33,14 @@ import logging
 from dataclasses import replace
 from typing import Any
 
+from hierplan_opt import registry
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Agent, Instance, Team
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.core.validate import validate
 
 log = logging.getLogger(__name__)
 
@@ -139,9 +141,6 @@ def solve_disappearing(
     >>> r.status.value, r.cost
     ('OPTIMAL', 0)
     """
-    from hierplan_opt import registry
-    from hierplan_opt.core.validate import validate
-
     red = disappear_at_goals(instance)
     res = registry.run(name, red, time_limit=time_limit, **kwargs)
     if res.plan is not None:
@@ -217,8 +216,6 @@ def solved_free_robots(
 ) -> tuple[Result, Instance]:
     """:func:`solve_free_robots`' result and the instance its plan solves (the task-free
     robots' ends fixed; ``instance`` itself when there is no plan)."""
-    from hierplan_opt import registry
-
     deadline = Deadline(time_limit)
     free = free_agents(instance)
     if not free:

@@ -23,8 +23,8 @@ from hierplan_opt.search.constraints import (
     POS_V,
     AgentConstraints,
     Constraint,
-    Moves,
 )
+from hierplan_opt.search.spacetime import Moves
 
 
 class MDD:
@@ -190,72 +190,10 @@ def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]
     """
     cost = m.cost
     goal = m.goal
-    # The old MDD is shared (cached): nothing of it is changed. The constraints become
-    # vertices dropped per level, a vertex a level is reduced to, and cut moves; one
-    # backward pass then builds the new levels, one forward pass prunes them.
-    drop: list[set[int] | None] = [None] * (cost + 1)
-    only: list[int | None] = [None] * (cost + 1)  # -1: no vertex left
-    cut: set[tuple[int, int, int]] = set()  # (time of u, u, v)
-
-    def neg_v(v: int, t: int) -> bool:
-        if t > cost:
-            return v != goal
-        if t > 0:  # like the low level, time 0 (the start) is never constrained
-            d = drop[t]
-            if d is None:
-                drop[t] = {v}
-            else:
-                d.add(v)
-        return True
-
-    def neg_e(u: int, v: int, t: int) -> None:
-        if 1 <= t <= cost:
-            cut.add((t - 1, u, v))
-
-    def pos_v(v: int, t: int) -> bool:
-        if t > cost:
-            return v == goal
-        o = only[t]
-        only[t] = v if o is None or o == v else -1
-        return True
-
-    for kind, _, a, b, t in own:
-        ok = True
-        if kind == NEG_V:
-            ok = neg_v(a, t)
-        elif kind == NEG_E:
-            neg_e(a, b, t)
-        elif kind == NEG_RANGE:
-            for tt in range(b, t + 1):
-                ok = ok and neg_v(a, tt)
-        elif kind == POS_V:
-            ok = pos_v(a, t)
-        elif kind == POS_E:
-            if t > cost:
-                return None
-            ok = pos_v(a, t - 1) and pos_v(b, t)
-        elif kind == LEN_GT:
-            ok = cost > t
-        elif kind == LEN_LE:
-            ok = cost <= t
-        else:  # pragma: no cover
-            return None
-        if not ok:
-            return None
-    for (kind, _, a, b, t), other_goal in derived:
-        ok = True
-        if kind == POS_V:
-            ok = neg_v(a, t)
-        elif kind == POS_E:
-            ok = neg_v(b, t) and neg_v(a, t - 1)
-            neg_e(b, a, t)
-        elif kind == LEN_LE:
-            if other_goal == goal:
-                return None
-            for tt in range(t, cost + 1):
-                neg_v(other_goal, tt)
-        if not ok:
-            return None
+    r = _Restriction(cost, goal)
+    if not all(r.own(c) for c in own) or not all(r.derived(c, g) for c, g in derived):
+        return None
+    drop, only, cut = r.drop, r.only, r.cut
     if m._levels is None:  # the compiled builder's arrays: restrict them in the kernel
         raw = jit.mdd_restrict(m._raw, cost, goal, drop, only, cut)
         return None if raw is None else MDD(None, cost, goal, raw)
@@ -292,3 +230,78 @@ def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]
             for v in [v for v in nxt if v not in reach]:
                 del nxt[v]
     return MDD(levels, cost, goal)
+
+
+class _Restriction:
+    """:func:`restrict`'s constraints as vertices dropped per level (``drop``), the
+    vertex a level is reduced to (``only``; -1: none left) and cut moves ``(time of u,
+    u, v)`` (``cut``). The old MDD is shared (cached): nothing of it is changed; one
+    backward pass then builds the new levels, one forward pass prunes them."""
+
+    __slots__ = ("cost", "goal", "drop", "only", "cut")
+
+    def __init__(self, cost: int, goal: int) -> None:
+        self.cost = cost
+        self.goal = goal
+        self.drop: list[set[int] | None] = [None] * (cost + 1)
+        self.only: list[int | None] = [None] * (cost + 1)
+        self.cut: set[tuple[int, int, int]] = set()
+
+    def neg_v(self, v: int, t: int) -> bool:
+        if t > self.cost:
+            return v != self.goal
+        if t > 0:  # like the low level, time 0 (the start) is never constrained
+            d = self.drop[t]
+            if d is None:
+                self.drop[t] = {v}
+            else:
+                d.add(v)
+        return True
+
+    def neg_e(self, u: int, v: int, t: int) -> None:
+        if 1 <= t <= self.cost:
+            self.cut.add((t - 1, u, v))
+
+    def pos_v(self, v: int, t: int) -> bool:
+        if t > self.cost:
+            return v == self.goal
+        o = self.only[t]
+        self.only[t] = v if o is None or o == v else -1
+        return True
+
+    def own(self, c: Constraint) -> bool:
+        """Add one of the agent's own constraints; False if the cost is ruled out."""
+        kind, _, a, b, t = c
+        cost = self.cost
+        if kind == NEG_V:
+            return self.neg_v(a, t)
+        if kind == NEG_E:
+            self.neg_e(a, b, t)
+            return True
+        if kind == NEG_RANGE:
+            return all([self.neg_v(a, tt) for tt in range(b, t + 1)])
+        if kind == POS_V:
+            return self.pos_v(a, t)
+        if kind == POS_E:
+            return t <= cost and self.pos_v(a, t - 1) and self.pos_v(b, t)
+        if kind == LEN_GT:
+            return cost > t
+        if kind == LEN_LE:
+            return cost <= t
+        return False  # pragma: no cover
+
+    def derived(self, c: Constraint, other_goal: int) -> bool:
+        """Add a constraint derived from another agent's; False if the cost is ruled out."""
+        kind, _, a, b, t = c
+        if kind == POS_V:
+            return self.neg_v(a, t)
+        if kind == POS_E:
+            ok = self.neg_v(b, t) and self.neg_v(a, t - 1)
+            self.neg_e(b, a, t)
+            return ok
+        if kind == LEN_LE:
+            if other_goal == self.goal:
+                return False
+            for tt in range(t, self.cost + 1):
+                self.neg_v(other_goal, tt)
+        return True

@@ -12,17 +12,39 @@ at a time is ``t * N + v`` and a move ``u -> v`` arriving at ``t`` is ``(t * N +
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from hierplan_opt.search.conflicts import EDGE, TARGET, VERTEX, Conflict
-
-if TYPE_CHECKING:
-    from hierplan_opt.search.jit import CatMirror, DenseMirror
 
 #: ``park_t`` of a vertex where nobody parks: later than any timestep.
 NEVER = 1 << 60
 
 Path = tuple[int, ...]
+
+
+class Mirror(Protocol):
+    """A dense copy of the table kept in step with it (the compiled low level's
+    :class:`~hierplan_opt.search.jit.CatMirror`; declared here so that this module
+    does not import the one that reads it)."""
+
+    def update(self, path: Sequence[int], delta: int, park: int) -> None: ...
+
+    def detach(self) -> None: ...
+
+
+class DenseCopy(Protocol):
+    """A copy that holds the reservations itself
+    (:class:`~hierplan_opt.search.jit.DenseMirror`)."""
+
+    def add(self, agent: int, path: Sequence[int], stamp: int) -> None: ...
+
+    def remove(self, agent: int, path: Sequence[int]) -> None: ...
+
+    def conflicts_of(
+        self, r: int, path: Sequence[int], skip: frozenset[int] | set[int]
+    ) -> list[Conflict]: ...
+
+    def parked(self) -> tuple[dict[int, tuple[int, int]], list[int]]: ...
 
 
 class Reservations:
@@ -82,7 +104,7 @@ class Reservations:
         self.horizon = 0
         #: The compiled low level's dense copy (:class:`~hierplan_opt.search.jit.CatMirror`),
         #: attached by its first call and kept in step here; None otherwise.
-        self.mirror: CatMirror | None = None
+        self.mirror: Mirror | None = None
         #: ``stamps[a]``: when ``a``'s path was added (a clock of adds). The agents listed
         #: at a key of ``vt`` / ``et`` are those of their reservations, in stamp order.
         self.stamps: list[int] = []
@@ -94,7 +116,7 @@ class Reservations:
         #: once it has taken the table over: then it alone holds the reservations (the
         #: dicts above stay empty; about ten times cheaper to patch) and answers
         #: :meth:`conflicts_of`; :meth:`undense` hands them back.
-        self.dense: DenseMirror | None = None
+        self.dense: DenseCopy | None = None
 
     # ------------------------------------------------------------------ updates
     def add(self, agent: int, path: Path) -> None:

@@ -239,7 +239,7 @@ def travel_time(
         for u in (*adj[v], v):
             if (v == bx and u == by) or (v == by and u == bx):
                 continue
-            # The vertex/edge/goal-blocking part of constraints.Moves, written out as in
+            # The vertex/edge/goal-blocking part of spacetime.Moves, written out as in
             # the low level's loop (astar.space_time_astar); landmarks are left out.
             if base + u in vc:
                 continue

@@ -1,4 +1,7 @@
-"""Automatic highways from the agents' independent shortest paths (``formulations/highways.md``).
+"""Learned highways from the agents' independent shortest paths, and every highway
+generator by name (:func:`resolve`, the ``highways`` option of the solvers).
+
+The learned generators (``formulations/highways.md``):
 
 Both generators start from the *traffic* of an instance: for every agent, one unit of
 flow goes from its start to its goal along its shortest paths, splitting evenly among
@@ -24,9 +27,15 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.core.graph import UNREACHABLE
-from hierplan_opt.core.highways import Highways, is_2d_grid
+from hierplan_opt.core.highways import (
+    GENERATORS,
+    Highways,
+    corridors,
+    crisscross,
+    is_2d_grid,
+)
 from hierplan_opt.core.instance import Instance
 
 #: Capacities are scaled to integers for the max-flow routine.
@@ -95,7 +104,7 @@ def min_cut_labels(
     >>> lab.tolist(), round(e, 3)
     ([0, 1, 0], 1.5)
     """
-    import scipy.sparse as sp
+    import scipy.sparse as sp  # heavy module (scipy): loaded only for learned highways
     from scipy.sparse.csgraph import breadth_first_order, maximum_flow
 
     m = len(unary)
@@ -226,3 +235,53 @@ def learned(
 
 
 __all__ = ["flow", "learned", "min_cut_labels", "traffic"]
+
+
+# ---------------------------------------------------------------- by name
+def resolve(instance: Instance, spec: object, solver: str = "solver") -> Highways:
+    """The highway set named by the ``highways`` option.
+
+    ``"instance"`` is the instance's own set (:attr:`Instance.highways`, e.g. read from a
+    file), ``"crisscross"`` and ``"corridors"`` the generators of
+    :mod:`hierplan_opt.core.highways`, ``"learned"`` and ``"flow"`` those above.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> sorted(resolve(inst, "crisscross"))
+    [(0, 1), (1, 2)]
+    >>> resolve(inst, "instance", "ecbs")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OptionError: ecbs option highways='instance': the instance has no ...
+    """
+    check_spec(instance, spec, solver)
+    if spec == "instance":
+        assert instance.highways is not None  # checked
+        return instance.highways
+    if spec == "crisscross":
+        return crisscross(instance.graph)
+    if spec == "corridors":
+        return corridors(instance.graph)
+    return learned(instance) if spec == "learned" else flow(instance)
+
+
+def check_spec(instance: Instance, spec: object, solver: str) -> None:
+    """The errors of :func:`resolve` without computing the set (for a solver that
+    hands the option on to another).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> check_spec(Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)]), "instance", "cbs")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OptionError: cbs option highways='instance': the instance has no ...
+    """
+    if spec == "instance" and instance.highways is None:
+        raise OptionError(f"{solver} option highways='instance': the instance has no highways")
+    if spec not in GENERATORS:
+        raise OptionError(
+            f"{solver} option highways must be one of {', '.join(GENERATORS)}, got {spec!r}"
+        )

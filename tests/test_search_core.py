@@ -1,0 +1,181 @@
+"""One successor rule for the four space-time searches (issue 31).
+
+The A* (pure Python and compiled), the MDD builders, the focal search and the
+highway-inflated focal search each expand states in their own hot loop, written out for
+speed; these tests tie the loops to the one rule, :class:`~hierplan_opt.search.
+spacetime.Moves` (which move is allowed at which time, with which lower bound):
+
+* the compiled kernel's rule (``_move_h``, shared by its A* and its MDD builder) gives
+  exactly ``Moves.at`` for every state of random instances and constraint sets;
+* the Python A*'s path takes only moves of ``Moves``, lies in the MDD of its cost, and
+  no path of one step less exists (the MDD of that cost is empty);
+* the focal search at ``w = 1`` and the inflated search with every edge costing 1 find
+  the A*'s cost under the same vertex and edge constraints, with or without other
+  agents' paths to count conflicts with.
+
+The kernel and the Python A* / MDDs are compared call by call in
+``tests/test_jit_astar.py`` (same paths, expansions and levels).
+"""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+import pytest
+
+from hierplan_opt.core.graph import UNREACHABLE, Graph
+from hierplan_opt.search import astar, jit
+from hierplan_opt.search.constraints import (
+    LEN_GT,
+    LEN_LE,
+    NEG_E,
+    NEG_RANGE,
+    NEG_V,
+    POS_E,
+    POS_V,
+    AgentConstraints,
+)
+from hierplan_opt.search.focal import focal_path
+from hierplan_opt.search.highways import inflated_focal_path
+from hierplan_opt.search.mdd import build_mdd
+from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import Moves
+
+
+def grid(rng: random.Random) -> tuple[Graph, list[int]]:
+    w, h = rng.choice([(4, 4), (5, 3), (6, 5)])
+    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
+    g = Graph.grid(w, h, obstacles=obst)
+    return g, [v for v in range(g.n) if g.passable[v]]
+
+
+def constraints(
+    g: Graph, rng: random.Random, free: list[int], goal: int, kinds: tuple[str, ...]
+) -> AgentConstraints:
+    c = AgentConstraints.root(g.n, goal)
+    for _ in range(rng.randint(0, 8)):
+        kind = rng.choice(kinds)
+        v = rng.choice(free)
+        nb = rng.choice([*g.adj[v], v])
+        t = rng.randint(1, 9)
+        if kind == "v":
+            c = c.add((NEG_V, 0, v, -1, t), n=g.n, goal=goal)
+        elif kind == "e":
+            c = c.add((NEG_E, 0, v, nb, t), n=g.n, goal=goal)
+        elif kind == "range":
+            c = c.add((NEG_RANGE, 0, v, t, t + 2), n=g.n, goal=goal)
+        elif kind == "pos_v" and rng.random() < 0.4:
+            c = c.add((POS_V, 0, v, -1, t), n=g.n, goal=goal)
+        elif kind == "pos_e" and rng.random() < 0.4:
+            c = c.add((POS_E, 0, v, nb, t), n=g.n, goal=goal)
+        elif kind == "gt":
+            c = c.add((LEN_GT, 0, -1, -1, t), n=g.n, goal=goal)
+        elif kind == "le":
+            c = c.add((LEN_LE, 0, -1, -1, t + 6), n=g.n, goal=goal)
+    return c
+
+
+ALL_KINDS = ("v", "v", "e", "range", "pos_v", "pos_e", "gt", "le")
+FOCAL_KINDS = ("v", "v", "e")  # the focal searches take vertex and edge constraints only
+
+
+def walk(g: Graph, rng: random.Random, free: list[int], steps: int) -> tuple[int, ...]:
+    p = [rng.choice(free)]
+    for _ in range(steps):
+        p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
+    return tuple(p)
+
+
+@pytest.mark.parametrize("seed", range(25))
+def test_kernel_rule_is_moves(seed):
+    k = jit.load()
+    rng = random.Random(seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    for _ in range(4):
+        s, goal = rng.sample(free, 2)
+        cons = constraints(g, rng, free, goal, ALL_KINDS)
+        dist = g.dist_list(goal)
+        moves = Moves(g.adj, goal, dist, cons, g.dist_list)
+        kg, args, _ = jit._search_args(g.adj, s, goal, dist, cons, moves.nxt, 0)
+        ptr, idx, darr = kg.ptr, kg.idx, args[2]
+        vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, minf = args[6:]
+        n_lm = lm_need.shape[0]
+        for t in range(1, cons.tmax + 4):
+            nl = t < n_lm
+            need = int(lm_need[t]) if nl else -1
+            for v in free:
+                kernel = []
+                for j in range(ptr[v], ptr[v + 1]):
+                    u = int(idx[j])
+                    hu = k._move_h(
+                        u, v, t, g.n, need, vkeys, ekeys, ff, darr, nl, lmd, nxt_row, nxt_tl,
+                        nxt_hb, minf, UNREACHABLE,
+                    )  # fmt: skip
+                    if hu >= 0:
+                        kernel.append((u, int(hu)))
+                assert kernel == moves.at(v, t), (seed, v, t)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_astar_moves_and_mdd_agree(seed):
+    rng = random.Random(100 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    jit.set_low_level("python")
+    try:
+        for _ in range(5):
+            s, goal = rng.sample(free, 2)
+            cons = constraints(g, rng, free, goal, ALL_KINDS)
+            dist = g.dist_list(goal)
+            path, _ = astar.space_time_astar(g.adj, s, goal, dist, cons, dist_of=g.dist_list)
+            if path is None:
+                continue
+            cost = len(path) - 1
+            moves = Moves(g.adj, goal, dist, cons, g.dist_list)
+            for t in range(1, cost + 1):
+                assert path[t] in [u for u, _ in moves.at(path[t - 1], t)], (seed, t)
+            m = build_mdd(g.adj, s, goal, dist, cons, cost, g.dist_list)
+            assert all(m.has(t, v) for t, v in enumerate(path))
+            if cost >= 2:  # one step less: no path (the MDD of that cost is empty)
+                less = build_mdd(g.adj, s, goal, dist, cons, cost - 1, g.dist_list)
+                assert not less.levels[0], seed
+    finally:
+        jit.set_low_level(None)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_focal_and_inflated_find_the_astar_cost(seed):
+    rng = random.Random(200 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    for a in range(rng.randint(0, 4)):
+        res.add(a, walk(g, rng, free, rng.randint(0, 10)))
+    every_edge = frozenset((v, u) for v in range(g.n) for u in g.adj[v])
+    jit.set_low_level("python")
+    try:
+        for _ in range(5):
+            s, goal = rng.sample(free, 2)
+            cons = constraints(g, rng, free, goal, FOCAL_KINDS)
+            dist = g.dist_list(goal)
+            path, _ = astar.space_time_astar(g.adj, s, goal, dist, cons, res=res)
+            found = focal_path(g.adj, s, goal, dist, cons, res, w=1.0)
+            if path is None:
+                assert found is None, seed
+                continue
+            cost = len(path) - 1
+            assert found is not None and len(found[0]) - 1 == cost and found[1] == cost
+            bounded = focal_path(g.adj, s, goal, dist, cons, res, w=1.5)
+            assert bounded is not None and bounded[1] <= cost
+            assert len(bounded[0]) - 1 <= 1.5 * bounded[1] + 1e-9
+            # Every move (and wait) costs 1: the inflated search is the same problem.
+            h = np.array([float(x) if x < UNREACHABLE else np.inf for x in dist])
+            infl = inflated_focal_path(g.adj, s, goal, h, every_edge, 1.0, cons, res, w=1.0)
+            assert infl is not None and len(infl[0]) - 1 == cost and infl[1] == cost
+    finally:
+        jit.set_low_level(None)
