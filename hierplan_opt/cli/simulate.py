@@ -105,11 +105,11 @@ def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any,
     """The schedule to execute: MAPF-POST of a plan file, or a schedule file read by the
     one reader (its own plan, settings and times; ``--margin`` re-posts its plan)."""
     from hierplan_opt.io import load_plan
-    from hierplan_opt.schedule import Schedule, postprocess
+    from hierplan_opt.schedule import load_schedule, postprocess
     from hierplan_opt.schedule.files import is_schedule_file
 
     if is_schedule_file(args.plan):
-        schedule = Schedule.load(args.plan, instance)
+        schedule = load_schedule(args.plan, instance)
         if args.margin is not None and args.margin != schedule.margin:
             assert schedule.plan is not None
             st = schedule.settings

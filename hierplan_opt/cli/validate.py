@@ -50,10 +50,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def _schedule(args: argparse.Namespace, instance) -> int:
     """A schedule file: its plan (validated by the reader), bounds and replay."""
     from hierplan_opt.core.errors import InputError
-    from hierplan_opt.schedule import Schedule, replay
+    from hierplan_opt.schedule import load_schedule, replay
 
     try:
-        schedule = Schedule.load(args.plan, instance)
+        schedule = load_schedule(args.plan, instance)
     except InputError as exc:
         if "plan is invalid" not in str(exc):
             raise

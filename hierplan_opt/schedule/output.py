@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.schedule.clearance import PairClearance
@@ -42,6 +43,30 @@ from hierplan_opt.schedule.tpg import KIND_NAMES
 
 #: Way-point kinds: STN node kinds plus the end of a turn in place.
 TURN = "turn"
+
+
+def plan_tree(instance: Instance, plan: Plan) -> dict[str, list[list[Any]]]:
+    """The plan as a file carries it: per robot its visits ``[*location, step]``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0)], [(2, 1)])
+    >>> plan_tree(inst, Plan.from_paths([[0, 1, 1, 4, 5]]))
+    {'agent0': [[0, 0, 0], [1, 0, 1], [1, 1, 3], [2, 1, 4]]}
+    """
+    g = instance.graph
+    out: dict[str, list[list[Any]]] = {}
+    for agent, path in zip(instance.agents, plan.paths, strict=True):
+        rows: list[list[Any]] = []
+        prev = None
+        for t, v in enumerate(path):
+            if v != prev:
+                loc = g.plain_location(int(v))
+                rows.append([loc, t] if isinstance(loc, str) else [*loc, t])
+                prev = v
+        out[agent.name] = rows
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,7 +139,7 @@ class Schedule:
         ``acceleration``, ``epsilon``, ``deadlines``, ``radii`` (per robot) and the
         ``solver`` of the plan when known.
     plan_rows : dict or None
-        The plan as its file carries it (:func:`~hierplan_opt.schedule.files.plan_tree`).
+        The plan as its file carries it (:func:`plan_tree`).
     """
 
     __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
@@ -139,15 +164,6 @@ class Schedule:
     plan: Plan | None = field(default=None, repr=False)
     settings: dict[str, Any] = field(default_factory=dict)
     plan_rows: dict[str, list[list[Any]]] | None = field(default=None, repr=False)
-
-    @classmethod
-    def load(cls, path: str | Path, instance: Any) -> Schedule:
-        """Read a schedule file for ``instance``: the one reader of schedule files
-        (:func:`hierplan_opt.schedule.files.load_schedule`, which see)."""
-        # files.py builds on this module (and on post.py, which imports it).
-        from hierplan_opt.schedule.files import load_schedule
-
-        return load_schedule(path, instance)
 
     @property
     def slack(self) -> np.ndarray:
