@@ -37,7 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _kind(path: str) -> tuple[str, Any]:
     """(kind, parsed data); kind: trajectories, lorr, report, schedule or plan."""
-    from hierplan_opt.io._yaml import read_yaml
+    from hierplan_opt.io.yaml import read_yaml
     from hierplan_opt.viz.scene import is_lorr
 
     if Path(path).suffix.lower() == ".npz":

@@ -328,7 +328,7 @@ def resolve(spec: SweepSpec | Mapping[str, Any] | str | Path) -> SweepSpec:
 def spec_from_db(path: str | Path) -> SweepSpec:
     """The spec of the latest sweep recorded in the database ``path`` (its results go
     back to that database)."""
-    from hierplan_opt.io._yaml import read_yaml
+    from hierplan_opt.io.yaml import read_yaml
 
     con = store.open_existing(path)
     try:

@@ -161,7 +161,7 @@ def report(task: dict[str, Any]) -> None:
     except MemoryError:
         out = {"status": MEMOUT, "error": "MemoryError: the run exceeded its memory limit"}
     except Exception as exc:  # recorded as the run's outcome; the sweep goes on
-        from hierplan_opt.io._yaml import one_line
+        from hierplan_opt.io.yaml import one_line
 
         out = {"status": "ERROR", "error": one_line(f"{type(exc).__name__}: {exc}")[:500]}
     out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -66,7 +66,7 @@ def load_instance(
     Instance('tiny', MAPF, 1 agents, Graph(grid 3x1, 3 free cells))
     """
     from hierplan_opt.io import lmrp_yaml, movingai, yaml_format
-    from hierplan_opt.io._yaml import Ctx, read_yaml
+    from hierplan_opt.io.yaml import Ctx, read_yaml
 
     p = Path(path)
     ctx = Ctx(p)

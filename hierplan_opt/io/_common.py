@@ -8,7 +8,7 @@ from typing import Any, TypeVar
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.yaml import Ctx
 
 T = TypeVar("T")
 

@@ -19,7 +19,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.io._common import grid_2d, grid_cell, grid_xy
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.yaml import Ctx
 
 _AGENT = re.compile(r"\s*Agent\s+(\d+)\s*:(.*)$")
 _CELL = re.compile(r"\(\s*(-?\d+)\s*,\s*(-?\d+)\s*\)")

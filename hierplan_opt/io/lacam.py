@@ -31,7 +31,7 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.io._common import grid_2d, grid_cell, grid_xy
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.yaml import Ctx
 
 _KEY = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)=(.*)$")
 _STEP = re.compile(r"\s*(\d+)\s*:(.*)$")

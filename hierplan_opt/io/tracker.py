@@ -46,7 +46,7 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.io._common import grid_2d, grid_xy
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.yaml import Ctx
 
 FIELDS = (
     "map_name",
@@ -460,7 +460,7 @@ def _rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
 
 
 def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-    from hierplan_opt.io._yaml import check_nesting
+    from hierplan_opt.io.yaml import check_nesting
 
     check_nesting(text, name)
     try:
@@ -476,7 +476,7 @@ def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any
 
 
 def _yaml_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-    from hierplan_opt.io._yaml import read_yaml
+    from hierplan_opt.io.yaml import read_yaml
 
     ctx = Ctx(name)
     docs = [d for d in re.split(r"(?m)^---[ \t]*$", text)]

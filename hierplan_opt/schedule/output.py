@@ -26,7 +26,6 @@ import csv
 import io
 import json
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.reprs import short_repr
+from hierplan_opt.io.values import plain
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
@@ -212,8 +212,8 @@ class Schedule:
             "clearance": [c.as_dict() for c in self.clearance],
         }
         for k, v in self.stats.items():
-            out[k] = _plain(v)
-        return _finite(out)
+            out[k] = _num(v)
+        return plain(out)
 
     def to_dict(self) -> dict[str, Any]:
         """``{statistics: {...}, schedule: {agent: [{x, y, [z,] theta, arrival}, ...]}}``."""
@@ -236,44 +236,15 @@ class Schedule:
         """The ``settings`` and ``plan`` blocks of the files (those known)."""
         out: dict[str, Any] = {}
         if self.settings:
-            out["settings"] = _finite(_plain(self.settings))
+            out["settings"] = _num(self.settings)
         if self.plan_rows is not None:
             out["plan"] = self.plan_rows
         return out
 
 
-def _num(x: float) -> float | int:
-    """A float rounded to 9 decimals; integral values stay readable (``2`` not ``2.0``)."""
-    f = float(x)
-    if not math.isfinite(f):
-        return f
-    r = round(f, 9)
-    return int(r) if r == int(r) and abs(r) < 1e15 else r
-
-
-def _finite(tree: Any) -> Any:
-    """``tree`` with every non-finite number replaced by None (files never hold them)."""
-    if isinstance(tree, float) and not math.isfinite(tree):
-        return None
-    if isinstance(tree, dict):
-        return {k: _finite(v) for k, v in tree.items()}
-    if isinstance(tree, list):
-        return [_finite(v) for v in tree]
-    return tree
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, (np.floating, float)):
-        return _num(float(v))
-    if isinstance(v, np.ndarray):
-        return [_plain(x) for x in v.tolist()]
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    if isinstance(v, Mapping):
-        return {str(k): _plain(x) for k, x in v.items()}
-    return v
+def _num(x: Any) -> Any:
+    """Floats rounded to 9 decimals, whole ones written as ints (``2`` not ``2.0``)."""
+    return plain(x, digits=9, integral=True)
 
 
 # ---------------------------------------------------------------------- building
@@ -452,8 +423,8 @@ def read_schedule(path: str | Path) -> dict[str, Any]:
     CSV rows come back with the same keys as YAML (``x, y, [z,] theta, arrival``) plus
     ``earliest, latest, slack, kind``.
     """
-    from hierplan_opt.io._yaml import check_nesting, read_yaml
     from hierplan_opt.io.files import read_text
+    from hierplan_opt.io.yaml import check_nesting, read_yaml
 
     path = Path(path)
     text = read_text(path)  # regular files within the size limit only
