@@ -3,13 +3,16 @@
 Layers, from the bottom up (a module may import its own part of the package and any
 part of a lower layer; parts that share a layer do not import each other)::
 
-    core <- io <- registry <- search, formulations <- api <- schedule <- trajectory
-         <- execution <- physics, lifelong <- experiments, viz <- bench <- cli
-         <- the package root (hierplan_opt/__init__.py) and __main__
+    core <- io <- registry <- search, formulations <- api <- schedule
+         <- trajectory, physics <- execution <- lifelong <- experiments, viz <- bench
+         <- cli <- the package root (hierplan_opt/__init__.py) and __main__
 
 ``api`` (``hierplan_opt.solve``, the checked solve) sits just above the solvers: it
 routes annotated roadmaps and task-free robots to ``search.libmrp``, and every layer
-above (execution's re-planning, experiments, bench, cli) calls it. The package root is
+above (execution's re-planning, experiments, bench, cli) calls it. ``physics`` is the
+MuJoCo plant that execution's closed loop drives (``simulate(mode="physics")``): it
+needs only core, io and the schedule, so it sits below execution, beside trajectory,
+and execution loads it inside a function (a heavy module: MuJoCo). The package root is
 the front door for users: it re-exports (lazily) from every layer, so it is the top
 and no module of the package imports it (they import the module that defines a name).
 
@@ -36,9 +39,9 @@ LAYERS = [
     {"search", "formulations"},
     {"api"},
     {"schedule"},
-    {"trajectory"},
+    {"trajectory", "physics"},
     {"execution"},
-    {"physics", "lifelong"},
+    {"lifelong"},
     {"experiments", "viz"},
     {"bench"},
     {"cli"},

@@ -140,8 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.reference or args.anchor:
         return reference(args.instance, args.quick, args.time_limit, args.anchor)
 
-    import hierplan_opt
     from hierplan_opt import registry
+    from hierplan_opt.api import solve
 
     specs = args.instance or [f"{s}:{k}" for s, k in (QUICK if args.quick else TARGETS)]
     tl = time_limit(args.time_limit, args.quick)
@@ -168,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
         stem, inst = scenario(spec)
         k = inst.num_agents
         for label, opts in variants:
-            r = hierplan_opt.solve(inst, "cbs", time_limit=tl, objective=args.objective, **opts)
+            r = solve(inst, "cbs", time_limit=tl, objective=args.objective, **opts)
             print(
                 f"{stem:32} {k:>4} {label:10} {search_columns(r)} "
                 f"{r.stats.get('rectangle_splits', 0):>5}",
@@ -492,8 +492,8 @@ def reference(
     specs: list[str] | None, quick: bool, tl_given: float | None, anchor: str | None
 ) -> int:
     """The reference table (see the module doc); 1 if any optimum differs from the known one."""
-    import hierplan_opt
     from hierplan_opt import registry
+    from hierplan_opt.api import solve
     from hierplan_opt.core.validate import validate
 
     ref = reference_table()
@@ -503,7 +503,7 @@ def reference(
             raise InputError(f"--instance {name}: not a reference instance (SCEN:K of {len(ref)})")
     tl = time_limit(tl_given, False)
     # Warm-up: the first solve of a process pays the solver's lazy imports.
-    hierplan_opt.solve(scenario("empty-8-8-even-1:2")[1], "cbs")
+    solve(scenario("empty-8-8-even-1:2")[1], "cbs")
     head = (
         f"{'instance':36} {'opt':>6} {'status':9} {'ours_s':>7} {'C++_s':>7} {'ratio':>6} "
         f"{'runs':>5} {'HL ours':>11} {'HL C++':>11} {'LL ours':>9} {'LL C++':>9}"

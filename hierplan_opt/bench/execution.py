@@ -68,7 +68,7 @@ def resolve_row(
     instance: Instance, plan, schedule, w: float, repeats: int, time_limit: float = 120.0
 ) -> dict:
     """Times of the incremental re-solve, a full pass and a MAPF re-plan (seconds)."""
-    import hierplan_opt as hp
+    from hierplan_opt.api import solve
     from hierplan_opt.execution.simulate import rebound
     from hierplan_opt.schedule import earliest_times, fix_and_propagate
 
@@ -104,7 +104,7 @@ def resolve_row(
         "replan",
     )
     t0 = time.perf_counter()
-    res = hp.solve(inst2, "ecbs", w=w, time_limit=time_limit)
+    res = solve(inst2, "ecbs", w=w, time_limit=time_limit)
     t_replan = time.perf_counter() - t0
     return {
         "resolve": t_inc,
@@ -206,9 +206,9 @@ def main(argv: list[str] | None = None) -> int:
             mc = monte_carlo(inst, s, delays, runs=args.runs, workers=w, progress=False)
             _say(f"{k:>4} {w:>7} {mc.runs_per_second:>8.2f} {mc.collisions:>10}")
     wh = load_instance(shipped("instances/paper/warehouse-part1.yaml"))
-    import hierplan_opt as hp
+    from hierplan_opt.api import solve
 
-    plan = hp.solve(wh, "cbm", time_limit=60.0 if args.time_limit is None else limit).plan
+    plan = solve(wh, "cbm", time_limit=60.0 if args.time_limit is None else limit).plan
     assert plan is not None
     plain = postprocess(wh, plan, check_plan=False)
     # Delivery windows: every robot due 10 % after its planned arrival.

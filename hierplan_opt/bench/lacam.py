@@ -185,12 +185,12 @@ def _worker(spec: dict) -> int:
     """Run one solve in this process and print the result as JSON."""
     import resource
 
-    import hierplan_opt as hp
+    from hierplan_opt.api import solve
     from hierplan_opt.io.movingai import load_movingai
 
     inst = load_movingai(spec["map"], spec["scen"], spec["agents"])
     t0 = time.perf_counter()
-    r = hp.solve(inst, spec["solver"], time_limit=spec["time_limit"], **spec["options"])
+    r = solve(inst, spec["solver"], time_limit=spec["time_limit"], **spec["options"])
     dt = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out = {

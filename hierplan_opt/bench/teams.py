@@ -52,7 +52,7 @@ def map_tapf(path: str, teams: int, size: int, seed: int) -> Instance:
 def _run(
     inst: Instance, solver: str, limit: float, **options
 ) -> tuple[str, object, object, float, dict]:
-    from hierplan_opt import solve
+    from hierplan_opt.api import solve
 
     t0 = time.perf_counter()
     r = solve(inst, solver, time_limit=limit, objective="makespan", **options)

@@ -32,11 +32,12 @@ WAREHOUSE_RADIUS = 0.3
 
 
 def _formation():
-    import hierplan_opt as hp
+    from hierplan_opt.api import solve
     from hierplan_opt.experiments.data import shipped_file  # package data
+    from hierplan_opt.io import load_instance
 
-    inst = hp.load_instance(shipped_file("instances/paper/formation-usc.yaml"))
-    res = hp.solve(inst, "flow", time_limit=60)
+    inst = load_instance(shipped_file("instances/paper/formation-usc.yaml"))
+    res = solve(inst, "flow", time_limit=60)
     if res.plan is None:
         raise RuntimeError(f"flow found no plan for the formation ({res.status})")
     return "formation-usc", inst, res.plan, "flow"
@@ -103,8 +104,8 @@ def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import hierplan_opt as hp
     from hierplan_opt.bench import BenchParser, time_limit
+    from hierplan_opt.core.validate import validate
     from hierplan_opt.schedule import postprocess
     from hierplan_opt.trajectory import InfeasibleWindowsError, refine
     from hierplan_opt.trajectory.model import clear_cache
@@ -139,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     results = []
     for name, inst, plan, planner in cases:
-        hp_valid = hp.validate(inst, plan)
+        hp_valid = validate(inst, plan)
         if hp_valid:
             raise RuntimeError(f"{name}: the plan is invalid: {hp_valid[0]}")
         t0 = time.perf_counter()

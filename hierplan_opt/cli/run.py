@@ -55,11 +55,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import hierplan_opt as hp
     from hierplan_opt import registry
     from hierplan_opt.cli.common import load_instance_from_args
     from hierplan_opt.cli.simulate import check_monte_carlo, disturbances_of, report_execution
     from hierplan_opt.core.options import parse_pairs
+    from hierplan_opt.execution.pipeline import run
 
     check_execution_outputs(args)
     check_monte_carlo(args)
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
 
         infeasible = InfeasibleWindowsError
     try:
-        out = hp.run(
+        out = run(
             instance,
             args.solver,
             post=args.post_objective,

@@ -238,8 +238,8 @@ def default_solver(instance: Any) -> tuple[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    import hierplan_opt
     from hierplan_opt import registry
+    from hierplan_opt.api import solve
     from hierplan_opt.core.result import Status
     from hierplan_opt.io import save_plan
     from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
@@ -270,7 +270,7 @@ def run(args: argparse.Namespace) -> int:
         solved = disappear_at_goals(instance)
     with progress_of(args, f"solve {args.solver}"):
         cpu0 = time.process_time()
-        result = hierplan_opt.solve(
+        result = solve(
             solved,
             args.solver,
             time_limit=args.time_limit,

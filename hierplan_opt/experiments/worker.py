@@ -110,8 +110,9 @@ def build_instance(payload: dict[str, Any], agents: int | None, seed: int, tmp: 
 
 def solve_task(task: dict[str, Any]) -> dict[str, Any]:
     """Solve one task in this process; the fields of a ``runs`` row that it knows."""
-    import hierplan_opt
     from hierplan_opt import registry
+    from hierplan_opt.api import solve
+    from hierplan_opt.core.result import Status
 
     if task.get("target"):
         registry.register(
@@ -122,7 +123,7 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
         )
     with tempfile.TemporaryDirectory(prefix="hierplan-inst-") as tmp:
         inst = build_instance(task["instance"], task["agents"], task["seed"], Path(tmp))
-    res = hierplan_opt.solve(
+    res = solve(
         inst,
         task["solver"],
         time_limit=task["time_limit"],
@@ -139,7 +140,7 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
         "objective": res.objective,
         "agents": inst.num_agents,
         "stats": stats,
-        "error": res.stats.get("error") if res.status == hierplan_opt.Status.ERROR else None,
+        "error": res.stats.get("error") if res.status == Status.ERROR else None,
     }
 
 
