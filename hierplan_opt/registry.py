@@ -20,7 +20,7 @@ import inspect
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from hierplan_opt.core.errors import OptionError, UnknownSolverError
 from hierplan_opt.core.graph import UNREACHABLE
@@ -36,20 +36,6 @@ log = logging.getLogger(__name__)
 #: Arguments every solver takes besides its own options.
 COMMON = ("instance", "time_limit", "seed", "objective")
 OBJECTIVES = ("soc", "makespan")
-
-
-class SolverFn(Protocol):
-    """What the registry hands out: call it like :func:`hierplan_opt.solve` minus the name."""
-
-    def __call__(
-        self,
-        instance: Instance,
-        *,
-        time_limit: float | None = None,
-        seed: int = 0,
-        objective: str | None = None,
-        **options: Any,
-    ) -> Result: ...
 
 
 class Solver:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -119,12 +118,3 @@ def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any
     plan = load_schedule(path, instance).plan
     assert plan is not None
     return plan
-
-
-def summary_table(rows: Sequence[Sequence[Any]], header: Sequence[str]) -> str:
-    """A plain aligned text table."""
-    cells = [[str(h) for h in header]] + [
-        [_f(x) if isinstance(x, float) else str(x) for x in r] for r in rows
-    ]
-    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
-    return "\n".join("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells)
