@@ -19,8 +19,9 @@ solved counts and the geometric mean of our time over the C++'s on the instances
 solve. Times compared are CPU seconds, as CBSH2-RTC measures them (``clock()``), so a
 loaded machine does not skew the ratio: ours is the solving process's CPU time for
 ``registry.run`` (feasibility test, distances and search; the plan is validated
-afterwards, untimed), the C++'s is its ``runtime`` plus ``preprocessing runtime`` (its
-heuristic tables) when run here. Our time limit is wall-clock, the C++'s is on CPU time.
+afterwards by ``registry.checked``, untimed), the C++'s is its ``runtime`` plus
+``preprocessing runtime`` (its heuristic tables) when run here. Our time limit is
+wall-clock, the C++'s is on CPU time.
 Short instances are timed repeatedly (single CPU times of a few milliseconds are noise):
 each side runs again, interleaved, until it has spent ``REPEAT_BUDGET`` seconds of CPU or
 made ``REPEAT_MAX`` runs, each of ours on a freshly loaded instance (nothing cached); the
@@ -494,7 +495,7 @@ def reference(
     """The reference table (see the module doc); 1 if any optimum differs from the known one."""
     from hierplan_opt import registry
     from hierplan_opt.api import solve
-    from hierplan_opt.core.validate import validate
+    from hierplan_opt.core.result import Status
 
     ref = reference_table()
     names = specs or (REFERENCE_QUICK if quick else sorted(ref))
@@ -533,9 +534,10 @@ def reference(
                 cpps.append(run_anchor(anchor, name, tl))
         assert r is not None and inst is not None
         cpu = statistics.median(ours)
+        r = registry.checked(inst, r)  # the plan validated (untimed)
         ok = r.plan is not None
-        bad = r.plan is not None and bool(validate(inst, r.plan))
-        if ok and (bad or (known is not None and r.cost != known)):
+        bad = r.status is Status.ERROR
+        if bad or (ok and known is not None and r.cost != known):
             wrong += 1
             status = "WRONG"
         else:

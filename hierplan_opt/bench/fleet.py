@@ -124,7 +124,7 @@ def lacam_fleet(
     """
     import random
 
-    from hierplan_opt.search.lacam import solve
+    from hierplan_opt.api import solve
 
     cells = sorted(
         (graph.location(int(v)) for v in np.flatnonzero(graph.passable)),
@@ -136,7 +136,7 @@ def lacam_fleet(
     goals = cells[:]
     rng.shuffle(goals)
     inst = Instance.mapf(graph, starts[:agents], goals[:agents], name=f"fleet-{agents}-seed{seed}")
-    r = solve(inst, time_limit=time_limit, seed=0, anytime=0)
+    r = solve(inst, "lacam", time_limit=time_limit, seed=0, anytime=0)
     if r.plan is None:
         return None
     return inst, r.plan, float(r.stats["first_time"])
