@@ -25,6 +25,7 @@ def solve(
     *,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     seed: int = 0,
+    cost: str | None = None,
     objective: str | None = None,
     **options: Any,
 ) -> Result:
@@ -32,8 +33,11 @@ def solve(
 
     ``time_limit`` is a wall-clock budget in seconds (default 60, like the CLI; None
     means no limit): on expiry the result is TIME_LIMIT with the best proven lower bound
-    (or FEASIBLE with the best plan found). ``objective`` defaults to ``"soc"`` for MAPF
-    and ``"makespan"`` for TAPF (and for solvers that only optimise makespan). Every
+    (or FEASIBLE with the best plan found). ``cost`` is what the plan minimises, in
+    steps: ``"soc"`` (sum of costs) or ``"makespan"``; it defaults to ``"soc"`` for MAPF
+    and ``"makespan"`` for TAPF (and for solvers that only optimise makespan).
+    ``objective=`` is its old name, deprecated (a :class:`DeprecationWarning`): an
+    objective is a schedule's, in seconds (:func:`hierplan_opt.postprocess`). Every
     option is checked before any work (unknown ones are refused), and the cheap checks
     of :func:`hierplan_opt.registry.cheap_infeasibility` answer INFEASIBLE at once where
     they can (see :func:`hierplan_opt.registry.run`). A plan that fails the validator is
@@ -161,7 +165,8 @@ def solve(
             f"roadmap has {len(instance.meta['edge_conflicts'])} more conflicting move "
             f"pairs (use {' or '.join(libmrp.ANNOTATED_SOLVERS)})"
         )
-    common: dict[str, Any] = {"time_limit": time_limit, "seed": seed, "objective": objective}
+    kind = registry.cost_keyword(cost, objective)  # (solvers call it "objective")
+    common: dict[str, Any] = {"time_limit": time_limit, "seed": seed, "objective": kind}
     if instance.meta.get("free_agents"):  # task-free robots: the solve picks their ends
         result, instance = libmrp.solved_free_robots(solver, instance, **common, **options)
     else:

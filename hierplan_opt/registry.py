@@ -24,6 +24,7 @@ import importlib
 import inspect
 import logging
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -75,17 +76,43 @@ class Solver:
         *,
         time_limit: float | None = DEFAULT_TIME_LIMIT,
         seed: int = 0,
+        cost: str | None = None,
         objective: str | None = None,
         **options: Any,
     ) -> Result:
         t0 = time.perf_counter()
+        kind = cost_keyword(cost, objective)
         result = run(
-            self.name, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+            self.name, instance, time_limit=time_limit, seed=seed, objective=kind, **options
         )
         return checked(instance, replace(result, runtime=time.perf_counter() - t0))
 
     def __repr__(self) -> str:
         return f"<solver {self.name!r}: {self.__module__}.{self.__qualname__}>"
+
+
+def cost_keyword(cost: str | None, objective: str | None, stacklevel: int = 3) -> str | None:
+    """The plan's cost (``"soc"`` or ``"makespan"``, steps) from ``cost=``, or from the
+    deprecated ``objective=`` of :func:`hierplan_opt.solve` and a solver's call (with a
+    :class:`DeprecationWarning`): ``objective`` names a schedule's goal in seconds
+    (:func:`hierplan_opt.postprocess`: makespan, safety, flowtime).
+
+    Example
+    -------
+    >>> cost_keyword("makespan", None), cost_keyword(None, None)
+    ('makespan', None)
+    """
+    if objective is None:
+        return cost
+    warnings.warn(
+        "solve(objective=...) is deprecated: a plan's cost is cost='soc' or 'makespan' "
+        "(objective= is a schedule's, in postprocess)",
+        DeprecationWarning,
+        stacklevel=stacklevel,
+    )
+    if cost is not None and cost != objective:
+        raise OptionError(f"cost={cost!r} and the deprecated objective={objective!r} differ")
+    return objective
 
 
 def _keyword_defaults(fn: Callable[..., Result]) -> dict[str, Any]:

@@ -143,7 +143,7 @@ def test_cli_invalid_exit_1(plans, capsys):
 
 
 def test_cli_makespan(plans, capsys):
-    code, out = _run(capsys, str(plans["good"]), "--objective", "makespan", "--time-limit", "60")
+    code, out = _run(capsys, str(plans["good"]), "--cost", "makespan", "--time-limit", "60")
     assert code in (0, 1), out
     assert "makespan" in out
 

@@ -169,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
         stem, inst = scenario(spec)
         k = inst.num_agents
         for label, opts in variants:
-            r = solve(inst, "cbs", time_limit=tl, objective=args.objective, **opts)
+            r = solve(inst, "cbs", time_limit=tl, cost=args.objective, **opts)
             print(
                 f"{stem:32} {k:>4} {label:10} {search_columns(r)} "
                 f"{r.stats.get('rectangle_splits', 0):>5}",

@@ -86,7 +86,7 @@ def time_table(
     tiny = Instance.mapf(Graph.grid(3, 2), [(0, 0)], [(2, 1)])
     for s in solvers:
         with contextlib.suppress(ImportError):
-            solve(tiny, s, objective=objective, time_limit=time_limit)
+            solve(tiny, s, cost=objective, time_limit=time_limit)
     for m in maps:
         dropped: set[str] = set()
         for k in agents:
@@ -102,7 +102,7 @@ def time_table(
                     dropped.add(s)
                     continue
                 t0 = time.perf_counter()
-                res = solve(inst, s, objective=objective, time_limit=time_limit)
+                res = solve(inst, s, cost=objective, time_limit=time_limit)
                 dt = time.perf_counter() - t0
                 if res.status != Status.OPTIMAL:
                     dropped.add(s)

@@ -55,7 +55,7 @@ def _run(
     from hierplan_opt.api import solve
 
     t0 = time.perf_counter()
-    r = solve(inst, solver, time_limit=limit, objective="makespan", **options)
+    r = solve(inst, solver, time_limit=limit, cost="makespan", **options)
     dt = time.perf_counter() - t0
     if r.plan is not None and validate(inst, r.plan):
         return "INVALID", None, None, dt, r.stats

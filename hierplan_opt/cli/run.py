@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import argparse
 
-from hierplan_opt.cli.common import INFEASIBLE, LIMIT, add_instance_arguments, positive_float
+from hierplan_opt.cli.common import (
+    INFEASIBLE,
+    LIMIT,
+    add_cost_argument,
+    add_instance_arguments,
+    cost_of,
+    positive_float,
+)
 from hierplan_opt.cli.simulate import add_execution_arguments, check_execution_outputs
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
@@ -13,11 +20,7 @@ HELP = "plan, post-process and execute an instance (the whole hierarchy) with a 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
     p.add_argument("--solver", default="cbs", metavar="NAME", help="planner (default: cbs)")
-    p.add_argument(
-        "--objective",
-        choices=("soc", "makespan"),
-        help="planning objective (default: soc for MAPF, makespan for TAPF)",
-    )
+    add_cost_argument(p, "what the plan minimises")
     p.add_argument(
         "--time-limit",
         type=positive_float,
@@ -80,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
             policy=args.policy,
             mode=args.mode,
             time_limit=args.time_limit,
-            objective=args.objective,
+            cost=cost_of(args),
             margin=args.margin,
             refine=args.refine,
             seed=args.seed,

@@ -14,10 +14,12 @@ from hierplan_opt.cli.common import (
     LIMIT,
     OK,
     PLAN_SUFFIXES,
+    add_cost_argument,
     add_instance_arguments,
     add_memory_argument,
     add_progress_arguments,
     check_outputs,
+    cost_of,
     load_instance_from_args,
     positive_float,
     progress_of,
@@ -54,11 +56,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="solver name (default: cbs for MAPF; for TAPF flow with one team, cbm with "
         "more; the choice is printed); `--solver NAME --help` lists its options",
     )
-    p.add_argument(
-        "--objective",
-        choices=("soc", "makespan"),
-        help="objective (default: soc for MAPF, makespan for TAPF)",
-    )
+    add_cost_argument(p, "what the plan minimises")
     p.add_argument("--w", type=positive_float, metavar="W", help="suboptimality bound (option w)")
     p.add_argument(
         "--highways",
@@ -275,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
             args.solver,
             time_limit=args.time_limit,
             seed=args.seed,
-            objective=args.objective,
+            cost=cost_of(args),
             **options,
         )
         cpu = time.process_time() - cpu0  # the solve's CPU seconds (runtime is wall-clock)

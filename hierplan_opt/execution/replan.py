@@ -229,7 +229,7 @@ def _solve(sim: ExecState, inst2: Instance, margin: float) -> Planned:
                 name,
                 time_limit=limit,
                 seed=seed,
-                objective="soc",
+                cost="soc",
                 margin=margin,
                 **options,
             )

@@ -128,7 +128,7 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
         task["solver"],
         time_limit=task["time_limit"],
         seed=task["seed"],
-        objective=task.get("objective"),
+        cost=task.get("objective"),
         **task.get("options", {}),
     )
     stats = {k: v for k, v in res.stats.items() if _json_safe(v)}
