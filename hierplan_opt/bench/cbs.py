@@ -54,9 +54,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt import registry
+from hierplan_opt.api import solve
 from hierplan_opt.bench import SEARCH_HEAD, BenchParser, scenario, search_columns, time_limit
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.options import parse_pairs
+from hierplan_opt.core.result import Status
 
 #: (scenario stem, agents): the optimal-search targets.
 TARGETS = [
@@ -140,9 +143,6 @@ def main(argv: list[str] | None = None) -> int:
         return 1 if any(r["wrong"] for r in rows) else 0
     if args.reference or args.anchor:
         return reference(args.instance, args.quick, args.time_limit, args.anchor)
-
-    from hierplan_opt import registry
-    from hierplan_opt.api import solve
 
     specs = args.instance or [f"{s}:{k}" for s, k in (QUICK if args.quick else TARGETS)]
     tl = time_limit(args.time_limit, args.quick)
@@ -493,9 +493,6 @@ def reference(
     specs: list[str] | None, quick: bool, tl_given: float | None, anchor: str | None
 ) -> int:
     """The reference table (see the module doc); 1 if any optimum differs from the known one."""
-    from hierplan_opt import registry
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.result import Status
 
     ref = reference_table()
     names = specs or (REFERENCE_QUICK if quick else sorted(ref))

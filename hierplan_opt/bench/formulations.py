@@ -19,7 +19,12 @@ import contextlib
 import time
 from collections.abc import Iterable, Iterator
 
+from hierplan_opt import registry
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.result import Status
 
 MAPS = {
     "random-32-32-20": "random-32-32-20-random-1.scen",
@@ -76,11 +81,6 @@ def time_table(
     maps: list[str], agents: list[int], solvers: list[str], objective: str, time_limit: float
 ) -> Iterator[tuple]:
     """Rows: map, K, solver, status, cost, lower bound, seconds (or why it was skipped)."""
-    from hierplan_opt import registry
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.graph import Graph
-    from hierplan_opt.core.instance import Instance
-    from hierplan_opt.core.result import Status
 
     # Warm up: the first call of a solver pays for importing Pyomo / OR-Tools.
     tiny = Instance.mapf(Graph.grid(3, 2), [(0, 0)], [(2, 1)])

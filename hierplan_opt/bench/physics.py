@@ -37,8 +37,11 @@ from typing import Any
 
 import numpy as np
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance, Kinematics
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +55,6 @@ def _ok(flag: bool) -> str:
 
 
 def _plan(inst: Any, solver: str, limit: float, **options: Any) -> Any:
-    from hierplan_opt.api import solve
     from hierplan_opt.schedule.post import postprocess
 
     r = solve(inst, solver, time_limit=limit, **options)
@@ -171,8 +173,6 @@ def formation(limit: float) -> None:
 
 
 def fleet(n: int, limit: float) -> None:
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.instance import Kinematics
     from hierplan_opt.execution.simulate import simulate
     from hierplan_opt.io.movingai import load_movingai
     from hierplan_opt.schedule.clearance import ClearanceError
@@ -268,9 +268,6 @@ def spill(limit: float) -> None:
 
 
 def agreement() -> None:
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.graph import Graph
-    from hierplan_opt.core.instance import Instance, Kinematics
     from hierplan_opt.physics.run import AGREEMENT, GOAL_TOL, follow
     from hierplan_opt.schedule.post import postprocess
 

@@ -19,10 +19,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
 
 log = logging.getLogger(__name__)
 
@@ -89,8 +91,6 @@ def prioritized_plan(
 
 def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) -> tuple[Plan, str]:
     """An ECBS plan if the ECBS solver is available and succeeds, else prioritized."""
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.validate import validate
 
     try:
         res = solve(instance, "ecbs", time_limit=time_limit, w=w)

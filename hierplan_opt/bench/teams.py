@@ -27,6 +27,7 @@ import time
 
 import numpy as np
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.validate import validate
@@ -52,7 +53,6 @@ def map_tapf(path: str, teams: int, size: int, seed: int) -> Instance:
 def _run(
     inst: Instance, solver: str, limit: float, **options
 ) -> tuple[str, object, object, float, dict]:
-    from hierplan_opt.api import solve
 
     t0 = time.perf_counter()
     r = solve(inst, solver, time_limit=limit, cost="makespan", **options)

@@ -23,6 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hierplan_opt.api import solve
+from hierplan_opt.bench import BenchParser, time_limit
+from hierplan_opt.core.instance import Instance, Kinematics
+from hierplan_opt.core.validate import validate
+
 #: The issue's targets (seconds, schedule to verified trajectories).
 TARGETS = {"formation-usc": 5.0, "warehouse": 10.0}
 WAREHOUSE_MAP = "instances/movingai/warehouse-10-20-10-2-1.map"
@@ -32,7 +37,6 @@ WAREHOUSE_RADIUS = 0.3
 
 
 def _formation():
-    from hierplan_opt.api import solve
     from hierplan_opt.experiments.data import shipped_file  # package data
     from hierplan_opt.io import load_instance
 
@@ -45,7 +49,6 @@ def _formation():
 
 def _warehouse(k: int, w: float, cache: str | None, time_limit: float):
     from hierplan_opt.bench.post import make_plan
-    from hierplan_opt.core.instance import Instance, Kinematics
     from hierplan_opt.experiments.data import shipped_file  # package data
     from hierplan_opt.io import load_plan, save_plan
     from hierplan_opt.io.movingai import load_map, load_scen
@@ -104,8 +107,6 @@ def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hierplan_opt.bench import BenchParser, time_limit
-    from hierplan_opt.core.validate import validate
     from hierplan_opt.schedule import postprocess
     from hierplan_opt.trajectory import InfeasibleWindowsError, refine
     from hierplan_opt.trajectory.model import clear_cache

@@ -23,8 +23,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
 
 TARGET_LOAD_S = 3.0
 TARGET_FPS = 30.0
@@ -32,8 +37,6 @@ TARGET_PICTURE_S = 20.0
 
 
 def _empty_instance(n: int, robots: int, seed: int = 1) -> Any:
-    from hierplan_opt.core.graph import Graph
-    from hierplan_opt.core.instance import Instance
 
     if robots > n * n:
         raise InputError(f"{robots} robots do not fit on a {n} x {n} grid")
@@ -59,8 +62,6 @@ def _save(path: str, plan: Any) -> None:
 
 def _load(path: str, inst: Any) -> Any:
     import numpy as np
-
-    from hierplan_opt.core.plan import Plan
 
     with np.load(path) as z:
         arr = z["paths"]
@@ -115,8 +116,6 @@ def main(argv: list[str] | None = None) -> int:
         "(a 10,000-robot solve takes minutes)",
     )
     args = p.parse_args(argv)
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.validate import validate
     from hierplan_opt.viz.html import write_view
     from hierplan_opt.viz.scene import scene_from_plan
 

@@ -16,6 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt.api import solve
+
 TARGET_S = 20.0
 
 
@@ -27,7 +29,6 @@ def _timed(fn: Callable[[], Any]) -> float:
 
 def picture_table(quick: bool = False, robots: int = 200, seconds: float = 60.0) -> bool:
     """Print the table; True when every picture took less than :data:`TARGET_S`."""
-    from hierplan_opt.api import solve
     from hierplan_opt.execution import simulate
     from hierplan_opt.experiments.data import movingai_files
     from hierplan_opt.io.movingai import load_movingai

@@ -4,15 +4,24 @@ from __future__ import annotations
 
 import argparse
 
+from hierplan_opt import registry
 from hierplan_opt.cli.common import (
     INFEASIBLE,
     LIMIT,
     add_cost_argument,
     add_instance_arguments,
     cost_of,
+    load_instance_from_args,
     positive_float,
 )
-from hierplan_opt.cli.simulate import add_execution_arguments, check_execution_outputs
+from hierplan_opt.cli.simulate import (
+    add_execution_arguments,
+    check_execution_outputs,
+    check_monte_carlo,
+    disturbances_of,
+    report_execution,
+)
+from hierplan_opt.core.options import parse_pairs
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
 
@@ -58,10 +67,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt import registry
-    from hierplan_opt.cli.common import load_instance_from_args
-    from hierplan_opt.cli.simulate import check_monte_carlo, disturbances_of, report_execution
-    from hierplan_opt.core.options import parse_pairs
     from hierplan_opt.execution.pipeline import run
 
     check_execution_outputs(args)

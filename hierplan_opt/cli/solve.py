@@ -7,7 +7,8 @@ import sys
 import time
 from typing import Any
 
-from hierplan_opt.api import DEFAULT_TIME_LIMIT
+from hierplan_opt import registry
+from hierplan_opt.api import DEFAULT_TIME_LIMIT, solve
 from hierplan_opt.cli.common import (
     INFEASIBLE,
     INTERNAL,
@@ -27,6 +28,8 @@ from hierplan_opt.cli.common import (
 from hierplan_opt.core.errors import InputError, UnknownSolverError
 from hierplan_opt.core.options import parse_pairs
 from hierplan_opt.core.progress import note
+from hierplan_opt.core.result import Status
+from hierplan_opt.search.libmrp import disappear_at_goals, from_disappeared
 
 HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning layout)"
 
@@ -114,7 +117,6 @@ def solver_help(name: str) -> list[str]:
     >>> solver_help("ecbs")[2]
     '  w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w * optimum'
     """
-    from hierplan_opt import registry
 
     try:
         spec = registry.get(name).load().options
@@ -180,7 +182,6 @@ def highway_options(args: argparse.Namespace, instance: Any, options: dict[str, 
     """Put ``--highways``/``--w-hwy`` into ``options``; a highway file goes into the instance."""
     from dataclasses import replace
 
-    from hierplan_opt import registry
     from hierplan_opt.core.highways import GENERATORS
 
     if args.highways is None:
@@ -236,9 +237,6 @@ def default_solver(instance: Any) -> tuple[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt import registry
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.result import Status
     from hierplan_opt.io import save_plan
     from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
 
@@ -263,8 +261,6 @@ def run(args: argparse.Namespace) -> int:
     instance = highway_options(args, instance, options)
     solved = instance
     if args.disappear_at_goal:
-        from hierplan_opt.search.libmrp import disappear_at_goals
-
         solved = disappear_at_goals(instance)
     with progress_of(args, f"solve {args.solver}"):
         cpu0 = time.process_time()
@@ -278,8 +274,6 @@ def run(args: argparse.Namespace) -> int:
         )
         cpu = time.process_time() - cpu0  # the solve's CPU seconds (runtime is wall-clock)
         if args.disappear_at_goal:
-            from hierplan_opt.search.libmrp import from_disappeared
-
             result = from_disappeared(instance, result)
         note(status=str(result.status), lb=result.lower_bound, best=result.cost)
     if chosen is not None and "MAPF)" not in chosen:  # MAPF: cbs, the documented default

@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hierplan_opt.core.errors import InputError, OptionError
+from hierplan_opt.core.errors import HierplanError, InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.execution import layers
 from hierplan_opt.execution.closed_loop import ClosedLoop
@@ -138,7 +138,6 @@ class Simulation(ExecState):
     def _refine_again(self, sched: Schedule, t_r: float) -> Any:
         """Refined trajectories of a re-planned schedule (as the first ones were made),
         or None (logged): then it is followed at constant velocity."""
-        from hierplan_opt.core.errors import HierplanError
         from hierplan_opt.trajectory import refine
 
         t0 = time.perf_counter()

@@ -37,9 +37,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt import registry
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.experiments.data import instances_dir
 from hierplan_opt.io.values import plain
-from hierplan_opt.io.yaml import Ctx, read_yaml
+from hierplan_opt.io.yaml import Ctx, read_text, read_yaml
 
 TOP_KEYS = (
     "name",
@@ -147,7 +149,6 @@ def load_spec(path: str | Path) -> SweepSpec:
     (['cbs', 'ecbs(w=1.5)'], (2, 4), 's.sqlite')
     """
     p = Path(path)
-    from hierplan_opt.io.yaml import read_text
 
     text = read_text(p)
     return parse_spec(read_yaml(p, text), folder=p.resolve().parent, file=str(p), source=text,
@@ -283,7 +284,6 @@ def default_label(name: str, options: Mapping[str, Any]) -> str:
 def _solvers(
     ctx: Ctx, value: Any, line: int | None, objective: str | None
 ) -> tuple[SolverSpec, ...]:
-    from hierplan_opt import registry
 
     seq = ctx.sequence(value, "solvers", line)
     if not seq:
@@ -441,8 +441,6 @@ def _files(
 ) -> list[Path]:
     text = ctx.string(value, what, line)
     if text.startswith("$instances"):
-        from hierplan_opt.experiments.data import instances_dir
-
         text = str(instances_dir()) + text[len("$instances") :]
     pattern = Path(text) if Path(text).is_absolute() else folder / text
     if glob.has_magic(text):

@@ -36,6 +36,8 @@ from hierplan_opt.experiments.spec import (
     load_spec,
     parse_spec,
 )
+from hierplan_opt.io import load_instance
+from hierplan_opt.io.yaml import read_yaml
 
 log = logging.getLogger(__name__)
 
@@ -165,7 +167,6 @@ def check_instances(spec: SweepSpec) -> dict[str, str]:
     counts beyond a scenario are refused before the first run; returns the problem
     (``"mapf"`` / ``"tapf"``) of each instance."""
     from hierplan_opt.experiments.generators import GENERATORS
-    from hierplan_opt.io import load_instance
 
     problems: dict[str, str] = {}
     for inst in spec.instances:
@@ -328,7 +329,6 @@ def resolve(spec: SweepSpec | Mapping[str, Any] | str | Path) -> SweepSpec:
 def spec_from_db(path: str | Path) -> SweepSpec:
     """The spec of the latest sweep recorded in the database ``path`` (its results go
     back to that database)."""
-    from hierplan_opt.io.yaml import read_yaml
 
     con = store.open_existing(path)
     try:

@@ -34,6 +34,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt import registry
+from hierplan_opt.api import solve
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.result import Status
+from hierplan_opt.io import load_instance
+from hierplan_opt.io.yaml import one_line
+
 MEMOUT = "MEMOUT"
 #: A forked child's exit code: the server's address space leaves too little of the
 #: task's memory limit; run the task in a fresh process instead.
@@ -91,11 +98,8 @@ def build_instance(payload: dict[str, Any], agents: int | None, seed: int, tmp: 
         from hierplan_opt.experiments.generators import GENERATORS
 
         if agents is None:
-            from hierplan_opt.core.errors import InputError
-
             raise InputError(f"generator {payload['generator']!r} needs an agent count")
         return GENERATORS[payload["generator"]](payload["params"], agents, seed)
-    from hierplan_opt.io import load_instance
 
     paths = []
     for name in payload["order"]:
@@ -110,9 +114,6 @@ def build_instance(payload: dict[str, Any], agents: int | None, seed: int, tmp: 
 
 def solve_task(task: dict[str, Any]) -> dict[str, Any]:
     """Solve one task in this process; the fields of a ``runs`` row that it knows."""
-    from hierplan_opt import registry
-    from hierplan_opt.api import solve
-    from hierplan_opt.core.result import Status
 
     if task.get("target"):
         registry.register(
@@ -162,8 +163,6 @@ def report(task: dict[str, Any]) -> None:
     except MemoryError:
         out = {"status": MEMOUT, "error": "MemoryError: the run exceeded its memory limit"}
     except Exception as exc:  # recorded as the run's outcome; the sweep goes on
-        from hierplan_opt.io.yaml import one_line
-
         out = {"status": "ERROR", "error": one_line(f"{type(exc).__name__}: {exc}")[:500]}
     out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["versions"] = dict(versions())

@@ -36,7 +36,9 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.reprs import short_repr
+from hierplan_opt.io.files import read_text
 from hierplan_opt.io.values import plain
+from hierplan_opt.io.yaml import check_nesting, read_yaml
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
@@ -423,8 +425,6 @@ def read_schedule(path: str | Path) -> dict[str, Any]:
     CSV rows come back with the same keys as YAML (``x, y, [z,] theta, arrival``) plus
     ``earliest, latest, slack, kind``.
     """
-    from hierplan_opt.io.files import read_text
-    from hierplan_opt.io.yaml import check_nesting, read_yaml
 
     path = Path(path)
     text = read_text(path)  # regular files within the size limit only

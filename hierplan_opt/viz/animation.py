@@ -16,7 +16,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.io.files import atomic_path
+from hierplan_opt.io.files import atomic_path, check_output
 
 if TYPE_CHECKING:
     from hierplan_opt.execution.simulate import Execution
@@ -183,7 +183,6 @@ def animate(
     7
     """
     from hierplan_opt.core.progress import Progress
-    from hierplan_opt.io.files import check_output
     from hierplan_opt.viz.scene import Scene, scene_from_execution
 
     path = Path(path)
