@@ -131,6 +131,18 @@ def layer_violations(edges: Iterable[Edge], layers: Sequence[Iterable[str]]) -> 
     return sorted(set(out))
 
 
+def private_imports(edges: Iterable[Edge]) -> list[str]:
+    """Imports of another part's private module (``pkg.io._yaml`` from ``pkg.cli``): a
+    module whose name starts with ``_`` serves its own part only."""
+    out = []
+    for e in edges:
+        last = e.imported.rsplit(".", 1)[-1]
+        private = last.startswith("_") and not last.startswith("__")
+        if private and component(e.importer) != component(e.imported):
+            out.append(f"{e}: private to {component(e.imported)}")
+    return sorted(set(out))
+
+
 def cycles(edges: Iterable[Edge]) -> list[list[str]]:
     """The module circles: each strongly connected set of two or more modules (or a
     module that imports itself), sorted, with one concrete circle through it."""

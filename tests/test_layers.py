@@ -26,7 +26,14 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from import_graph import Edge, circle_text, cycles, import_graph, layer_violations
+from import_graph import (
+    Edge,
+    circle_text,
+    cycles,
+    import_graph,
+    layer_violations,
+    private_imports,
+)
 
 import hierplan_opt
 
@@ -79,6 +86,11 @@ def test_no_import_points_up_or_sideways_from_search() -> None:
     edges = _edges()
     bad = [v for v in layer_violations(edges, LAYERS) if _in_search(v)]
     assert bad == [], "\n".join(bad)
+
+
+def test_no_part_imports_another_parts_private_module() -> None:
+    # e.g. io/_yaml was read from seven places outside io; it is the public io/yaml now
+    assert private_imports(_edges()) == []
 
 
 def test_no_import_circle_outside_search() -> None:
@@ -138,6 +150,13 @@ def test_checker_reports_a_planted_upward_import_and_a_circle(tmp_path: Path) ->
         "pkg.core.a -> pkg.io.b (line 2, function): upward (core is below io)",
     ]
     assert "is in no layer" in layer_violations(edges, [{"core"}, {"io"}])[0]
+    assert private_imports(edges) == []
+    (pkg / "io" / "_helpers.py").write_text("")
+    (pkg / "cli" / "main.py").write_text("from pkg.io._helpers import x\nfrom pkg.io import b\n")
+    (pkg / "io" / "f.py").write_text("from pkg.io import _helpers\n")  # its own part: fine
+    assert private_imports(import_graph(pkg)) == [
+        "pkg.cli.main -> pkg.io._helpers (line 1, top): private to io"
+    ]
 
     found = cycles(edges)
     assert found == [
