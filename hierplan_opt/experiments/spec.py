@@ -40,6 +40,7 @@ from typing import Any
 from hierplan_opt import registry
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.experiments.data import instances_dir
+from hierplan_opt.experiments.generators import GENERATORS
 from hierplan_opt.io.values import plain
 from hierplan_opt.io.yaml import Ctx, read_text, read_yaml
 
@@ -361,7 +362,6 @@ def _solvers(
 
 
 def _instances(ctx: Ctx, value: Any, line: int | None, folder: Path) -> tuple[InstanceSpec, ...]:
-    from hierplan_opt.experiments.generators import GENERATORS
 
     seq = ctx.sequence(value, "instances", line)
     if not seq:

@@ -28,6 +28,7 @@ from typing import Any
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.experiments import store
+from hierplan_opt.experiments.generators import GENERATORS
 from hierplan_opt.experiments.runner import close_servers, run_task
 from hierplan_opt.experiments.spec import (
     InstanceSpec,
@@ -166,7 +167,6 @@ def check_instances(spec: SweepSpec) -> dict[str, str]:
     """Load each file instance once with its largest K, so that bad files and agent
     counts beyond a scenario are refused before the first run; returns the problem
     (``"mapf"`` / ``"tapf"``) of each instance."""
-    from hierplan_opt.experiments.generators import GENERATORS
 
     problems: dict[str, str] = {}
     for inst in spec.instances:

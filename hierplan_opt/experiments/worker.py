@@ -38,6 +38,7 @@ from hierplan_opt import registry
 from hierplan_opt.api import solve
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.result import Status
+from hierplan_opt.experiments.generators import GENERATORS
 from hierplan_opt.io import load_instance
 from hierplan_opt.io.yaml import one_line
 
@@ -95,8 +96,6 @@ def versions() -> dict[str, str]:
 def build_instance(payload: dict[str, Any], agents: int | None, seed: int, tmp: Path) -> Any:
     """The instance of a task: files written to ``tmp`` and read back, or generated."""
     if payload["kind"] == "generator":
-        from hierplan_opt.experiments.generators import GENERATORS
-
         if agents is None:
             raise InputError(f"generator {payload['generator']!r} needs an agent count")
         return GENERATORS[payload["generator"]](payload["params"], agents, seed)
