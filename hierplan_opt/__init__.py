@@ -23,6 +23,7 @@ from hierplan_opt.core.instance import Agent, Instance, Kinematics, Team
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import Violation, validate
+from hierplan_opt.core.version import __version__ as __version__
 
 if TYPE_CHECKING:  # the lazily loaded names below, for type checkers and readers
     from hierplan_opt.execution import simulate
@@ -34,7 +35,6 @@ if TYPE_CHECKING:  # the lazily loaded names below, for type checkers and reader
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
-__version__ = "0.1.0"
 
 # Heavier parts load on first use so that `import hierplan_opt` stays fast. One name a
 # line, sorted: a new export is one line here, in the TYPE_CHECKING block and in __all__.

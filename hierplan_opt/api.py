@@ -10,13 +10,13 @@ from typing import Any
 from hierplan_opt import registry
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.core.result import Result, Status
-from hierplan_opt.core.validate import validate
+from hierplan_opt.core.result import Result
+from hierplan_opt.registry import DEFAULT_TIME_LIMIT
+from hierplan_opt.search import libmrp
 
 log = logging.getLogger(__name__)
 
-#: Seconds ``solve`` may take unless told otherwise (the CLI's default too).
-DEFAULT_TIME_LIMIT = 60.0
+__all__ = ["DEFAULT_TIME_LIMIT", "solve"]
 
 
 def solve(
@@ -25,6 +25,7 @@ def solve(
     *,
     time_limit: float | None = DEFAULT_TIME_LIMIT,
     seed: int = 0,
+    cost: str | None = None,
     objective: str | None = None,
     **options: Any,
 ) -> Result:
@@ -32,13 +33,17 @@ def solve(
 
     ``time_limit`` is a wall-clock budget in seconds (default 60, like the CLI; None
     means no limit): on expiry the result is TIME_LIMIT with the best proven lower bound
-    (or FEASIBLE with the best plan found). ``objective`` defaults to ``"soc"`` for MAPF
-    and ``"makespan"`` for TAPF (and for solvers that only optimise makespan). Every
+    (or FEASIBLE with the best plan found). ``cost`` is what the plan minimises, in
+    steps: ``"soc"`` (sum of costs) or ``"makespan"``; it defaults to ``"soc"`` for MAPF
+    and ``"makespan"`` for TAPF (and for solvers that only optimise makespan).
+    ``objective=`` is its old name, deprecated (a :class:`DeprecationWarning`): an
+    objective is a schedule's, in seconds (:func:`hierplan_opt.postprocess`). Every
     option is checked before any work (unknown ones are refused), and the cheap checks
     of :func:`hierplan_opt.registry.cheap_infeasibility` answer INFEASIBLE at once where
     they can (see :func:`hierplan_opt.registry.run`). A plan that fails the validator is
-    never passed on: the result becomes ERROR with the violations in
-    ``stats["violations"]``.
+    never passed on (:func:`hierplan_opt.registry.checked`, the one check of a plan): the
+    result becomes ERROR with the violations in ``stats["violations"]``. ``runtime`` is
+    the solve's wall time without that check.
 
     Solvers and their options (``**options``; ``hierplan info --solvers`` lists the same,
     ``hierplan solve --set name=value`` sets them). Optimal: OPTIMAL is a proven optimum;
@@ -155,43 +160,18 @@ def solve(
     (<Status.OPTIMAL: 'OPTIMAL'>, 8)
     """
     t0 = time.perf_counter()
-    if instance.meta.get("edge_conflicts"):  # an annotated roadmap's extra conflicts
-        from hierplan_opt.search.libmrp import ANNOTATED_SOLVERS
-
-        if solver not in ANNOTATED_SOLVERS:
-            raise OptionError(
-                f"solver {solver!r} knows vertex and swap conflicts only; this annotated "
-                f"roadmap has {len(instance.meta['edge_conflicts'])} more conflicting move "
-                f"pairs (use {' or '.join(ANNOTATED_SOLVERS)})"
-            )
+    annotated = bool(instance.meta.get("edge_conflicts"))  # a roadmap's extra conflicts
+    if annotated and solver not in libmrp.ANNOTATED_SOLVERS:
+        raise OptionError(
+            f"solver {solver!r} knows vertex and swap conflicts only; this annotated "
+            f"roadmap has {len(instance.meta['edge_conflicts'])} more conflicting move "
+            f"pairs (use {' or '.join(libmrp.ANNOTATED_SOLVERS)})"
+        )
+    kind = registry.cost_keyword(cost, objective)  # (solvers call it "objective")
+    common: dict[str, Any] = {"time_limit": time_limit, "seed": seed, "objective": kind}
     if instance.meta.get("free_agents"):  # task-free robots: the solve picks their ends
-        from hierplan_opt.search.libmrp import solved_free_robots
-
-        result, instance = solved_free_robots(
-            solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
-        )
+        result, instance = libmrp.solved_free_robots(solver, instance, **common, **options)
     else:
-        result = registry.run(
-            solver, instance, time_limit=time_limit, seed=seed, objective=objective, **options
-        )
+        result = registry.run(solver, instance, **common, **options)
     result = replace(result, runtime=time.perf_counter() - t0)
-    if result.plan is None:
-        return result
-    violations: list[Any] = validate(instance, result.plan)
-    if not violations and instance.meta.get("edge_conflicts"):
-        from hierplan_opt.search.libmrp import annotated_violations
-
-        violations = annotated_violations(instance, result.plan)
-    if violations:
-        log.error("solver %s returned an invalid plan: %s", solver, violations[0])
-        stats = dict(result.stats)
-        stats["violations"] = [str(v) for v in violations]
-        stats["error"] = f"invalid plan: {violations[0]}"
-        return replace(result, status=Status.ERROR, plan=None, cost=None, stats=stats)
-    cost = result.plan.cost(result.objective)
-    if result.cost is not None and result.cost != cost:
-        log.error("solver %s reported cost %s but its plan costs %s", solver, result.cost, cost)
-        stats = dict(result.stats)
-        stats["error"] = f"reported cost {result.cost} but the plan costs {cost}"
-        return replace(result, status=Status.ERROR, stats=stats)
-    return replace(result, cost=cost)
+    return registry.checked(instance, result, libmrp.annotated_violations if annotated else None)

@@ -9,8 +9,13 @@ module names every built-in solver and what it can do, without importing it.
 (:func:`hierplan_opt.solve`), by a direct call of a solver's ``solve`` and by solvers
 that use other solvers: it checks the problem kind and objective against the declared
 capabilities, checks every option, runs the cheap infeasibility checks once, and only
-then calls the solver. The front door adds the default time limit, the runtime and the
-validation of the returned plan.
+then calls the solver. :func:`run` checks no plan: it is the raw path, for solvers that
+use other solvers (whose plans the caller's own result is checked with).
+
+:func:`checked` is the one check of a returned plan (the validator, and the reported cost
+against the plan's). Every caller outside the solvers goes through it: the front door
+(:func:`hierplan_opt.solve`, which every layer above the solvers calls) and a direct
+call of a registered solver (``cbs.solve(instance)``), both with the default time limit.
 """
 
 from __future__ import annotations
@@ -18,46 +23,41 @@ from __future__ import annotations
 import importlib
 import inspect
 import logging
+import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from hierplan_opt.core.errors import OptionError, UnknownSolverError
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.options import Option, Options
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline, check_time_limit
+from hierplan_opt.core.validate import validate
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance
+    from hierplan_opt.core.plan import Plan
 
 log = logging.getLogger(__name__)
+
+#: Seconds a solve may take unless told otherwise (the front door's, the CLI's and a
+#: registered solver's call's default).
+DEFAULT_TIME_LIMIT = 60.0
 
 #: Arguments every solver takes besides its own options.
 COMMON = ("instance", "time_limit", "seed", "objective")
 OBJECTIVES = ("soc", "makespan")
 
 
-class SolverFn(Protocol):
-    """What the registry hands out: call it like :func:`hierplan_opt.solve` minus the name."""
-
-    def __call__(
-        self,
-        instance: Instance,
-        *,
-        time_limit: float | None = None,
-        seed: int = 0,
-        objective: str | None = None,
-        **options: Any,
-    ) -> Result: ...
-
-
 class Solver:
     """A solve function together with its declared options (made by :func:`solver`).
 
-    Calling it runs :func:`run` under its registered name, so a direct call checks its
-    options and runs the cheap checks like the front door; :attr:`fn` is the bare
-    function :func:`run` calls after those checks.
+    Calling it gives the guarantees of the front door (:func:`hierplan_opt.solve`): the
+    options and the cheap checks of :func:`run`, the default time limit, and the
+    returned plan validated by :func:`checked`. :attr:`fn` is the bare function, private
+    to :func:`run` (and to tests that need a solver without the front door's checks).
     """
 
     def __init__(self, name: str, fn: Callable[..., Result], options: Options) -> None:
@@ -74,17 +74,45 @@ class Solver:
         self,
         instance: Instance,
         *,
-        time_limit: float | None = None,
+        time_limit: float | None = DEFAULT_TIME_LIMIT,
         seed: int = 0,
+        cost: str | None = None,
         objective: str | None = None,
         **options: Any,
     ) -> Result:
-        return run(
-            self.name, instance, time_limit=time_limit, seed=seed, objective=objective, **options
+        t0 = time.perf_counter()
+        kind = cost_keyword(cost, objective)
+        result = run(
+            self.name, instance, time_limit=time_limit, seed=seed, objective=kind, **options
         )
+        return checked(instance, replace(result, runtime=time.perf_counter() - t0))
 
     def __repr__(self) -> str:
         return f"<solver {self.name!r}: {self.__module__}.{self.__qualname__}>"
+
+
+def cost_keyword(cost: str | None, objective: str | None, stacklevel: int = 3) -> str | None:
+    """The plan's cost (``"soc"`` or ``"makespan"``, steps) from ``cost=``, or from the
+    deprecated ``objective=`` of :func:`hierplan_opt.solve` and a solver's call (with a
+    :class:`DeprecationWarning`): ``objective`` names a schedule's goal in seconds
+    (:func:`hierplan_opt.postprocess`: makespan, safety, flowtime).
+
+    Example
+    -------
+    >>> cost_keyword("makespan", None), cost_keyword(None, None)
+    ('makespan', None)
+    """
+    if objective is None:
+        return cost
+    warnings.warn(
+        "solve(objective=...) is deprecated: a plan's cost is cost='soc' or 'makespan' "
+        "(objective= is a schedule's, in postprocess)",
+        DeprecationWarning,
+        stacklevel=stacklevel,
+    )
+    if cost is not None and cost != objective:
+        raise OptionError(f"cost={cost!r} and the deprecated objective={objective!r} differ")
+    return objective
 
 
 def _keyword_defaults(fn: Callable[..., Result]) -> dict[str, Any]:
@@ -281,8 +309,9 @@ def run(
 ) -> Result:
     """Check everything, then solve ``instance`` with solver ``name`` (see the module doc).
 
-    Unlike :func:`hierplan_opt.solve`, no default time limit, no runtime and no plan
-    validation: this is the way for solvers to use other solvers.
+    The raw path: unlike :func:`hierplan_opt.solve` (and a registered solver's call), no
+    default time limit, no runtime and no plan validation (:func:`checked`). It is the
+    way for solvers to use other solvers; everything else calls the front door.
 
     Example
     -------
@@ -338,6 +367,53 @@ def run(
         # (core/feasibility.joint_reachable): say that nothing decided feasibility.
         result = replace(result, stats={**result.stats, "feasibility": "undecided"})
     return replace(result, solver=name, objective=objective)
+
+
+def checked(
+    instance: Instance,
+    result: Result,
+    more: Callable[[Instance, Plan], list[Any]] | None = None,
+) -> Result:
+    """``result`` with its plan validated: the one check of a solver's plan.
+
+    A plan that fails the validator (or ``more``, extra checks such as an annotated
+    roadmap's conflicts) is never passed on: the result becomes ERROR, without plan and
+    cost, with the violations in ``stats["violations"]``. A reported cost that differs
+    from the plan's own is an ERROR too; a missing one is filled in.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> from hierplan_opt.core.instance import Instance
+    >>> from hierplan_opt.core.plan import Plan
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> jump = Result(Status.FEASIBLE, Plan.from_paths([[0, 2]]), objective="soc")
+    >>> bad = checked(inst, jump)
+    >>> bad.status, bad.plan, bad.stats["error"][:30]
+    (<Status.ERROR: 'ERROR'>, None, 'invalid plan: non_edge: agent0')
+    >>> checked(inst, Result(Status.FEASIBLE, Plan.from_paths([[0, 1, 2]]), objective="soc")).cost
+    2
+    """
+    if result.plan is None:
+        return result
+    violations: list[Any] = validate(instance, result.plan)
+    if not violations and more is not None:
+        violations = more(instance, result.plan)
+    if violations:
+        log.error("solver %s returned an invalid plan: %s", result.solver, violations[0])
+        stats = dict(result.stats)
+        stats["violations"] = [str(v) for v in violations]
+        stats["error"] = f"invalid plan: {violations[0]}"
+        return replace(result, status=Status.ERROR, plan=None, cost=None, stats=stats)
+    cost = result.plan.cost(result.objective)
+    if result.cost is not None and result.cost != cost:
+        log.error(
+            "solver %s reported cost %s but its plan costs %s", result.solver, result.cost, cost
+        )
+        stats = dict(result.stats)
+        stats["error"] = f"reported cost {result.cost} but the plan costs {cost}"
+        return replace(result, status=Status.ERROR, stats=stats)
+    return replace(result, cost=cost)
 
 
 _REGISTRY: dict[str, SolverInfo] = {}

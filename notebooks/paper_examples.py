@@ -60,7 +60,7 @@ rows, warehouse = [], {}
 for part in ("warehouse-part1", "warehouse-part2"):
     inst = load_instance(PAPER / f"{part}.yaml")
     for solver in ("cbm", "hungarian"):
-        r = hp.solve(inst, solver, objective="makespan", time_limit=30)
+        r = hp.solve(inst, solver, cost="makespan", time_limit=30)
         assert r.plan is not None and hp.validate(inst, r.plan) == []
         rows.append(
             {

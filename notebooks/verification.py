@@ -59,7 +59,7 @@ for method in ("cpsat", "mip"):
 
 # %%
 swap = hp.Instance.mapf(hp.Graph.grid(3, 2), [(0, 0), (2, 0)], [(2, 0), (0, 0)])
-ms = hp.solve(swap, "cbs", objective="makespan", time_limit=30)
+ms = hp.solve(swap, "cbs", cost="makespan", time_limit=30)
 print("swap: makespan", ms.cost, "| distance lower bound", swap.makespan_lower_bound())
 for method in ("cpsat", "mip"):
     v = hp.verify(swap, ms.plan, objective="makespan", method=method, time_limit=30)
@@ -73,7 +73,7 @@ for method in ("cpsat", "mip"):
 
 # %%
 small = load_instance(MOVINGAI / "empty-8-8.map", MOVINGAI / "empty-8-8-even-1.scen", 12)
-best = hp.solve(small, "cbs", objective="makespan", time_limit=30).plan
+best = hp.solve(small, "cbs", cost="makespan", time_limit=30).plan
 i = max(range(small.num_agents), key=lambda a: best.costs[a])
 late = None
 for t in range(len(best.paths[i]) - 2, -1, -1):  # latest wait that keeps the plan valid

@@ -90,7 +90,7 @@ def test_hungarian_can_be_worse_than_cbm() -> None:
 @pytest.mark.parametrize("objective", ["soc", "makespan"])
 def test_hungarian_with_cbs(objective: str) -> None:
     inst = warehouse_like(7)
-    r = hp.solve(inst, "hungarian", objective=objective, time_limit=60)
+    r = hp.solve(inst, "hungarian", cost=objective, time_limit=60)
     assert r.status in (Status.OPTIMAL, Status.FEASIBLE)
     assert not validate(inst, r.plan)
     assert r.lower_bound <= r.cost
@@ -100,7 +100,7 @@ def test_hungarian_with_cbs(objective: str) -> None:
 def test_hungarian_soc_bound_is_assignment_sum() -> None:
     g = Graph.grid(6, 1)
     inst = Instance.tapf(g, [([(0, 0), (1, 0)], [(4, 0), (5, 0)])])
-    r = hp.solve(inst, "hungarian", objective="soc")
+    r = hp.solve(inst, "hungarian", cost="soc")
     assert r.lower_bound == 8  # 4 + 4 (or 5 + 3)
     assert r.cost == 8 and r.status == Status.OPTIMAL
 

@@ -218,7 +218,7 @@ def test_infeasible_detected() -> None:
 def test_options_refused() -> None:
     inst = figure3()
     with pytest.raises(OptionError):
-        hp.solve(inst, "cbm", objective="soc")
+        hp.solve(inst, "cbm", cost="soc")
     with pytest.raises(OptionError, match="tie_break"):
         hp.solve(inst, "cbm", tie_break="random")
 

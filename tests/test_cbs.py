@@ -128,7 +128,7 @@ CORRIDOR_OPTION_SETS: tuple[dict[str, Any], ...] = (
 
 
 def check(inst: Instance, objective: str = "soc", **options: Any):
-    r = hierplan_opt.solve(inst, "cbs", time_limit=20, objective=objective, **options)
+    r = hierplan_opt.solve(inst, "cbs", time_limit=20, cost=objective, **options)
     if r.plan is not None:
         assert validate(inst, r.plan) == []
     return r
@@ -240,12 +240,12 @@ def _all_options_same_optimum(inst, objective):
     expected = brute_force(inst, objective)
     if expected is None:
         # No plan: CBS may only say INFEASIBLE or run out of time, never return a plan.
-        r = hierplan_opt.solve(inst, "cbs", time_limit=0.3, objective=objective)
+        r = hierplan_opt.solve(inst, "cbs", time_limit=0.3, cost=objective)
         assert r.status in (Status.INFEASIBLE, Status.TIME_LIMIT)
         return
     solved = 0
     for options in OPTION_SETS:
-        r = hierplan_opt.solve(inst, "cbs", time_limit=3, objective=objective, **options)
+        r = hierplan_opt.solve(inst, "cbs", time_limit=3, cost=objective, **options)
         if r.status == Status.TIME_LIMIT:
             # Tightly packed tiny grids can need thousands of CT nodes: a time-out is
             # acceptable, a bound above the optimum is not.
@@ -293,7 +293,7 @@ def test_swap_in_corridor_infeasible():
     assert r.status == Status.INFEASIBLE
     assert "cannot pass" in r.stats["reason"]
     for objective in ("soc", "makespan"):
-        assert hierplan_opt.solve(inst, "cbs", objective=objective).status == Status.INFEASIBLE
+        assert hierplan_opt.solve(inst, "cbs", cost=objective).status == Status.INFEASIBLE
 
 
 def test_tree_rotation_proven_infeasible():
@@ -318,7 +318,7 @@ def test_unprovable_unsolvable_stops_at_time_limit(objective):
     )
     inst = Instance.mapf(g, names, [names[1], names[0], *names[2:]])
     t0 = time.perf_counter()
-    r = hierplan_opt.solve(inst, "cbs", time_limit=0.5, objective=objective)
+    r = hierplan_opt.solve(inst, "cbs", time_limit=0.5, cost=objective)
     assert time.perf_counter() - t0 < 3.0
     assert r.status == Status.TIME_LIMIT and r.plan is None
     assert r.lower_bound is not None and r.stats["feasibility"] == "undecided"
@@ -968,7 +968,7 @@ def _corridor_target_cross_check(seed: int, count: int) -> tuple[int, int]:
         expected = brute_force(inst, objective)
         if expected is None:
             continue
-        r = hierplan_opt.solve(inst, "cbs", time_limit=5, objective=objective, corridor_target=True)
+        r = hierplan_opt.solve(inst, "cbs", time_limit=5, cost=objective, corridor_target=True)
         if r.status == Status.TIME_LIMIT:
             # A few tiny maps need long detours that CBS cannot prove in time (with or
             # without symmetry reasoning); its lower bound must still be valid.
@@ -976,7 +976,7 @@ def _corridor_target_cross_check(seed: int, count: int) -> tuple[int, int]:
             continue
         assert r.plan is not None and validate(inst, r.plan) == []
         assert r.status == Status.OPTIMAL and r.cost == expected, (inst.starts, inst.goals)
-        off = hierplan_opt.solve(inst, "cbs", time_limit=5, objective=objective, symmetry=False)
+        off = hierplan_opt.solve(inst, "cbs", time_limit=5, cost=objective, symmetry=False)
         assert off.status != Status.OPTIMAL or off.cost == expected
         checked += 1
         splits += r.stats["corridor_target_splits"]

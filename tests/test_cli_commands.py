@@ -63,7 +63,7 @@ def test_json_plan_and_options(tmp_path: Path, capsys: pytest.CaptureFixture[str
         "solve",
         CORRIDOR,
         "--solver=cbs",
-        "--objective",
+        "--cost",
         "makespan",
         "--set",
         "bypass=false",
@@ -223,6 +223,7 @@ def test_out_directory_missing(tmp_path: Path, capsys: pytest.CaptureFixture[str
         ["solve", CORRIDOR, "--agents", "0"],
         ["solve", CORRIDOR, "--time-limit", "-1"],
         ["solve", CORRIDOR, "--objective", "fastest"],
+        ["solve", CORRIDOR, "--cost", "fastest"],
         ["validate", CORRIDOR],
     ],
 )

@@ -240,7 +240,7 @@ def test_front_door_refuses_bad_objective_and_time_limit() -> None:
     g = Graph.grid(2, 1)
     inst = Instance.mapf(g, [(0, 0)], [(1, 0)])
     with pytest.raises(OptionError, match="unknown objective 'energy'"):
-        hp.solve(inst, "cbs", objective="energy")
+        hp.solve(inst, "cbs", cost="energy")
     with pytest.raises(OptionError, match="time_limit"):
         hp.solve(inst, "cbs", time_limit=-3)
     with pytest.raises(OptionError, match="time_limit"):

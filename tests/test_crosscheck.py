@@ -53,7 +53,7 @@ def crosscheck(inst: hp.Instance, objective: str, golden: int | None = None) -> 
     assert {"mip", "cpsat"} <= set(exact), exact
     costs: dict[str, int] = {}
     for name in exact:
-        res = hp.solve(inst, name, objective=objective, time_limit=TIME_LIMIT)
+        res = hp.solve(inst, name, cost=objective, time_limit=TIME_LIMIT)
         assert res.status == hp.Status.OPTIMAL, f"{name} on {inst.name}: {res.status} {res.stats}"
         assert res.plan is not None and hp.validate(inst, res.plan) == []
         assert res.cost == res.plan.cost(objective)
@@ -66,7 +66,7 @@ def crosscheck(inst: hp.Instance, objective: str, golden: int | None = None) -> 
     if golden is not None:
         assert opt == golden, f"{inst.name}/{objective}: optimum {opt}, hand-derived {golden}"
     for name in solvers_for(inst, objective, bounded=True):
-        res = hp.solve(inst, name, objective=objective, time_limit=TIME_LIMIT, w=W)
+        res = hp.solve(inst, name, cost=objective, time_limit=TIME_LIMIT, w=W)
         assert res.solved, f"{name} on {inst.name}: {res.status}"
         assert res.plan is not None and hp.validate(inst, res.plan) == []
         assert res.cost <= W * opt + 1e-9, f"{name}: cost {res.cost} > {W} * {opt}"

@@ -225,7 +225,7 @@ def test_w_below_one_refused(solver: str) -> None:
 @pytest.mark.parametrize("solver", SOLVERS)
 def test_makespan_refused(solver: str) -> None:
     with pytest.raises(OptionError, match="makespan"):
-        hp.solve(canned("pocket_swap"), solver, objective="makespan")
+        hp.solve(canned("pocket_swap"), solver, cost="makespan")
 
 
 @pytest.mark.parametrize("solver", SOLVERS)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -119,6 +120,8 @@ def test_npz_round_trip_is_exact(convoy_refined, tmp_path: Path) -> None:
     for a, b in zip(tr.robots, back.robots, strict=True):
         np.testing.assert_array_equal(a.p, b.p)
         np.testing.assert_array_equal(a.event_times, b.event_times)
+        assert a.limits == b.limits  # an unbounded limit (inf) is written as null
+    assert any(math.isinf(v) for r in tr.robots for v in r.limits.values())
     ex = simulate(inst, sched, trajectories=back)
     assert ex.arrival.tolist() == simulate(inst, sched, trajectories=tr).arrival.tolist()
 

@@ -102,7 +102,7 @@ def test_flow_refuses_soc() -> None:
     g = Graph.grid(3, 1)
     inst = Instance.tapf(g, [([(0, 0)], [(2, 0)])])
     with pytest.raises(OptionError, match="makespan"):
-        hp.solve(inst, "flow", objective="soc")
+        hp.solve(inst, "flow", cost="soc")
 
 
 def test_flow_infeasible() -> None:

@@ -127,7 +127,7 @@ def test_cpsat_reduction_build_and_extract():
 @pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
 def test_result_types_are_domain_types(form):
     inst = corridor_lmrp()
-    res = form.solve(inst, objective="soc")
+    res = form.solve(inst, cost="soc")
     assert isinstance(res, hp.Result) and isinstance(res.plan, hp.Plan)
     for key in ("variables", "constraints", "horizon"):
         assert isinstance(res.stats[key], int) and res.stats[key] > 0
@@ -139,7 +139,7 @@ def test_result_types_are_domain_types(form):
 def test_soc_convention_matches_plan(form):
     # Agent 1 must wait for agent 0 at the centre: costs 2 and 3 (no trailing waits).
     inst = cross()
-    res = hp.solve(inst, form.__name__.rsplit(".", 1)[-1], objective="soc")
+    res = hp.solve(inst, form.__name__.rsplit(".", 1)[-1], cost="soc")
     assert res.plan.costs in ((2, 3), (3, 2))
     assert res.cost == res.plan.sum_of_costs == 5
 
@@ -147,8 +147,8 @@ def test_soc_convention_matches_plan(form):
 @pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
 def test_tapf_makespan_and_soc(form):
     inst = tapf_corners()
-    ms = form.solve(inst, objective="makespan")
-    soc = form.solve(inst, objective="soc")
+    ms = form.solve(inst, cost="makespan")
+    soc = form.solve(inst, cost="soc")
     assert (ms.status, ms.cost) == (hp.Status.OPTIMAL, 2)
     assert (soc.status, soc.cost) == (hp.Status.OPTIMAL, 4)
     for r in (ms, soc):
@@ -159,7 +159,7 @@ def test_tapf_makespan_and_soc(form):
 
 def test_tapf_two_teams_respect_teams():
     inst = tapf_paper_like()
-    res = hp.solve(inst, "cpsat", objective="makespan")
+    res = hp.solve(inst, "cpsat", cost="makespan")
     assert res.status == hp.Status.OPTIMAL and hp.validate(inst, res.plan) == []
     for team in inst.teams:
         assert {res.plan.ends[i] for i in team.agents} == set(team.targets)
@@ -212,7 +212,7 @@ def test_solvable_directed_instance_within_the_bound(form, objective):
     ring = [("A", "B"), ("B", "C"), ("C", "D"), ("D", "A")]
     g = hp.Graph.roadmap({"A": (0, 0), "B": (1, 0), "C": (1, 1), "D": (0, 1)}, ring, directed=True)
     inst = hp.Instance.mapf(g, ["A", "B"], ["C", "D"])
-    res = form.solve(inst, objective=objective, time_limit=60)
+    res = form.solve(inst, cost=objective, time_limit=60)
     assert res.status == hp.Status.OPTIMAL and res.plan is not None
     assert hp.validate(inst, res.plan) == [] and res.plan.makespan <= makespan_upper_bound(inst)
     assert res.cost == (4 if objective == "soc" else 2)
@@ -223,7 +223,7 @@ def test_time_limit_is_honoured(form):
     from canned import movingai
 
     inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 30)()
-    res = form.solve(inst, objective="soc", time_limit=2.0)
+    res = form.solve(inst, cost="soc", time_limit=2.0)
     assert res.status in (hp.Status.TIME_LIMIT, hp.Status.FEASIBLE, hp.Status.OPTIMAL)
     assert res.stats["build_time"] + res.stats["solve_time"] < 15
     assert res.lower_bound is not None and res.lower_bound >= inst.soc_lower_bound()
@@ -234,8 +234,8 @@ def test_time_limit_is_honoured(form):
 
 def test_cpsat_hint_from_another_solver():
     inst = swap_pocket(6, 1)()
-    plain = cpsat.solve(inst, objective="soc")
-    hinted = cpsat.solve(inst, objective="soc", hint="cpsat")
+    plain = cpsat.solve(inst, cost="soc")
+    hinted = cpsat.solve(inst, cost="soc", hint="cpsat")
     assert plain.cost == hinted.cost
     assert hinted.stats.get("hinted") is True
 
@@ -275,7 +275,7 @@ def test_backend_error_becomes_error_status():
 
 def test_mip_without_lp_check_agrees():
     inst = swap_pocket(6, 1)()
-    a = hp.solve(inst, "mip", objective="makespan")
-    b = hp.solve(inst, "mip", objective="makespan", lp_check=False)
+    a = hp.solve(inst, "mip", cost="makespan")
+    b = hp.solve(inst, "mip", cost="makespan", lp_check=False)
     assert a.cost == b.cost and a.status == b.status == hp.Status.OPTIMAL
     assert "lp_rejected" not in b.stats

@@ -299,7 +299,7 @@ def test_options_are_checked() -> None:
     with pytest.raises(OptionError, match="w_hwy must be a number >= 1"):
         hp.solve(inst, "ecbs", highways="crisscross", w_hwy=0.5)
     with pytest.raises(OptionError, match="sum of costs only"):
-        hp.solve(inst, "cbs", highways="crisscross", objective="makespan")
+        hp.solve(inst, "cbs", highways="crisscross", cost="makespan")
     with pytest.raises(OptionError, match="unknown option|does not know|highways"):
         hp.solve(inst, "cbm", highways="crisscross")
 

@@ -12,7 +12,6 @@ from io_helpers import write
 from hierplan_opt import InputError
 from hierplan_opt.core.errors import OutputError
 from hierplan_opt.io import load_instance
-from hierplan_opt.io._yaml import read_yaml
 from hierplan_opt.io.files import (
     Limits,
     atomic_path,
@@ -24,6 +23,7 @@ from hierplan_opt.io.files import (
     read_text,
     write_text,
 )
+from hierplan_opt.io.yaml import read_yaml
 
 
 # ---------------------------------------------------------------- reading

@@ -42,7 +42,7 @@ def four_cycle() -> hp.Instance:
 # ------------------------------------------------------------- cpsat and mip keep plans
 def test_cpsat_keeps_the_plan_it_found_full_3x2() -> None:
     inst = full_3x2()
-    res = cpsat.solve(inst, objective="soc", time_limit=30)
+    res = cpsat.solve(inst, cost="soc", time_limit=30)
     assert res.status is hp.Status.OPTIMAL and res.plan is not None
     assert res.cost == res.lower_bound == 16 and hp.validate(inst, res.plan) == []
 
@@ -50,7 +50,7 @@ def test_cpsat_keeps_the_plan_it_found_full_3x2() -> None:
 @pytest.mark.slow
 def test_mip_keeps_the_plan_it_found_full_3x2() -> None:
     inst = full_3x2()
-    res = mip.solve(inst, objective="soc", time_limit=60)
+    res = mip.solve(inst, cost="soc", time_limit=60)
     assert res.status is hp.Status.OPTIMAL and res.cost == 16
     assert res.plan is not None and hp.validate(inst, res.plan) == []
 
@@ -58,7 +58,7 @@ def test_mip_keeps_the_plan_it_found_full_3x2() -> None:
 @pytest.mark.parametrize("form", FORMULATIONS, ids=lambda f: f.__name__.rsplit(".", 1)[-1])
 def test_a_user_cap_returns_the_plan_found_and_names_the_cap(form) -> None:
     inst = full_3x2()
-    res = form.solve(inst, objective="soc", time_limit=30, max_horizon=6)
+    res = form.solve(inst, cost="soc", time_limit=30, max_horizon=6)
     assert res.status is hp.Status.FEASIBLE and res.plan is not None
     assert hp.validate(inst, res.plan) == [] and res.cost == res.plan.sum_of_costs
     assert res.stats["stopped_by"] == "max_horizon"

@@ -171,7 +171,7 @@ def test_refused_options():
     with pytest.raises(OptionError, match="refine must be true or false"):
         hp.solve(inst, "lacam", refine=1)
     with pytest.raises(OptionError, match="does not optimise 'makespan'"):
-        hp.solve(inst, "lacam", objective="makespan")
+        hp.solve(inst, "lacam", cost="makespan")
 
 
 # ---------------------------------------------------------------- bookkeeping

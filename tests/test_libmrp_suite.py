@@ -106,7 +106,7 @@ def test_disappear_at_goal_cli(tmp_path, capsys) -> None:
 def test_task_free_robots(name, cost, end0, end1, solver) -> None:
     inst = load(name)
     assert inst.meta["free_agents"] == ["agent1"]
-    res = hp.solve(inst, solver, time_limit=30, objective="soc")
+    res = hp.solve(inst, solver, time_limit=30, cost="soc")
     assert res.status is hp.Status.OPTIMAL and res.cost == cost
     g = inst.graph
     for path, end in zip(res.plan.paths, (end0, end1), strict=True):
@@ -118,7 +118,7 @@ def test_task_free_robots(name, cost, end0, end1, solver) -> None:
 
 
 def test_mapfta_a1_soc_matches_cbs_ta() -> None:
-    res = hp.solve(load("mapfta_simple1_a1"), "cpsat", objective="soc", time_limit=30)
+    res = hp.solve(load("mapfta_simple1_a1"), "cpsat", cost="soc", time_limit=30)
     assert res.status is hp.Status.OPTIMAL and res.cost == 6
 
 
@@ -146,7 +146,7 @@ def test_crossing_edges_of_an_annotated_roadmap(solver) -> None:
     inst = load("hierplan_cross_annotated")
     assert len(inst.meta["edge_conflicts"]) == 4
     for objective, cost in (("soc", 3), ("makespan", 2)):
-        res = hp.solve(inst, solver, objective=objective, time_limit=30)
+        res = hp.solve(inst, solver, cost=objective, time_limit=30)
         assert res.status is hp.Status.OPTIMAL and res.cost == cost
     with pytest.raises(hp.OptionError, match="knows vertex and swap conflicts only"):
         hp.solve(inst, "cbs")
@@ -220,7 +220,7 @@ def test_annotated_conflict_with_a_parked_robot(solver) -> None:
     best = joint_optimum(inst)
     plain = hp.solve(hp.Instance.mapf(g, ["B", "D"], ["A", "C"]), "cbs", time_limit=10)
     assert plain.cost == 3 and annotated_violations(inst, plain.plan)  # the plain plan clashes
-    res = hp.solve(inst, solver, objective="soc", time_limit=30)
+    res = hp.solve(inst, solver, cost="soc", time_limit=30)
     assert res.status is hp.Status.OPTIMAL and res.cost == best and best > 3
     assert annotated_violations(inst, res.plan) == []
 

@@ -55,7 +55,7 @@ def test_search_stops_before_building_a_model_over_the_budget(
 
     monkeypatch.setattr(TimeExpandedNetwork, "build", never)
     with mem.memory_limit(100_000):  # 100 kB: no model of 5 agents fits
-        res = form.solve(inst, objective=objective, time_limit=30)
+        res = form.solve(inst, cost=objective, time_limit=30)
     assert res.status == hp.Status.TIME_LIMIT and res.plan is None
     assert res.stats["stopped_by"] == "memory_limit"
     assert f"the {form.__name__.rsplit('.', 1)[-1]} model at horizon" in res.stats["reason"]
@@ -82,7 +82,7 @@ def _verify_cli(capsys: pytest.CaptureFixture[str], tmp_path, *extra: str) -> tu
     from hierplan_opt.io import load_instance, save_plan
 
     inst = load_instance(MAP, scen=SCEN, agents=3)
-    res = hp.solve(inst, "cbs", objective="soc")
+    res = hp.solve(inst, "cbs", cost="soc")
     assert res.plan is not None
     p = res.plan.paths
     plan = tmp_path / "slow.yaml"

@@ -245,7 +245,7 @@ def test_cost_gap_and_plan_file_agree_for_makespan(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     plan = tmp_path / "p.yaml"
-    code, out, _ = run(capsys, "solve", CORRIDOR, "--objective", "makespan", "--out", str(plan))
+    code, out, _ = run(capsys, "solve", CORRIDOR, "--cost", "makespan", "--out", str(plan))
     assert code == 0
     words = dict(w.split("=", 1) for w in out.split() if "=" in w)
     st = yaml.safe_load(plan.read_text())["statistics"]

@@ -130,7 +130,7 @@ def test_infeasible_and_refused_options():
     with pytest.raises(OptionError, match="swap must be true or false"):
         hp.solve(inst, "pibt", swap="no")
     with pytest.raises(OptionError, match="does not optimise 'makespan'"):
-        hp.solve(inst, "pibt", objective="makespan")
+        hp.solve(inst, "pibt", cost="makespan")
 
 
 def test_short_time_limit_on_a_large_instance():

@@ -127,7 +127,7 @@ def test_formulation_ladder_reports_each_horizon() -> None:
     g = Graph.grid(3, 2, obstacles=[(0, 1), (2, 1)])
     inst = Instance.mapf(g, [(0, 0), (2, 0)], [(2, 0), (0, 0)])
     with reporting(Progress("solve cpsat", enabled=False)) as p:
-        r = hp.solve(inst, "cpsat", objective="makespan")
+        r = hp.solve(inst, "cpsat", cost="makespan")
     assert p is not None and r.status is hp.Status.OPTIMAL
     assert p.unit == "solves" and p.completed == r.stats["solves"] >= 2
     assert p.fields["horizon"] == r.stats["horizons"][-1][0] == r.cost

@@ -1,7 +1,7 @@
 """Issue 30 item 2: schedule files carry their plan and settings; one reader for all.
 
 Every schedule that ``hierplan post`` writes for a valid plan, from every solver, is
-read back by ``Schedule.load`` and accepted by ``simulate`` and ``validate``; files of
+read back by ``load_schedule`` and accepted by ``simulate`` and ``validate``; files of
 earlier versions (no plan) are read by the visit order with one log line.
 """
 
@@ -28,7 +28,7 @@ from hierplan_opt.schedule import (
     replay,
     write_schedule,
 )
-from hierplan_opt.schedule.files import is_schedule_file
+from hierplan_opt.schedule.files import is_schedule_file, load_schedule
 
 ROOT = Path(__file__).resolve().parents[1]
 MAP = str(ROOT / "instances/movingai/warehouse-10-20-10-2-1.map")
@@ -49,10 +49,10 @@ def solved(solver: str, k: int) -> tuple[hp.Instance, hp.Plan]:
 
 
 def round_trip(inst: hp.Instance, plan: hp.Plan, path: Path, **kw) -> Schedule:
-    """post -> file -> Schedule.load: the same plan, times, settings and replay."""
+    """post -> file -> load_schedule: the same plan, times, settings and replay."""
     s = postprocess(inst, plan, check_plan=False, **kw)
     write_schedule(s, path)
-    back = Schedule.load(path, inst)
+    back = load_schedule(path, inst)
     assert back.plan is not None and back.plan.trimmed() == plan.trimmed()
     assert back.settings["margin"] == pytest.approx(s.margin)
     assert back.settings["objective"] == s.objective
@@ -106,7 +106,7 @@ def test_round_trip_lp_and_margin_and_sizes(tmp_path: Path) -> None:
     assert back.margin == 0 and back.safety_distance == pytest.approx(0.6)
     # A schedule made for other radii does not belong to this instance.
     with pytest.raises(InputError, match="radius 0.3 m but the instance gives 0 m"):
-        Schedule.load(tmp_path / "sized.yaml", inst)
+        load_schedule(tmp_path / "sized.yaml", inst)
 
 
 # ---------------------------------------------------------------------- bad files
@@ -121,7 +121,7 @@ def test_bad_files_one_line(tmp_path: Path) -> None:
     bad["schedule"][name][1]["arrival"] = 0.01
     (tmp_path / "fast.yaml").write_text(yaml.safe_dump(bad))
     with pytest.raises(InputError, match="the times break a bound") as info:
-        Schedule.load(tmp_path / "fast.yaml", inst)
+        load_schedule(tmp_path / "fast.yaml", inst)
     assert len(str(info.value).splitlines()) == 1
     # A plan that is not valid (a robot jumps).
     bad = json.loads(json.dumps(data))
@@ -129,10 +129,10 @@ def test_bad_files_one_line(tmp_path: Path) -> None:
     bad["plan"][name].insert(1, [*inst.graph.location(inst.agents[1].goal), 1])
     (tmp_path / "jump.yaml").write_text(yaml.safe_dump(bad))
     with pytest.raises(InputError, match="the schedule's plan is invalid|steps must increase"):
-        Schedule.load(tmp_path / "jump.yaml", inst)
+        load_schedule(tmp_path / "jump.yaml", inst)
     # Another instance's schedule.
     with pytest.raises(InputError, match="does not belong to this instance"):
-        Schedule.load(f, warehouse(7))
+        load_schedule(f, warehouse(7))
 
 
 def test_old_file_without_plan_read_by_visit_order(
@@ -146,7 +146,7 @@ def test_old_file_without_plan_read_by_visit_order(
     old = tmp_path / "old.yaml"
     old.write_text(yaml.safe_dump(data, default_flow_style=None))
     with caplog.at_level(logging.WARNING):
-        back = Schedule.load(old, inst)
+        back = load_schedule(old, inst)
     said = [r.getMessage() for r in caplog.records if "carries no plan" in r.getMessage()]
     assert len(said) == 1
     assert back.plan is not None and hp.validate(inst, back.plan) == []

@@ -17,7 +17,7 @@ from hierplan_opt.schedule import postprocess
 from hierplan_opt.trajectory import InfeasibleWindowsError, refine
 from hierplan_opt.trajectory import polish as Q
 from hierplan_opt.trajectory import profile as P
-from hierplan_opt.trajectory.refine import Limits, RobotPath
+from hierplan_opt.trajectory.paths import Limits, RobotPath
 from hierplan_opt.trajectory.verify import verify
 
 R = importlib.import_module("hierplan_opt.trajectory.refine")

@@ -73,7 +73,7 @@ def test_tapf_default_objective_is_makespan():
 
 def test_time_limit_gives_unknown_with_bound():
     inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 8)()
-    res = hp.solve(inst, "cpsat", objective="soc", time_limit=60)
+    res = hp.solve(inst, "cpsat", cost="soc", time_limit=60)
     assert res.plan is not None, res.status
     # Make it worse by one wait at the start, then give almost no time.
     p = res.plan.paths
@@ -106,7 +106,7 @@ def plans(tmp_path):
     from hierplan_opt.io import load_instance, save_plan
 
     inst = load_instance(MAP, scen=SCEN, agents=3)
-    res = hp.solve(inst, "cpsat", objective="soc")
+    res = hp.solve(inst, "cpsat", cost="soc")
     assert res.status == hp.Status.OPTIMAL
     good = tmp_path / "good.yaml"
     save_plan(good, inst, res.plan)
@@ -143,7 +143,7 @@ def test_cli_invalid_exit_1(plans, capsys):
 
 
 def test_cli_makespan(plans, capsys):
-    code, out = _run(capsys, str(plans["good"]), "--objective", "makespan", "--time-limit", "60")
+    code, out = _run(capsys, str(plans["good"]), "--cost", "makespan", "--time-limit", "60")
     assert code in (0, 1), out
     assert "makespan" in out
 

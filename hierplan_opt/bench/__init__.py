@@ -4,6 +4,8 @@ Each area is a module of this package with ``main(argv) -> int``. Speed and memo
 targets live here, not in timed unit tests. Every area takes the same three flags
 (:class:`BenchParser`): ``--quick`` (a small preset), ``--time-limit S`` (per solve) and
 ``--instance SPEC`` (which instances; repeatable), and refuses bad flags with one line.
+An area imports the layers it measures inside its functions, so that ``hierplan bench
+AREA`` (and ``hierplan --help``) loads only that area's (heavy) modules.
 """
 
 from __future__ import annotations

@@ -19,8 +19,9 @@ solved counts and the geometric mean of our time over the C++'s on the instances
 solve. Times compared are CPU seconds, as CBSH2-RTC measures them (``clock()``), so a
 loaded machine does not skew the ratio: ours is the solving process's CPU time for
 ``registry.run`` (feasibility test, distances and search; the plan is validated
-afterwards, untimed), the C++'s is its ``runtime`` plus ``preprocessing runtime`` (its
-heuristic tables) when run here. Our time limit is wall-clock, the C++'s is on CPU time.
+afterwards by ``registry.checked``, untimed), the C++'s is its ``runtime`` plus
+``preprocessing runtime`` (its heuristic tables) when run here. Our time limit is
+wall-clock, the C++'s is on CPU time.
 Short instances are timed repeatedly (single CPU times of a few milliseconds are noise):
 each side runs again, interleaved, until it has spent ``REPEAT_BUDGET`` seconds of CPU or
 made ``REPEAT_MAX`` runs, each of ours on a freshly loaded instance (nothing cached); the
@@ -53,9 +54,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt import registry
+from hierplan_opt.api import solve
 from hierplan_opt.bench import SEARCH_HEAD, BenchParser, scenario, search_columns, time_limit
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.options import parse_pairs
+from hierplan_opt.core.result import Status
 
 #: (scenario stem, agents): the optimal-search targets.
 TARGETS = [
@@ -140,9 +144,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.reference or args.anchor:
         return reference(args.instance, args.quick, args.time_limit, args.anchor)
 
-    import hierplan_opt
-    from hierplan_opt import registry
-
     specs = args.instance or [f"{s}:{k}" for s, k in (QUICK if args.quick else TARGETS)]
     tl = time_limit(args.time_limit, args.quick)
     texts = parse_pairs(args.option, "--option")
@@ -168,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
         stem, inst = scenario(spec)
         k = inst.num_agents
         for label, opts in variants:
-            r = hierplan_opt.solve(inst, "cbs", time_limit=tl, objective=args.objective, **opts)
+            r = solve(inst, "cbs", time_limit=tl, cost=args.objective, **opts)
             print(
                 f"{stem:32} {k:>4} {label:10} {search_columns(r)} "
                 f"{r.stats.get('rectangle_splits', 0):>5}",
@@ -492,9 +493,6 @@ def reference(
     specs: list[str] | None, quick: bool, tl_given: float | None, anchor: str | None
 ) -> int:
     """The reference table (see the module doc); 1 if any optimum differs from the known one."""
-    import hierplan_opt
-    from hierplan_opt import registry
-    from hierplan_opt.core.validate import validate
 
     ref = reference_table()
     names = specs or (REFERENCE_QUICK if quick else sorted(ref))
@@ -503,7 +501,7 @@ def reference(
             raise InputError(f"--instance {name}: not a reference instance (SCEN:K of {len(ref)})")
     tl = time_limit(tl_given, False)
     # Warm-up: the first solve of a process pays the solver's lazy imports.
-    hierplan_opt.solve(scenario("empty-8-8-even-1:2")[1], "cbs")
+    solve(scenario("empty-8-8-even-1:2")[1], "cbs")
     head = (
         f"{'instance':36} {'opt':>6} {'status':9} {'ours_s':>7} {'C++_s':>7} {'ratio':>6} "
         f"{'runs':>5} {'HL ours':>11} {'HL C++':>11} {'LL ours':>9} {'LL C++':>9}"
@@ -533,9 +531,10 @@ def reference(
                 cpps.append(run_anchor(anchor, name, tl))
         assert r is not None and inst is not None
         cpu = statistics.median(ours)
+        r = registry.checked(inst, r)  # the plan validated (untimed)
         ok = r.plan is not None
-        bad = r.plan is not None and bool(validate(inst, r.plan))
-        if ok and (bad or (known is not None and r.cost != known)):
+        bad = r.status is Status.ERROR
+        if bad or (ok and known is not None and r.cost != known):
             wrong += 1
             status = "WRONG"
         else:

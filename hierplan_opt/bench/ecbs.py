@@ -25,7 +25,7 @@ empty-8-8-even-1 ...
 
 from __future__ import annotations
 
-import hierplan_opt as hp
+from hierplan_opt.api import solve
 from hierplan_opt.bench import SEARCH_HEAD, BenchParser, scenario, search_columns, time_limit
 from hierplan_opt.core.errors import InputError
 
@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
         for solver in solvers:
             for w in ws:
                 # The search alone (no LaCAM fallback plan when the limit runs out).
-                r = hp.solve(inst, solver, time_limit=limit, w=w, lacam="off")
+                r = solve(inst, solver, time_limit=limit, w=w, lacam="off")
                 row = f"{name:32} {inst.num_agents:>6} {solver:6} {w:>4g} {search_columns(r)}"
                 print(row, flush=True)
     return 0

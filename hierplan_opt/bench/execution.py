@@ -37,8 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
+from hierplan_opt.api import solve
+from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
-from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.instance import Instance, Kinematics
 
 
 def _say(line: str) -> None:
@@ -68,7 +70,6 @@ def resolve_row(
     instance: Instance, plan, schedule, w: float, repeats: int, time_limit: float = 120.0
 ) -> dict:
     """Times of the incremental re-solve, a full pass and a MAPF re-plan (seconds)."""
-    import hierplan_opt as hp
     from hierplan_opt.execution.simulate import rebound
     from hierplan_opt.schedule import earliest_times, fix_and_propagate
 
@@ -104,7 +105,7 @@ def resolve_row(
         "replan",
     )
     t0 = time.perf_counter()
-    res = hp.solve(inst2, "ecbs", w=w, time_limit=time_limit)
+    res = solve(inst2, "ecbs", w=w, time_limit=time_limit)
     t_replan = time.perf_counter() - t0
     return {
         "resolve": t_inc,
@@ -119,7 +120,6 @@ def resolve_row(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hierplan_opt.bench import BenchParser, time_limit
     from hierplan_opt.bench.post import DEFAULT_MAP, DEFAULT_SCEN, make_plan
     from hierplan_opt.execution import RandomDelays
     from hierplan_opt.execution.montecarlo import monte_carlo
@@ -206,9 +206,8 @@ def main(argv: list[str] | None = None) -> int:
             mc = monte_carlo(inst, s, delays, runs=args.runs, workers=w, progress=False)
             _say(f"{k:>4} {w:>7} {mc.runs_per_second:>8.2f} {mc.collisions:>10}")
     wh = load_instance(shipped("instances/paper/warehouse-part1.yaml"))
-    import hierplan_opt as hp
 
-    plan = hp.solve(wh, "cbm", time_limit=60.0 if args.time_limit is None else limit).plan
+    plan = solve(wh, "cbm", time_limit=60.0 if args.time_limit is None else limit).plan
     assert plan is not None
     plain = postprocess(wh, plan, check_plan=False)
     # Delivery windows: every robot due 10 % after its planned arrival.
@@ -274,7 +273,6 @@ def replan_rows(instance: Instance, seeds: int, time_limit: float) -> list[dict]
     """Table 6: each re-plan's whole layer time beside its MAPF solve's own time."""
     import dataclasses
 
-    from hierplan_opt.core.instance import Kinematics
     from hierplan_opt.execution import Breakdown, RandomDelays, Stop, simulate
     from hierplan_opt.execution.chain import plan_and_post
 

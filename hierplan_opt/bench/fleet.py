@@ -21,9 +21,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order
 
+from hierplan_opt.api import solve
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
 
 
 def _reachable(g: Graph, src: int, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -124,8 +126,6 @@ def lacam_fleet(
     """
     import random
 
-    from hierplan_opt.search.lacam import solve
-
     cells = sorted(
         (graph.location(int(v)) for v in np.flatnonzero(graph.passable)),
         key=lambda c: (c[1], c[0]),
@@ -136,7 +136,7 @@ def lacam_fleet(
     goals = cells[:]
     rng.shuffle(goals)
     inst = Instance.mapf(graph, starts[:agents], goals[:agents], name=f"fleet-{agents}-seed{seed}")
-    r = solve(inst, time_limit=time_limit, seed=0, anytime=0)
+    r = solve(inst, "lacam", time_limit=time_limit, seed=0, anytime=0)
     if r.plan is None:
         return None
     return inst, r.plan, float(r.stats["first_time"])
@@ -150,7 +150,6 @@ def fleet_row(graph: Graph, agents: int, repeats: int, seed: int = 1) -> str:
     import statistics
     import time
 
-    from hierplan_opt.core.validate import validate
     from hierplan_opt.schedule import postprocess, replay
 
     found = lacam_fleet(graph, agents, seed=seed)

@@ -19,7 +19,12 @@ import contextlib
 import time
 from collections.abc import Iterable, Iterator
 
+from hierplan_opt import registry
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.result import Status
 
 MAPS = {
     "random-32-32-20": "random-32-32-20-random-1.scen",
@@ -76,14 +81,12 @@ def time_table(
     maps: list[str], agents: list[int], solvers: list[str], objective: str, time_limit: float
 ) -> Iterator[tuple]:
     """Rows: map, K, solver, status, cost, lower bound, seconds (or why it was skipped)."""
-    import hierplan_opt as hp
-    from hierplan_opt import registry
 
     # Warm up: the first call of a solver pays for importing Pyomo / OR-Tools.
-    tiny = hp.Instance.mapf(hp.Graph.grid(3, 2), [(0, 0)], [(2, 1)])
+    tiny = Instance.mapf(Graph.grid(3, 2), [(0, 0)], [(2, 1)])
     for s in solvers:
         with contextlib.suppress(ImportError):
-            hp.solve(tiny, s, objective=objective, time_limit=time_limit)
+            solve(tiny, s, cost=objective, time_limit=time_limit)
     for m in maps:
         dropped: set[str] = set()
         for k in agents:
@@ -99,9 +102,9 @@ def time_table(
                     dropped.add(s)
                     continue
                 t0 = time.perf_counter()
-                res = hp.solve(inst, s, objective=objective, time_limit=time_limit)
+                res = solve(inst, s, cost=objective, time_limit=time_limit)
                 dt = time.perf_counter() - t0
-                if res.status != hp.Status.OPTIMAL:
+                if res.status != Status.OPTIMAL:
                     dropped.add(s)
                 yield (
                     m,

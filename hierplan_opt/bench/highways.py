@@ -26,7 +26,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import hierplan_opt as hp
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.highways import Highways, highway_share
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
             solver, opts = CONFIGS[config]
             results: list[tuple[Instance, Result]] = []
             for name, inst in insts:
-                r = hp.solve(inst, solver, time_limit=limit, **opts)
+                r = solve(inst, solver, time_limit=limit, **opts)
                 results.append((inst, r))
                 if args.per_instance:
                     cost = "-" if r.cost is None else f"{r.cost:g}"

@@ -46,6 +46,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from hierplan_opt.api import solve
+from hierplan_opt.bench import BenchParser
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.experiments.data import shipped_file
 
@@ -185,12 +187,11 @@ def _worker(spec: dict) -> int:
     """Run one solve in this process and print the result as JSON."""
     import resource
 
-    import hierplan_opt as hp
     from hierplan_opt.io.movingai import load_movingai
 
     inst = load_movingai(spec["map"], spec["scen"], spec["agents"])
     t0 = time.perf_counter()
-    r = hp.solve(inst, spec["solver"], time_limit=spec["time_limit"], **spec["options"])
+    r = solve(inst, spec["solver"], time_limit=spec["time_limit"], **spec["options"])
     dt = time.perf_counter() - t0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out = {
@@ -309,7 +310,6 @@ def _row(measure: str, case: Case, solver: str, r: dict, note: str = "") -> None
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hierplan_opt.bench import BenchParser
 
     ap = BenchParser(
         "lacam",

@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt.bench import BenchParser
 from hierplan_opt.core.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -83,7 +84,6 @@ def ours(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from hierplan_opt.bench import BenchParser
     from hierplan_opt.io.lorr import load_problem
     from hierplan_opt.lifelong import check_log  # heavy module (scipy): on use only
 

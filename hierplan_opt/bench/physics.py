@@ -39,6 +39,8 @@ import numpy as np
 
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance, Kinematics
 
 log = logging.getLogger(__name__)
 
@@ -170,7 +172,6 @@ def formation(limit: float) -> None:
 
 
 def fleet(n: int, limit: float) -> None:
-    from hierplan_opt.core.instance import Kinematics
     from hierplan_opt.execution.chain import plan_and_post
     from hierplan_opt.execution.simulate import simulate
     from hierplan_opt.io.movingai import load_movingai
@@ -263,8 +264,6 @@ def spill(limit: float) -> None:
 
 
 def agreement() -> None:
-    from hierplan_opt.core.graph import Graph
-    from hierplan_opt.core.instance import Instance, Kinematics
     from hierplan_opt.physics.run import AGREEMENT, GOAL_TOL, follow
 
     print("\n5. agreement with the schedule, no disturbance (4-robot swap; 3D: 3 robots)")

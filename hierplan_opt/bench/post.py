@@ -1,6 +1,6 @@
 """``hierplan bench post``: MAPF-POST sizes and times, graph method vs LP.
 
-Plans: ECBS (``hierplan_opt.solve(inst, "ecbs", w=...)``) when that solver is
+Plans: ECBS (``solve(inst, "ecbs", w=...)``) when that solver is
 available, else prioritized planning with a space-time A* written here (every plan is
 checked with :func:`hierplan_opt.validate`). For each number of robots the table
 gives the TPG/STN sizes and the median over repeats of: building TPG+STN, the earliest
@@ -19,10 +19,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
 
 log = logging.getLogger(__name__)
 
@@ -89,11 +91,10 @@ def prioritized_plan(
 
 def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) -> tuple[Plan, str]:
     """An ECBS plan if the ECBS solver is available and succeeds, else prioritized."""
-    import hierplan_opt as hp
 
     try:
-        res = hp.solve(instance, "ecbs", time_limit=time_limit, w=w)
-        if res.plan is not None and not hp.validate(instance, res.plan):
+        res = solve(instance, "ecbs", time_limit=time_limit, w=w)
+        if res.plan is not None and not validate(instance, res.plan):
             return res.plan, f"ecbs(w={w})"
         log.info("ECBS gave no plan (%s); using prioritized planning", res.status)
     except Exception as exc:  # the ECBS solver may not exist yet
@@ -101,7 +102,7 @@ def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) 
     plan = prioritized_plan(instance)
     if plan is None:
         raise RuntimeError("prioritized planning failed")
-    bad = hp.validate(instance, plan)
+    bad = validate(instance, plan)
     if bad:
         raise RuntimeError(f"prioritized plan invalid: {bad[0]}")
     return plan, "prioritized"

@@ -27,84 +27,11 @@ import time
 
 import numpy as np
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser, time_limit
-from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.validate import validate
-
-
-def warehouse_grid(shelf_rows: int, shelf_cols: int, shelf_len: int = 5, aisle: int = 3) -> Graph:
-    """A warehouse-like grid: ``shelf_rows x shelf_cols`` shelf blocks (2 x shelf_len).
-
-    Blocks are separated by one-cell passageways; ``aisle`` free columns on the left
-    and right and one free row above and below.
-
-    Example
-    -------
-    >>> g = warehouse_grid(2, 2, shelf_len=3, aisle=2)
-    >>> g.shape, g.num_vertices
-    ((11, 7), 53)
-    """
-    w = 2 * aisle + shelf_cols * shelf_len + (shelf_cols - 1)
-    h = 2 + shelf_rows * 2 + (shelf_rows - 1)
-    blocked = np.zeros((h, w), dtype=bool)
-    for r in range(shelf_rows):
-        y = 1 + 3 * r
-        for c in range(shelf_cols):
-            x = aisle + c * (shelf_len + 1)
-            blocked[y : y + 2, x : x + shelf_len] = True
-    return Graph.grid(w, h, blocked=blocked)
-
-
-def warehouse_tapf(
-    graph: Graph, teams: int, size: int, seed: int, starts_at: str = "sides"
-) -> Instance:
-    """Targets are cells next to shelves; robots start in the side aisles (``"sides"``)
-    or on random free cells away from the targets (``"random"``).
-
-    Example
-    -------
-    >>> inst = warehouse_tapf(warehouse_grid(2, 2, 3, 2), 2, 2, seed=0)
-    >>> len(inst.teams), inst.num_agents
-    (2, 4)
-    """
-    rng = np.random.default_rng(seed)
-    w, h = graph.shape  # type: ignore[misc]
-    k = teams * size
-    free = np.flatnonzero(graph.passable)
-    xs = graph.coords[free, 0]
-    side = free[(xs < 3) | (xs >= w - 3)]
-    near_shelf = [
-        v
-        for v in free.tolist()
-        if any(not graph.passable[u] for u in _grid_nbrs(graph, v))
-        and 3 <= graph.coords[v, 0] < w - 3
-    ]
-    if len(near_shelf) < k:
-        raise ValueError(f"the grid is too small for {k} robots")
-    targets = rng.choice(np.array(near_shelf), k, replace=False).tolist()
-    pool = side if starts_at == "sides" else np.setdiff1d(free, targets)
-    if len(pool) < k:
-        raise ValueError(f"the grid has fewer than {k} start cells ({starts_at})")
-    starts = rng.choice(pool, k, replace=False).tolist()
-    spec = [
-        (
-            [graph.location(v) for v in starts[i * size : (i + 1) * size]],
-            [graph.location(v) for v in targets[i * size : (i + 1) * size]],
-        )
-        for i in range(teams)
-    ]
-    return Instance.tapf(graph, spec, name=f"warehouse-{teams}x{size}-s{seed}")
-
-
-def _grid_nbrs(graph: Graph, v: int) -> list[int]:
-    x, y = (int(c) for c in graph.coords[v][:2])
-    w, h = graph.shape[:2]  # type: ignore[index]
-    out = []
-    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        if 0 <= x + dx < w and 0 <= y + dy < h:
-            out.append(graph.vertex((x + dx, y + dy)))
-    return out
+from hierplan_opt.experiments.generators import warehouse_grid, warehouse_tapf
 
 
 def map_tapf(path: str, teams: int, size: int, seed: int) -> Instance:
@@ -126,10 +53,9 @@ def map_tapf(path: str, teams: int, size: int, seed: int) -> Instance:
 def _run(
     inst: Instance, solver: str, limit: float, **options
 ) -> tuple[str, object, object, float, dict]:
-    from hierplan_opt import solve
 
     t0 = time.perf_counter()
-    r = solve(inst, solver, time_limit=limit, objective="makespan", **options)
+    r = solve(inst, solver, time_limit=limit, cost="makespan", **options)
     dt = time.perf_counter() - t0
     if r.plan is not None and validate(inst, r.plan):
         return "INVALID", None, None, dt, r.stats

@@ -23,6 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hierplan_opt.api import solve
+from hierplan_opt.bench import BenchParser, time_limit
+from hierplan_opt.core.instance import Instance, Kinematics
+from hierplan_opt.core.validate import validate
+
 #: The issue's targets (seconds, schedule to verified trajectories).
 TARGETS = {"formation-usc": 5.0, "warehouse": 10.0}
 WAREHOUSE_MAP = "instances/movingai/warehouse-10-20-10-2-1.map"
@@ -32,11 +37,11 @@ WAREHOUSE_RADIUS = 0.3
 
 
 def _formation():
-    import hierplan_opt as hp
     from hierplan_opt.experiments.data import shipped_file  # package data
+    from hierplan_opt.io import load_instance
 
-    inst = hp.load_instance(shipped_file("instances/paper/formation-usc.yaml"))
-    res = hp.solve(inst, "flow", time_limit=60)
+    inst = load_instance(shipped_file("instances/paper/formation-usc.yaml"))
+    res = solve(inst, "flow", time_limit=60)
     if res.plan is None:
         raise RuntimeError(f"flow found no plan for the formation ({res.status})")
     return "formation-usc", inst, res.plan, "flow"
@@ -44,7 +49,6 @@ def _formation():
 
 def _warehouse(k: int, w: float, cache: str | None, time_limit: float):
     from hierplan_opt.bench.post import make_plan
-    from hierplan_opt.core.instance import Instance, Kinematics
     from hierplan_opt.experiments.data import shipped_file  # package data
     from hierplan_opt.io import load_plan, save_plan
     from hierplan_opt.io.movingai import load_map, load_scen
@@ -103,8 +107,6 @@ def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    import hierplan_opt as hp
-    from hierplan_opt.bench import BenchParser, time_limit
     from hierplan_opt.schedule import postprocess
     from hierplan_opt.trajectory import InfeasibleWindowsError, refine
     from hierplan_opt.trajectory.model import clear_cache
@@ -139,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     results = []
     for name, inst, plan, planner in cases:
-        hp_valid = hp.validate(inst, plan)
+        hp_valid = validate(inst, plan)
         if hp_valid:
             raise RuntimeError(f"{name}: the plan is invalid: {hp_valid[0]}")
         t0 = time.perf_counter()

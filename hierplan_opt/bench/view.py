@@ -23,8 +23,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt.api import solve
 from hierplan_opt.bench import BenchParser
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.instance import Instance
+from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
 
 TARGET_LOAD_S = 3.0
 TARGET_FPS = 30.0
@@ -32,17 +37,16 @@ TARGET_PICTURE_S = 20.0
 
 
 def _empty_instance(n: int, robots: int, seed: int = 1) -> Any:
-    import hierplan_opt as hp
 
     if robots > n * n:
         raise InputError(f"{robots} robots do not fit on a {n} x {n} grid")
-    g = hp.Graph.grid(n, n)
+    g = Graph.grid(n, n)
     cells = [(x, y) for y in range(n) for x in range(n)]
     rng = random.Random(seed)
     starts, goals = cells[:], cells[:]
     rng.shuffle(starts)
     rng.shuffle(goals)
-    return hp.Instance.mapf(g, starts[:robots], goals[:robots], name=f"empty-{n}-{n}")
+    return Instance.mapf(g, starts[:robots], goals[:robots], name=f"empty-{n}-{n}")
 
 
 def _save(path: str, plan: Any) -> None:
@@ -59,13 +63,11 @@ def _save(path: str, plan: Any) -> None:
 def _load(path: str, inst: Any) -> Any:
     import numpy as np
 
-    import hierplan_opt as hp
-
     with np.load(path) as z:
         arr = z["paths"]
     if arr.shape[0] != inst.num_agents:
         raise InputError(f"{path}: a plan of {arr.shape[0]} robots, not {inst.num_agents}")
-    return hp.Plan.from_paths(arr.tolist()).trimmed()
+    return Plan.from_paths(arr.tolist()).trimmed()
 
 
 def viewer_rows(path: Path, repeats: int, sizes: list[tuple[int, int]]) -> list[dict[str, Any]]:
@@ -114,7 +116,6 @@ def main(argv: list[str] | None = None) -> int:
         "(a 10,000-robot solve takes minutes)",
     )
     args = p.parse_args(argv)
-    import hierplan_opt as hp
     from hierplan_opt.viz.html import write_view
     from hierplan_opt.viz.scene import scene_from_plan
 
@@ -127,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     if plan is None:
         t0 = time.perf_counter()
         limit = args.time_limit or (10.0 if args.quick else 300.0)
-        res = hp.solve(inst, "lacam", time_limit=limit)
+        res = solve(inst, "lacam", time_limit=limit)
         solve_s = time.perf_counter() - t0
         if res.plan is None:
             print(f"LaCAM found no plan for {robots} robots in {solve_s:.0f} s: {res.status.value}")
@@ -135,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         plan = res.plan
         if args.reuse:
             _save(args.reuse, plan)
-    bad = hp.validate(inst, plan)
+    bad = validate(inst, plan)
     if bad:
         print(f"LaCAM's plan is invalid: {bad[0]}")
         return 1

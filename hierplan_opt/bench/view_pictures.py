@@ -16,6 +16,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt.api import solve
+
 TARGET_S = 20.0
 
 
@@ -27,10 +29,10 @@ def _timed(fn: Callable[[], Any]) -> float:
 
 def picture_table(quick: bool = False, robots: int = 200, seconds: float = 60.0) -> bool:
     """Print the table; True when every picture took less than :data:`TARGET_S`."""
-    import hierplan_opt as hp
     from hierplan_opt.execution import simulate
     from hierplan_opt.experiments.data import movingai_files
     from hierplan_opt.io.movingai import load_movingai
+    from hierplan_opt.schedule import postprocess
     from hierplan_opt.viz.animation import animate
     from hierplan_opt.viz.gantt import plot_gantt
     from hierplan_opt.viz.html import write_view
@@ -42,12 +44,12 @@ def picture_table(quick: bool = False, robots: int = 200, seconds: float = 60.0)
     mp, _ = movingai_files("warehouse-10-20-10-2-1-even-1")
     scen = Path(mp).parent.parent / "large" / "warehouse-10-20-10-2-1-gen-1.scen"
     inst = load_movingai(mp, scen, robots)
-    res = hp.solve(inst, "lacam", time_limit=5.0)
+    res = solve(inst, "lacam", time_limit=5.0)
     if res.plan is None:
         print(f"pictures: LaCAM found no plan for {robots} robots")
         return False
     plan = res.plan
-    schedule = hp.postprocess(inst, plan)
+    schedule = postprocess(inst, plan)
     ex = simulate(inst, schedule)
     scene = scene_from_execution(inst, ex)
     print(

@@ -16,7 +16,6 @@ import importlib
 import sys
 from collections.abc import Sequence
 
-from hierplan_opt import __version__
 from hierplan_opt.cli.common import (
     BAD_INPUT,
     INTERNAL,
@@ -27,6 +26,7 @@ from hierplan_opt.cli.common import (
     one_line_errors,
 )
 from hierplan_opt.core.errors import HierplanError
+from hierplan_opt.core.version import __version__
 
 COMMANDS = (
     "solve",

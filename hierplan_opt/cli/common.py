@@ -12,9 +12,12 @@ import argparse
 import contextlib
 import logging
 import math
+import sys
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
+
+from hierplan_opt.core.errors import InputError
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance
@@ -81,6 +84,39 @@ def add_instance_arguments(p: argparse.ArgumentParser, *, optional: bool = False
         help="accept a scenario whose map field names another map file",
     )
     add_limit_arguments(p)
+
+
+def add_cost_argument(p: argparse.ArgumentParser, what: str) -> None:
+    """``--cost soc|makespan``: what a plan minimises, in steps (``what`` says for what);
+    ``--objective`` is its old name, kept (deprecated) for scripts. Objectives are a
+    schedule's (``hierplan post --objective``, seconds)."""
+    p.add_argument(
+        "--cost",
+        choices=("soc", "makespan"),
+        help=f"{what} (default: soc for MAPF, makespan for TAPF)",
+    )
+    p.add_argument(
+        "--objective",
+        dest="deprecated_objective",
+        choices=("soc", "makespan"),
+        help="deprecated name of --cost",
+    )
+
+
+def cost_of(args: argparse.Namespace) -> str | None:
+    """The ``--cost`` of a command made by :func:`add_cost_argument` (``--objective``
+    with a warning on stderr)."""
+    old = getattr(args, "deprecated_objective", None)
+    if old is None:
+        return args.cost
+    print(
+        "hierplan: --objective is deprecated for a plan's cost, use --cost "
+        "(objectives are a schedule's: hierplan post --objective)",
+        file=sys.stderr,
+    )
+    if args.cost is not None and args.cost != old:
+        raise InputError(f"--cost {args.cost} and the deprecated --objective {old} differ")
+    return old
 
 
 def add_limit_arguments(p: argparse.ArgumentParser) -> None:

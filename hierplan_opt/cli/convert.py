@@ -31,6 +31,7 @@ from hierplan_opt.cli.common import (
     tracker_y_note,
 )
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.validate import validate
 
 HELP = (
     "write an instance, a plan or a schedule in another tool's format (libMultiRobotPlanning, "
@@ -145,7 +146,6 @@ def run(args: argparse.Namespace) -> int:
         save_schedule(out, data)
         print(f"schedule ({len(data['schedule'])} robots) as lmrp (x, y, t) -> {out}")
         return OK
-    from hierplan_opt.core.validate import validate
     from hierplan_opt.io import read_plan, save_plan
     from hierplan_opt.io.files import read_text
     from hierplan_opt.io.plans import plan_format

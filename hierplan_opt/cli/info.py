@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-from hierplan_opt.cli.common import OK, add_instance_arguments
+from hierplan_opt import registry
+from hierplan_opt.cli.common import OK, add_instance_arguments, load_instance_from_args
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.graph import UNREACHABLE
 
 HELP = "describe an instance (size, agents, lower bounds, quick infeasibility) or the solvers"
 
@@ -27,7 +29,6 @@ def run(args: argparse.Namespace) -> int:
             return OK
     if args.instance is None:
         raise InputError("give an INSTANCE file (or --solvers)")
-    from hierplan_opt.cli.common import load_instance_from_args
 
     for line in instance_lines(load_instance_from_args(args)):
         print(line)
@@ -48,7 +49,6 @@ def instance_lines(instance) -> list[str]:
     problem: MAPF, 1 agents
     """
     from hierplan_opt.core.feasibility import quick_infeasibility
-    from hierplan_opt.core.graph import UNREACHABLE
 
     g = instance.graph
     out = [f"instance: {instance.name}"]
@@ -94,7 +94,6 @@ def solver_lines() -> list[str]:
     >>> any(line.startswith("cbs ") for line in solver_lines())
     True
     """
-    from hierplan_opt import registry
 
     out = []
     for name in registry.names():

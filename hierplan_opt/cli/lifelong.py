@@ -12,6 +12,7 @@ from hierplan_opt.cli.common import (
     positive_int,
     progress_of,
 )
+from hierplan_opt.core.errors import InputError
 
 HELP = "run a League of Robot Runners problem lifelong (tasks, delays) and write its log"
 
@@ -81,7 +82,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from hierplan_opt.core.errors import InputError
     from hierplan_opt.io.lorr import load_problem, read_log, write_log
     from hierplan_opt.lifelong import check_log, run_lifelong
     from hierplan_opt.lifelong.delays import ReplayDelays

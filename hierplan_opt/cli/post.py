@@ -11,8 +11,11 @@ from hierplan_opt.cli.common import (
     PLAN_INVALID,
     add_instance_arguments,
     add_progress_arguments,
+    check_outputs,
+    load_instance_from_args,
     progress_of,
 )
+from hierplan_opt.core.errors import InputError
 
 HELP = "turn a plan into an execution schedule (MAPF-POST: TPG, STN, graph or LP)"
 
@@ -99,8 +102,6 @@ def _clearance(schedule) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt.cli.common import check_outputs, load_instance_from_args
-    from hierplan_opt.core.errors import InputError
     from hierplan_opt.io import read_plan
     from hierplan_opt.schedule import postprocess, replay, to_dot, write_schedule
     from hierplan_opt.schedule.output import FORMATS

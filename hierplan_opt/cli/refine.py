@@ -14,6 +14,7 @@ from hierplan_opt.cli.common import (
     add_instance_arguments,
     add_progress_arguments,
     fraction,
+    load_instance_from_args,
     positive_float,
     positive_int,
     progress_of,
@@ -119,7 +120,6 @@ def _clearance(traj) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt.cli.common import load_instance_from_args
     from hierplan_opt.trajectory import InfeasibleWindowsError, from_file, refine
     from hierplan_opt.trajectory.result import check_output_path, write_trajectories
 

@@ -4,8 +4,24 @@ from __future__ import annotations
 
 import argparse
 
-from hierplan_opt.cli.common import INFEASIBLE, LIMIT, add_instance_arguments, positive_float
-from hierplan_opt.cli.simulate import add_execution_arguments, check_execution_outputs
+from hierplan_opt import registry
+from hierplan_opt.cli.common import (
+    INFEASIBLE,
+    LIMIT,
+    add_cost_argument,
+    add_instance_arguments,
+    cost_of,
+    load_instance_from_args,
+    positive_float,
+)
+from hierplan_opt.cli.simulate import (
+    add_execution_arguments,
+    check_execution_outputs,
+    check_monte_carlo,
+    disturbances_of,
+    report_execution,
+)
+from hierplan_opt.core.options import parse_pairs
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
 
@@ -13,11 +29,7 @@ HELP = "plan, post-process and execute an instance (the whole hierarchy) with a 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_instance_arguments(p)
     p.add_argument("--solver", default="cbs", metavar="NAME", help="planner (default: cbs)")
-    p.add_argument(
-        "--objective",
-        choices=("soc", "makespan"),
-        help="planning objective (default: soc for MAPF, makespan for TAPF)",
-    )
+    add_cost_argument(p, "what the plan minimises")
     p.add_argument(
         "--time-limit",
         type=positive_float,
@@ -55,11 +67,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import hierplan_opt as hp
-    from hierplan_opt import registry
-    from hierplan_opt.cli.common import load_instance_from_args
-    from hierplan_opt.cli.simulate import check_monte_carlo, disturbances_of, report_execution
-    from hierplan_opt.core.options import parse_pairs
+    from hierplan_opt.execution.pipeline import run
 
     check_execution_outputs(args)
     check_monte_carlo(args)
@@ -72,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
 
         infeasible = InfeasibleWindowsError
     try:
-        out = hp.run(
+        out = run(
             instance,
             args.solver,
             post=args.post_objective,
@@ -80,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
             policy=args.policy,
             mode=args.mode,
             time_limit=args.time_limit,
-            objective=args.objective,
+            cost=cost_of(args),
             margin=args.margin,
             refine=args.refine,
             seed=args.seed,

@@ -10,9 +10,13 @@ from hierplan_opt.cli.common import (
     OK,
     PLAN_INVALID,
     add_instance_arguments,
+    check_outputs,
     fraction,
+    load_instance_from_args,
+    positive_float,
     positive_int,
 )
+from hierplan_opt.core.errors import InputError, OptionError
 
 HELP = "execute a plan or schedule under disturbances (slack, STN re-solve, re-plan)"
 
@@ -60,7 +64,6 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
 
 def add_animation_arguments(p: argparse.ArgumentParser) -> None:
     """``--fps``, ``--animate-size WxH``, ``--animate-speed`` of ``--animate``."""
-    from hierplan_opt.cli.common import positive_float
 
     p.add_argument("--fps", type=positive_float, default=10.0, help="animation frame rate (10)")
     p.add_argument(
@@ -105,11 +108,11 @@ def load_plan_or_schedule(args: argparse.Namespace, instance: Any) -> tuple[Any,
     """The schedule to execute: MAPF-POST of a plan file, or a schedule file read by the
     one reader (its own plan, settings and times; ``--margin`` re-posts its plan)."""
     from hierplan_opt.io import load_plan
-    from hierplan_opt.schedule import Schedule, postprocess
+    from hierplan_opt.schedule import load_schedule, postprocess
     from hierplan_opt.schedule.files import is_schedule_file
 
     if is_schedule_file(args.plan):
-        schedule = Schedule.load(args.plan, instance)
+        schedule = load_schedule(args.plan, instance)
         if args.margin is not None and args.margin != schedule.margin:
             assert schedule.plan is not None
             st = schedule.settings
@@ -156,7 +159,6 @@ def execute(
 
 
 def check_monte_carlo(args: argparse.Namespace) -> None:
-    from hierplan_opt.core.errors import OptionError
 
     if args.replan_below is not None and not args.runs:
         raise OptionError("--replan-below needs a Monte Carlo batch (--runs N)")
@@ -254,7 +256,6 @@ def report_execution(
 
 def check_execution_outputs(args: argparse.Namespace) -> None:
     """Every output of ``simulate`` / ``run`` checked before any work (one line, exit 2)."""
-    from hierplan_opt.cli.common import check_outputs
     from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
 
     check_outputs(
@@ -265,14 +266,12 @@ def check_execution_outputs(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt.cli.common import load_instance_from_args
 
     check_execution_outputs(args)
     instance = load_instance_from_args(args)
     schedule, kind = load_plan_or_schedule(args, instance)
     traj = None
     if args.trajectories:
-        from hierplan_opt.core.errors import InputError
         from hierplan_opt.execution.follow import check_trajectories
         from hierplan_opt.trajectory.result import read_trajectories
 

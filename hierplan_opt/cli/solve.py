@@ -7,17 +7,20 @@ import sys
 import time
 from typing import Any
 
-from hierplan_opt.api import DEFAULT_TIME_LIMIT
+from hierplan_opt import registry
+from hierplan_opt.api import DEFAULT_TIME_LIMIT, solve
 from hierplan_opt.cli.common import (
     INFEASIBLE,
     INTERNAL,
     LIMIT,
     OK,
     PLAN_SUFFIXES,
+    add_cost_argument,
     add_instance_arguments,
     add_memory_argument,
     add_progress_arguments,
     check_outputs,
+    cost_of,
     load_instance_from_args,
     positive_float,
     progress_of,
@@ -25,6 +28,8 @@ from hierplan_opt.cli.common import (
 from hierplan_opt.core.errors import InputError, UnknownSolverError
 from hierplan_opt.core.options import parse_pairs
 from hierplan_opt.core.progress import note
+from hierplan_opt.core.result import Status
+from hierplan_opt.search.libmrp import disappear_at_goals, from_disappeared
 
 HELP = "solve a MAPF/TAPF instance and write the plan (libMultiRobotPlanning layout)"
 
@@ -54,11 +59,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="solver name (default: cbs for MAPF; for TAPF flow with one team, cbm with "
         "more; the choice is printed); `--solver NAME --help` lists its options",
     )
-    p.add_argument(
-        "--objective",
-        choices=("soc", "makespan"),
-        help="objective (default: soc for MAPF, makespan for TAPF)",
-    )
+    add_cost_argument(p, "what the plan minimises")
     p.add_argument("--w", type=positive_float, metavar="W", help="suboptimality bound (option w)")
     p.add_argument(
         "--highways",
@@ -116,7 +117,6 @@ def solver_help(name: str) -> list[str]:
     >>> solver_help("ecbs")[2]
     '  w: number >= 1 and < 1e+09 (default 1.2) -- suboptimality bound: cost <= w * optimum'
     """
-    from hierplan_opt import registry
 
     try:
         spec = registry.get(name).load().options
@@ -182,7 +182,6 @@ def highway_options(args: argparse.Namespace, instance: Any, options: dict[str, 
     """Put ``--highways``/``--w-hwy`` into ``options``; a highway file goes into the instance."""
     from dataclasses import replace
 
-    from hierplan_opt import registry
     from hierplan_opt.core.highways import GENERATORS
 
     if args.highways is None:
@@ -238,9 +237,6 @@ def default_solver(instance: Any) -> tuple[str, str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    import hierplan_opt
-    from hierplan_opt import registry
-    from hierplan_opt.core.result import Status
     from hierplan_opt.io import save_plan
     from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
 
@@ -265,23 +261,19 @@ def run(args: argparse.Namespace) -> int:
     instance = highway_options(args, instance, options)
     solved = instance
     if args.disappear_at_goal:
-        from hierplan_opt.search.libmrp import disappear_at_goals
-
         solved = disappear_at_goals(instance)
     with progress_of(args, f"solve {args.solver}"):
         cpu0 = time.process_time()
-        result = hierplan_opt.solve(
+        result = solve(
             solved,
             args.solver,
             time_limit=args.time_limit,
             seed=args.seed,
-            objective=args.objective,
+            cost=cost_of(args),
             **options,
         )
         cpu = time.process_time() - cpu0  # the solve's CPU seconds (runtime is wall-clock)
         if args.disappear_at_goal:
-            from hierplan_opt.search.libmrp import from_disappeared
-
             result = from_disappeared(instance, result)
         note(status=str(result.status), lb=result.lower_bound, best=result.cost)
     if chosen is not None and "MAPF)" not in chosen:  # MAPF: cbs, the documented default

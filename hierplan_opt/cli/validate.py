@@ -15,6 +15,9 @@ from hierplan_opt.cli.common import (
     load_instance_from_args,
     tracker_y_note,
 )
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.validate import validate
+from hierplan_opt.search.libmrp import annotated_violations, checked_form
 
 if TYPE_CHECKING:
     from hierplan_opt.core.validate import Violation
@@ -49,11 +52,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _schedule(args: argparse.Namespace, instance) -> int:
     """A schedule file: its plan (validated by the reader), bounds and replay."""
-    from hierplan_opt.core.errors import InputError
-    from hierplan_opt.schedule import Schedule, replay
+    from hierplan_opt.schedule import load_schedule, replay
 
     try:
-        schedule = Schedule.load(args.plan, instance)
+        schedule = load_schedule(args.plan, instance)
     except InputError as exc:
         if "plan is invalid" not in str(exc):
             raise
@@ -79,7 +81,6 @@ def _schedule(args: argparse.Namespace, instance) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hierplan_opt.core.validate import validate
     from hierplan_opt.io import read_plan
     from hierplan_opt.schedule.files import is_schedule_file
 
@@ -88,7 +89,6 @@ def run(args: argparse.Namespace) -> int:
         return _schedule(args, instance)
     plan, stats = read_plan(args.plan, instance, tracker_y=args.tracker_y)
     # libMRP's variants (task-free robots, agents that leave, annotated conflicts)
-    from hierplan_opt.search.libmrp import annotated_violations, checked_form
 
     checked, as_plan = checked_form(instance, plan, disappear=args.disappear_at_goal)
     violations: list[Violation | str] = [

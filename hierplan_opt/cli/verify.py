@@ -8,9 +8,11 @@ from hierplan_opt.cli.common import (
     LIMIT,
     OK,
     PLAN_INVALID,
+    add_cost_argument,
     add_instance_arguments,
     add_memory_argument,
     add_progress_arguments,
+    cost_of,
     load_instance_from_args,
     positive_float,
     progress_of,
@@ -34,11 +36,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_memory_argument(p)
     add_progress_arguments(p)
     p.add_argument("plan", metavar="PLAN", help="plan file (as written by `hierplan solve`)")
-    p.add_argument(
-        "--objective",
-        choices=("soc", "makespan"),
-        help="objective to certify (default: soc for MAPF, makespan for TAPF)",
-    )
+    add_cost_argument(p, "the plan's cost to certify")
     p.add_argument(
         "--method",
         choices=("cpsat", "mip"),
@@ -67,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         res = verify(
             instance,
             plan,
-            objective=args.objective,
+            objective=cost_of(args),
             method=args.method,
             time_limit=args.time_limit,
         )

@@ -7,7 +7,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from hierplan_opt.cli.common import OK, add_instance_arguments
+from hierplan_opt.cli.common import (
+    OK,
+    add_instance_arguments,
+    check_outputs,
+    load_instance_from_args,
+)
+from hierplan_opt.core.errors import InputError
 
 HELP = (
     "write an interactive HTML viewer (one file, opens from disk) of a plan, schedule, "
@@ -37,7 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def _kind(path: str) -> tuple[str, Any]:
     """(kind, parsed data); kind: trajectories, lorr, report, schedule or plan."""
-    from hierplan_opt.io._yaml import read_yaml
+    from hierplan_opt.io.yaml import read_yaml
     from hierplan_opt.viz.scene import is_lorr
 
     if Path(path).suffix.lower() == ".npz":
@@ -45,7 +51,6 @@ def _kind(path: str) -> tuple[str, Any]:
     if Path(path).suffix.lower() == ".json":
         import json
 
-        from hierplan_opt.core.errors import InputError
         from hierplan_opt.io.files import read_text
 
         try:
@@ -74,8 +79,6 @@ def _kind(path: str) -> tuple[str, Any]:
 
 def build_scene(args: argparse.Namespace) -> Any:
     """The :class:`~hierplan_opt.viz.scene.Scene` of ``args.file``."""
-    from hierplan_opt.cli.common import load_instance_from_args
-    from hierplan_opt.core.errors import InputError
     from hierplan_opt.viz import scene as sc
 
     kind, data = _kind(args.file)
@@ -117,7 +120,6 @@ def build_scene(args: argparse.Namespace) -> Any:
 def run(args: argparse.Namespace) -> int:
     import time
 
-    from hierplan_opt.cli.common import check_outputs
     from hierplan_opt.core.progress import Progress, reporting
     from hierplan_opt.viz.html import write_view
 

@@ -50,7 +50,7 @@ def plan_and_post(
     *,
     time_limit: float | None = 60.0,
     seed: int = 0,
-    objective: str | None = None,
+    cost: str | None = None,
     post: str | None = "makespan",
     margin: float | None = None,
     method: str | None = None,
@@ -77,7 +77,7 @@ def plan_and_post(
             f"unknown MAPF-POST objective {post!r} (use makespan, safety, flowtime)"
         )
     t0 = time.perf_counter()
-    res = solve(instance, solver, time_limit=time_limit, seed=seed, objective=objective, **options)
+    res = solve(instance, solver, time_limit=time_limit, seed=seed, cost=cost, **options)
     solve_time = time.perf_counter() - t0
     if res.plan is None:
         why = str(res.stats.get("error") or f"{solver} found no plan ({res.status.value})")

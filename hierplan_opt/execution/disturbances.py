@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
-from hierplan_opt.io._yaml import Ctx, LDict, read_yaml
+from hierplan_opt.io.yaml import Ctx, LDict, read_yaml
 
 
 @dataclass(frozen=True)

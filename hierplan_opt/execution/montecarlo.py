@@ -33,10 +33,14 @@ from typing import Any
 
 import numpy as np
 
-from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.errors import HierplanError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.progress import Progress
-from hierplan_opt.execution.disturbances import Disturbance
+from hierplan_opt.execution.chain import plan_and_post
+from hierplan_opt.execution.disturbances import Disturbance, RandomDelays
+from hierplan_opt.execution.follow import check_trajectories
+from hierplan_opt.execution.replan import rescheduled
+from hierplan_opt.execution.simulate import simulate
 from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.tpg import VERTEX
 
@@ -136,7 +140,6 @@ class MonteCarloResult:
 
 def _one_run(args: tuple[Any, ...]) -> tuple[dict[str, Any], np.ndarray]:
     instance, schedule, disturbances, policy, seed, nodes, mode, traj = args
-    from hierplan_opt.execution.simulate import simulate
 
     ex = simulate(
         instance,
@@ -210,8 +213,6 @@ def monte_carlo(
     if mode not in ("agent", "robot", "replay"):
         raise OptionError(f"unknown mode {mode!r} (use agent, robot, replay)")
     if trajectories is not None:
-        from hierplan_opt.execution.follow import check_trajectories
-
         check_trajectories(schedule, trajectories)
     res = _estimate(
         instance, schedule, delay_model, runs, workers, seed, policy, progress, mode, trajectories
@@ -250,7 +251,6 @@ def per_run_seeds(delay_model: Sequence[Disturbance]) -> list[Disturbance]:
     >>> per_run_seeds([RandomDelays(0.1, seed=1)])[0].seed is None
     True
     """
-    from hierplan_opt.execution.disturbances import RandomDelays
 
     out: list[Disturbance] = []
     for d in delay_model:
@@ -365,9 +365,6 @@ def delay_aware_replan(
     Raises :class:`~hierplan_opt.core.errors.HierplanError` when the solver finds no
     plan.
     """
-    from hierplan_opt.core.errors import HierplanError
-    from hierplan_opt.execution.chain import plan_and_post
-    from hierplan_opt.execution.replan import rescheduled
 
     if solver == "auto":
         solver = "cbm" if instance.is_tapf else "ecbs"

@@ -16,6 +16,7 @@ from hierplan_opt.execution.chain import plan_and_post
 from hierplan_opt.execution.disturbances import Disturbance
 from hierplan_opt.execution.simulate import simulate
 from hierplan_opt.execution.state import MODES, Execution
+from hierplan_opt.registry import cost_keyword
 from hierplan_opt.schedule.output import Schedule
 
 if TYPE_CHECKING:
@@ -53,6 +54,7 @@ def run(
     policy: str = "replan",
     mode: str = "agent",
     time_limit: float | None = 60.0,
+    cost: str | None = None,
     objective: str | None = None,
     margin: float | None = None,
     refine: bool = False,
@@ -62,7 +64,8 @@ def run(
     replan_time_limit: float = 30.0,
     solver_options: dict[str, Any] | None = None,
 ) -> Run:
-    """Plan ``instance`` with ``solver`` (validated), MAPF-POST it (objective ``post``),
+    """Plan ``instance`` with ``solver`` (validated; ``cost``: ``"soc"`` or ``"makespan"``,
+    ``objective=`` its deprecated name), MAPF-POST it (objective ``post``),
     optionally refine it into smooth trajectories, and execute it under
     ``disturbances`` with the execution ``policy`` (see :func:`.simulate`).
 
@@ -81,7 +84,7 @@ def run(
         solver,
         time_limit=time_limit,
         seed=seed,
-        objective=objective,
+        cost=cost_keyword(cost, objective),
         post=post,
         margin=margin,
         **(solver_options or {}),

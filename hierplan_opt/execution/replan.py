@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import HierplanError
-from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Agent, Instance
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.execution.chain import Planned, plan_and_post
@@ -229,7 +229,7 @@ def _solve(sim: ExecState, inst2: Instance, margin: float) -> Planned:
                 name,
                 time_limit=limit,
                 seed=seed,
-                objective="soc",
+                cost="soc",
                 margin=margin,
                 **options,
             )
@@ -462,7 +462,6 @@ def _substitute_goals(
 ) -> None:
     """A robot whose goal is blocked by a broken robot, or cut off from its start,
     heads for the nearest vertex it can reach instead (logged)."""
-    from hierplan_opt.core.graph import UNREACHABLE
 
     taken = {goals[k] for k in gid2}
     for gid in gid2:

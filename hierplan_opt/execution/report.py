@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.execution.state import Execution
+from hierplan_opt.io.files import write_text
+from hierplan_opt.schedule.files import load_schedule
 
 
 def text_report(ex: Execution, title: str = "") -> str:
@@ -94,8 +95,6 @@ def write_report(path: str | Path, data: dict[str, Any]) -> Path:
     """Write YAML atomically (a temporary file renamed): never a half-written file."""
     import yaml
 
-    from hierplan_opt.io.files import write_text
-
     return write_text(path, yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
 
 
@@ -114,17 +113,7 @@ def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any
     >>> plan_from_schedule(inst, f, read_schedule(f)).paths
     ((1, 2, 3), (0, 1, 2))
     """
-    from hierplan_opt.schedule.files import load_schedule
 
     plan = load_schedule(path, instance).plan
     assert plan is not None
     return plan
-
-
-def summary_table(rows: Sequence[Sequence[Any]], header: Sequence[str]) -> str:
-    """A plain aligned text table."""
-    cells = [[str(h) for h in header]] + [
-        [_f(x) if isinstance(x, float) else str(x) for x in r] for r in rows
-    ]
-    widths = [max(len(r[k]) for r in cells) for k in range(len(header))]
-    return "\n".join("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in cells)

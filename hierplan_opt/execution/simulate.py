@@ -45,7 +45,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from hierplan_opt.core.errors import InputError, OptionError
+from hierplan_opt.core.errors import HierplanError, InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.execution import layers
 from hierplan_opt.execution.closed_loop import ClosedLoop
@@ -138,7 +138,6 @@ class Simulation(ExecState):
     def _refine_again(self, sched: Schedule, t_r: float) -> Any:
         """Refined trajectories of a re-planned schedule (as the first ones were made),
         or None (logged): then it is followed at constant velocity."""
-        from hierplan_opt.core.errors import HierplanError
         from hierplan_opt.trajectory import refine
 
         t0 = time.perf_counter()
@@ -644,30 +643,18 @@ def simulate(
         raise InputError(
             f"the schedule has {schedule.num_agents} robots, the instance {instance.num_agents}"
         )
-    if mode == "physics":
-        if trajectories is not None:
-            raise OptionError(
-                "physics mode follows the schedule's way-points, not refined trajectories"
-            )
-        return _physics(
-            instance, schedule, disturbances, policy, seed, solver, replan_time_limit, dt
+    if mode == "physics" and trajectories is not None:
+        raise OptionError(
+            "physics mode follows the schedule's way-points, not refined trajectories"
         )
+    if mode == "physics" and policy == "naive":
+        raise OptionError("physics mode runs a closed loop: use a policy other than 'naive'")
     if trajectories is not None:
         check_trajectories(schedule, trajectories, mode)
-    if mode == "robot" and trajectories is None and policy != "naive":
-        plant = kinematic_plant(instance, schedule, disturbances)
-        loop = ClosedLoop(
-            instance,
-            schedule,
-            plant,
-            disturbances=disturbances,
-            policy=policy,
-            seed=seed,
-            solver=solver,
-            replan_time_limit=replan_time_limit,
-            dt=dt,
+    if mode == "physics" or (mode == "robot" and trajectories is None and policy != "naive"):
+        return _closed_loop(
+            instance, schedule, disturbances, policy, seed, solver, replan_time_limit, dt, mode
         )
-        return loop.run()
     sim = Simulation(
         instance, schedule, disturbances, policy, seed, solver, replan_time_limit, trajectories
     )
@@ -676,7 +663,7 @@ def simulate(
     return ex
 
 
-def _physics(
+def _closed_loop(
     instance: Instance,
     schedule: Schedule,
     disturbances: Sequence[Disturbance],
@@ -685,20 +672,24 @@ def _physics(
     solver: str,
     replan_time_limit: float,
     dt: float,
+    mode: str,
 ) -> Execution:
-    """``mode="physics"``: the robots in MuJoCo (:func:`hierplan_opt.physics.run.make_plant`)
-    driven by the same monitor as ``robot`` mode (:class:`.closed_loop.ClosedLoop`: slack
-    -> re-order -> STN re-solve -> re-plan); ``naive`` is refused. The statistics add
-    the physics' measurements (:func:`hierplan_opt.physics.run.measured`: engine
-    contacts, every pair at every physics step, tracking error, real-time factor);
-    ``collisions`` counts the one definition's collisions on the sampled motion plus
+    """``mode="robot"`` and ``mode="physics"``: the monitor (:class:`.closed_loop.ClosedLoop`:
+    slack -> re-order -> STN re-solve -> re-plan) over a plant: the kinematic one, or
+    the robots in MuJoCo (:func:`hierplan_opt.physics.run.make_plant`). In physics mode
+    the statistics add the physics' measurements (:func:`hierplan_opt.physics.run.measured`:
+    engine contacts, every pair at every physics step, tracking error, real-time factor)
+    and ``collisions`` counts the one definition's collisions on the sampled motion plus
     the robot pairs the engine saw in contact."""
-    from hierplan_opt.physics.run import make_plant, measured  # heavy module (MuJoCo)
-
-    if policy == "naive":
-        raise OptionError("physics mode runs a closed loop: use a policy other than 'naive'")
     t0 = time.perf_counter()
-    plant = make_plant(instance, schedule, disturbances, seed=seed, monitor=True)
+    if mode == "physics":
+        from hierplan_opt.physics.run import make_plant, measured  # heavy module (MuJoCo)
+
+        plant: Any = make_plant(instance, schedule, disturbances, seed=seed, monitor=True)
+        how: dict[str, Any] = {"mode": "physics", "wait_before": True}
+    else:
+        plant = kinematic_plant(instance, schedule, disturbances)
+        how = {}
     loop = ClosedLoop(
         instance,
         schedule,
@@ -709,10 +700,11 @@ def _physics(
         solver=solver,
         replan_time_limit=replan_time_limit,
         dt=dt,
-        mode="physics",
-        wait_before=True,
+        **how,
     )
     ex = loop.run()
+    if mode != "physics":
+        return ex
     wall = time.perf_counter() - t0
     st = ex.statistics
     me = measured(plant, schedule, wall)

@@ -8,7 +8,6 @@ execution layer except :mod:`.disturbances`, so the layers and reports that rece
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,6 +23,7 @@ from hierplan_opt.execution.disturbances import (
     Slow,
     Stop,
 )
+from hierplan_opt.io.values import plain
 from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.stn import PIECE, STN
 from hierplan_opt.schedule.tpg import VERTEX, WAIT
@@ -157,31 +157,10 @@ class Execution:
         """``{statistics, events, schedule}``: the YAML report (plain values)."""
         d = self.schedule.to_dict()
         return {
-            "statistics": plain_values(self.statistics),
+            "statistics": plain(self.statistics, digits=9),
             "events": [e.as_dict() for e in self.log],
             "schedule": d["schedule"],
         }
-
-
-def plain_values(x: Any, digits: int = 9) -> Any:
-    """Statistics as file values: string keys, lists, ints, floats rounded to
-    ``digits`` decimals, non-finite floats as None.
-
-    Example
-    -------
-    >>> plain_values({1: (np.int64(2), 0.1234567, float("inf"))}, digits=3)
-    {'1': [2, 0.123, None]}
-    """
-    if isinstance(x, dict):
-        return {str(k): plain_values(v, digits) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [plain_values(v, digits) for v in x]
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        f = float(x)
-        return round(f, digits) if math.isfinite(f) else None
-    return x
 
 
 # ---------------------------------------------------------------------- helpers

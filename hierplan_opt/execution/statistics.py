@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.execution.follow import follow_run, required_distance
+from hierplan_opt.execution.robot import robot_run
 from hierplan_opt.execution.state import DISTURBANCE_KINDS, ExecState, Execution
 from hierplan_opt.schedule.output import Schedule, Waypoints
 from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min, collides
@@ -195,15 +197,11 @@ def finish(
     arrival = sim.arrival.copy()
     slack, required, guaranteed = 0.0, None, schedule.safety_distance
     if sim.follow is not None:
-        from hierplan_opt.execution.follow import follow_run, required_distance
-
         traj, slack = follow_run(sim, dt)
         required = required_distance(sim)
         guaranteed = min(t.safety_distance for t in sim.follows.values())
     robot = None
     if mode in ("robot", "replay") and plant is None:
-        from hierplan_opt.execution.robot import robot_run
-
         robot = robot_run(sim, instance, dt)
         traj, arrival = robot.trajectories, robot.arrival
         # Along the polylines (the refined timing only paces): the schedule's distance.

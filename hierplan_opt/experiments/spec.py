@@ -32,14 +32,17 @@ from __future__ import annotations
 import glob
 import hashlib
 import json
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt import registry
 from hierplan_opt.core.errors import InputError
-from hierplan_opt.io._yaml import Ctx, read_yaml
+from hierplan_opt.experiments.data import instances_dir
+from hierplan_opt.experiments.generators import GENERATORS
+from hierplan_opt.io.values import plain
+from hierplan_opt.io.yaml import Ctx, read_text, read_yaml
 
 TOP_KEYS = (
     "name",
@@ -147,7 +150,6 @@ def load_spec(path: str | Path) -> SweepSpec:
     (['cbs', 'ecbs(w=1.5)'], (2, 4), 's.sqlite')
     """
     p = Path(path)
-    from hierplan_opt.io._yaml import read_text
 
     text = read_text(p)
     return parse_spec(read_yaml(p, text), folder=p.resolve().parent, file=str(p), source=text,
@@ -213,7 +215,7 @@ def parse_spec(
     if "stop_on_failure" in top:
         stop = ctx.boolean(top["stop_on_failure"], "stop_on_failure", line("stop_on_failure"))
     if source == "":
-        source = json.dumps(_plain(top), sort_keys=True)
+        source = json.dumps(plain(top), sort_keys=True)
     return SweepSpec(
         name=name,
         solvers=solvers,
@@ -283,7 +285,6 @@ def default_label(name: str, options: Mapping[str, Any]) -> str:
 def _solvers(
     ctx: Ctx, value: Any, line: int | None, objective: str | None
 ) -> tuple[SolverSpec, ...]:
-    from hierplan_opt import registry
 
     seq = ctx.sequence(value, "solvers", line)
     if not seq:
@@ -298,7 +299,10 @@ def _solvers(
         options: dict[str, Any] = {}
         if "options" in d:
             opts = ctx.mapping(d["options"], f"{what}.options", d.lines.get("options", d.line))
-            options = {str(k): _plain(v) for k, v in opts.items()}
+            options = {
+                str(k): _plain(v, ctx, f"{what}.options.{k}", opts.lines.get(k))
+                for k, v in opts.items()
+            }
         target = None
         problems: tuple[str, ...] = ("mapf",)
         if "target" in d:
@@ -358,7 +362,6 @@ def _solvers(
 
 
 def _instances(ctx: Ctx, value: Any, line: int | None, folder: Path) -> tuple[InstanceSpec, ...]:
-    from hierplan_opt.experiments.generators import GENERATORS
 
     seq = ctx.sequence(value, "instances", line)
     if not seq:
@@ -391,7 +394,10 @@ def _instances(ctx: Ctx, value: Any, line: int | None, folder: Path) -> tuple[In
             params: dict[str, Any] = {}
             if "params" in d:
                 pd = ctx.mapping(d["params"], f"{what}.params", d.lines.get("params"))
-                params = {str(k): _plain(v) for k, v in pd.items()}
+                params = {
+                    str(k): _plain(v, ctx, f"{what}.params.{k}", pd.lines.get(k))
+                    for k, v in pd.items()
+                }
             try:
                 GENERATORS[gen].check(params)
             except InputError as exc:
@@ -435,8 +441,6 @@ def _files(
 ) -> list[Path]:
     text = ctx.string(value, what, line)
     if text.startswith("$instances"):
-        from hierplan_opt.experiments.data import instances_dir
-
         text = str(instances_dir()) + text[len("$instances") :]
     pattern = Path(text) if Path(text).is_absolute() else folder / text
     if glob.has_magic(text):
@@ -453,15 +457,23 @@ def _files(
     return found
 
 
-def _plain(value: Any) -> Any:
-    """LDict/LList (YAML with line numbers) -> plain dict/list, JSON-safe."""
+def _plain(value: Any, ctx: Ctx, what: str, line: int | None) -> Any:
+    """A spec's option or parameter values as plain data (:func:`~hierplan_opt.io.values.plain`);
+    a non-finite number is refused (plain would make it null, which means "default")."""
+    out = plain(value)
+    if not _same_finite(value, out):
+        raise ctx.error(f"{what}: a value is not a finite number ({value!r})", line)
+    return out
+
+
+def _same_finite(value: Any, out: Any) -> bool:
+    if isinstance(value, float):
+        return out is not None
     if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_plain(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    return value
+        return all(_same_finite(v, out[str(k)]) for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return all(_same_finite(v, o) for v, o in zip(value, out, strict=True))
+    return True
 
 
 __all__ = ["InstanceSpec", "SolverSpec", "SweepSpec", "default_label", "load_spec", "parse_spec"]

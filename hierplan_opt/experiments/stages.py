@@ -13,7 +13,8 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from hierplan_opt.core.errors import OptionError
+from hierplan_opt import registry
+from hierplan_opt.core.errors import HierplanError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Result
 
@@ -62,8 +63,6 @@ def post(
     >>> r.cost, st["post_tpg_nodes"], round(st["post_makespan"], 6), st["post_replay_ok"]
     (4, 10, 2.1, True)
     """
-    from hierplan_opt import registry
-    from hierplan_opt.core.errors import HierplanError
     from hierplan_opt.execution.chain import plan_and_post
     from hierplan_opt.schedule import replay
 

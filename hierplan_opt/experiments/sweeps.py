@@ -28,6 +28,7 @@ from typing import Any
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.experiments import store
+from hierplan_opt.experiments.generators import GENERATORS
 from hierplan_opt.experiments.runner import close_servers, run_task
 from hierplan_opt.experiments.spec import (
     InstanceSpec,
@@ -36,6 +37,8 @@ from hierplan_opt.experiments.spec import (
     load_spec,
     parse_spec,
 )
+from hierplan_opt.io import load_instance
+from hierplan_opt.io.yaml import read_yaml
 
 log = logging.getLogger(__name__)
 
@@ -164,8 +167,6 @@ def check_instances(spec: SweepSpec) -> dict[str, str]:
     """Load each file instance once with its largest K, so that bad files and agent
     counts beyond a scenario are refused before the first run; returns the problem
     (``"mapf"`` / ``"tapf"``) of each instance."""
-    from hierplan_opt.experiments.generators import GENERATORS
-    from hierplan_opt.io import load_instance
 
     problems: dict[str, str] = {}
     for inst in spec.instances:
@@ -328,7 +329,6 @@ def resolve(spec: SweepSpec | Mapping[str, Any] | str | Path) -> SweepSpec:
 def spec_from_db(path: str | Path) -> SweepSpec:
     """The spec of the latest sweep recorded in the database ``path`` (its results go
     back to that database)."""
-    from hierplan_opt.io._yaml import read_yaml
 
     con = store.open_existing(path)
     try:

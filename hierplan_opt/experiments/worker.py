@@ -34,6 +34,14 @@ import time
 from pathlib import Path
 from typing import Any
 
+from hierplan_opt import registry
+from hierplan_opt.api import solve
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.result import Status
+from hierplan_opt.experiments.generators import GENERATORS
+from hierplan_opt.io import load_instance
+from hierplan_opt.io.yaml import one_line
+
 MEMOUT = "MEMOUT"
 #: A forked child's exit code: the server's address space leaves too little of the
 #: task's memory limit; run the task in a fresh process instead.
@@ -88,14 +96,9 @@ def versions() -> dict[str, str]:
 def build_instance(payload: dict[str, Any], agents: int | None, seed: int, tmp: Path) -> Any:
     """The instance of a task: files written to ``tmp`` and read back, or generated."""
     if payload["kind"] == "generator":
-        from hierplan_opt.experiments.generators import GENERATORS
-
         if agents is None:
-            from hierplan_opt.core.errors import InputError
-
             raise InputError(f"generator {payload['generator']!r} needs an agent count")
         return GENERATORS[payload["generator"]](payload["params"], agents, seed)
-    from hierplan_opt.io import load_instance
 
     paths = []
     for name in payload["order"]:
@@ -110,8 +113,6 @@ def build_instance(payload: dict[str, Any], agents: int | None, seed: int, tmp: 
 
 def solve_task(task: dict[str, Any]) -> dict[str, Any]:
     """Solve one task in this process; the fields of a ``runs`` row that it knows."""
-    import hierplan_opt
-    from hierplan_opt import registry
 
     if task.get("target"):
         registry.register(
@@ -122,12 +123,12 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
         )
     with tempfile.TemporaryDirectory(prefix="hierplan-inst-") as tmp:
         inst = build_instance(task["instance"], task["agents"], task["seed"], Path(tmp))
-    res = hierplan_opt.solve(
+    res = solve(
         inst,
         task["solver"],
         time_limit=task["time_limit"],
         seed=task["seed"],
-        objective=task.get("objective"),
+        cost=task.get("objective"),
         **task.get("options", {}),
     )
     stats = {k: v for k, v in res.stats.items() if _json_safe(v)}
@@ -139,7 +140,7 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
         "objective": res.objective,
         "agents": inst.num_agents,
         "stats": stats,
-        "error": res.stats.get("error") if res.status == hierplan_opt.Status.ERROR else None,
+        "error": res.stats.get("error") if res.status == Status.ERROR else None,
     }
 
 
@@ -161,8 +162,6 @@ def report(task: dict[str, Any]) -> None:
     except MemoryError:
         out = {"status": MEMOUT, "error": "MemoryError: the run exceeded its memory limit"}
     except Exception as exc:  # recorded as the run's outcome; the sweep goes on
-        from hierplan_opt.io._yaml import one_line
-
         out = {"status": "ERROR", "error": one_line(f"{type(exc).__name__}: {exc}")[:500]}
     out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["versions"] = dict(versions())

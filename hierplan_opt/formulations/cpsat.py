@@ -285,7 +285,7 @@ def solve(
     -------
     >>> from hierplan_opt.core.graph import Graph
     >>> inst = Instance.tapf(Graph.grid(3, 3), [([(0, 0), (2, 2)], [(0, 2), (2, 0)])])
-    >>> r = solve(inst, objective="makespan")
+    >>> r = solve(inst, cost="makespan")
     >>> r.status.value, r.cost
     ('OPTIMAL', 2)
     """

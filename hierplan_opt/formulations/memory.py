@@ -38,6 +38,7 @@ import numpy as np
 from hierplan_opt.core.errors import HierplanError, InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import positive_amount
+from hierplan_opt.formulations.time_expanded import commodities_of
 
 GB = 1 << 30
 
@@ -88,7 +89,6 @@ def estimate_network(
     >>> est.arcs >= TimeExpandedNetwork.build(inst, 16).num_arcs
     True
     """
-    from hierplan_opt.formulations.time_expanded import commodities_of
 
     g = instance.graph
     specs = commodities_of(instance)

@@ -13,7 +13,7 @@ Example
 >>> from hierplan_opt.core.instance import Instance
 >>> g = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])
 >>> inst = Instance.mapf(g, [(0, 0), (1, 0)], [(4, 0), (3, 0)])
->>> r = solve(inst, objective="soc", time_limit=30)
+>>> r = solve(inst, cost="soc", time_limit=30)
 >>> r.status.value, r.cost, r.lower_bound
 ('OPTIMAL', 8, 8)
 """
@@ -280,7 +280,7 @@ def solve(
     -------
     >>> from hierplan_opt.core.graph import Graph
     >>> inst = Instance.tapf(Graph.grid(3, 3), [([(0, 0), (2, 2)], [(0, 2), (2, 0)])])
-    >>> r = solve(inst, objective="makespan")
+    >>> r = solve(inst, cost="makespan")
     >>> r.status.value, r.cost
     ('OPTIMAL', 2)
     """

@@ -27,6 +27,8 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status, relative_gap
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.core.validate import Violation, validate
+from hierplan_opt.formulations.memory import ModelTooLarge, check_model
+from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 
 if TYPE_CHECKING:
     from hierplan_opt.formulations.horizon import Backend
@@ -176,8 +178,6 @@ def verify(
         return done(Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=lb, proof="lower bound")
 
     from hierplan_opt.formulations.horizon import Outcome, detours, solve_with
-    from hierplan_opt.formulations.memory import ModelTooLarge, check_model
-    from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 
     remaining = None if time_limit is None else deadline.remaining()
     if objective == "makespan":

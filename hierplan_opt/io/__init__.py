@@ -23,6 +23,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.io.files import write_text
 from hierplan_opt.io.plans import PLAN_FORMATS, load_plan, read_plan, save_plan
+from hierplan_opt.io.yaml import Ctx, read_yaml
 
 FORMATS = ("hierplan", "lmrp", "movingai")
 _ALIASES = {
@@ -66,7 +67,6 @@ def load_instance(
     Instance('tiny', MAPF, 1 agents, Graph(grid 3x1, 3 free cells))
     """
     from hierplan_opt.io import lmrp_yaml, movingai, yaml_format
-    from hierplan_opt.io._yaml import Ctx, read_yaml
 
     p = Path(path)
     ctx = Ctx(p)

@@ -8,7 +8,8 @@ from typing import Any, TypeVar
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.files import check_grid as _check
+from hierplan_opt.io.yaml import Ctx
 
 T = TypeVar("T")
 
@@ -68,7 +69,6 @@ class Unique:
 
 def check_grid(ctx: Ctx, dims: list[int], line: int | None) -> None:
     """Refuse a grid too large to allocate (see :func:`hierplan_opt.io.files.check_grid`)."""
-    from hierplan_opt.io.files import check_grid as _check
 
     _check(dims, f"{ctx.file}:{line}: " if line else f"{ctx.file}: ")
 

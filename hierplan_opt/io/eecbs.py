@@ -19,7 +19,8 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.io._common import grid_2d, grid_cell, grid_xy
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.files import write_text
+from hierplan_opt.io.yaml import Ctx
 
 _AGENT = re.compile(r"\s*Agent\s+(\d+)\s*:(.*)$")
 _CELL = re.compile(r"\(\s*(-?\d+)\s*,\s*(-?\d+)\s*\)")
@@ -131,7 +132,6 @@ def save(path: str | Path, instance: Instance, plan: Plan) -> None:
     >>> open(f).read()
     'Agent 0: (0,0)->(0,1)->\\n'
     """
-    from hierplan_opt.io.files import write_text
 
     write_text(path, dumps(instance, plan))
 

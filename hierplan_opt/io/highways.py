@@ -40,7 +40,7 @@ from hierplan_opt.core.highways import (
     edge_from_cell,
     is_2d_grid,
 )
-from hierplan_opt.io._yaml import Ctx, read_text, read_yaml
+from hierplan_opt.io.yaml import Ctx, read_text, read_yaml
 
 FORMATS = ("hierplan", "grid", "edges")
 _SUFFIX = {".yaml": "hierplan", ".yml": "hierplan", ".highway": "grid", ".hwy": "edges"}

@@ -31,7 +31,8 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.io._common import grid_2d, grid_cell, grid_xy
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.files import write_text
+from hierplan_opt.io.yaml import Ctx
 
 _KEY = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)=(.*)$")
 _STEP = re.compile(r"\s*(\d+)\s*:(.*)$")
@@ -219,7 +220,6 @@ def save(path: str | Path, instance: Instance, plan: Plan, **kw: Any) -> None:
     >>> parse(open(f).read(), f, inst)[0].paths
     ((0, 1),)
     """
-    from hierplan_opt.io.files import write_text
 
     write_text(path, dumps(instance, plan, **kw))
 

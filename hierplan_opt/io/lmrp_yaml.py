@@ -55,8 +55,9 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, Agent, Instance, Team
 from hierplan_opt.io._common import Unique, check_grid, location, wrap
-from hierplan_opt.io._yaml import Ctx, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
+from hierplan_opt.io.values import plain
+from hierplan_opt.io.yaml import Ctx, read_yaml, yaml_scalar
 
 TOP_KEYS = ("map", "agents")
 MAP_KEYS = ("dimensions", "obstacles")
@@ -561,7 +562,7 @@ def save_schedule(path: str | Path, schedule: Any) -> None:
     import yaml
 
     doc = schedule_document(schedule)
-    stats = {"statistics": _plain(doc["statistics"])}
+    stats = {"statistics": plain(doc["statistics"])}
     lines = [yaml.safe_dump(stats, sort_keys=False).rstrip()]
     lines.append("schedule:")
     for name, rows in doc["schedule"].items():
@@ -569,15 +570,6 @@ def save_schedule(path: str | Path, schedule: Any) -> None:
         for r in rows:
             lines.append("  - {" + ", ".join(f"{k}: {_number(v)}" for k, v in r.items()) + "}")
     write_text(path, "\n".join(lines) + "\n")
-
-
-def _plain(v: Any) -> Any:
-    """``v`` with the reader's line-tracking dicts and lists made plain (for safe_dump)."""
-    if isinstance(v, dict):
-        return {str(k): _plain(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    return v
 
 
 def _number(v: Any) -> str:

@@ -27,8 +27,8 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.io._common import check_grid, wrap
-from hierplan_opt.io._yaml import Ctx, read_text
 from hierplan_opt.io.files import write_text
+from hierplan_opt.io.yaml import Ctx, read_text
 
 FREE = frozenset(".GS")
 BLOCKED = frozenset("@OTW")

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import math
 import re
-from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -29,8 +28,9 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result
-from hierplan_opt.io._yaml import Ctx, LDict, LList, read_text, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
+from hierplan_opt.io.values import plain
+from hierplan_opt.io.yaml import Ctx, LDict, LList, read_text, read_yaml, yaml_scalar
 
 #: Solver statistics written under libMultiRobotPlanning's names.
 _LMRP_NAMES = {
@@ -481,28 +481,23 @@ class _Skip:
 _SKIP: Any = _Skip()
 
 
-def _plain(v: Any, depth: int = 0) -> Any:
-    """``v`` as plain YAML/JSON data, or ``_SKIP`` when it has no plain form."""
-    if depth > 4:
+def _plain(v: Any) -> Any:
+    """A statistic as a file value (:func:`~hierplan_opt.io.values.plain`, 6 significant
+    digits), or ``_SKIP`` when it has no short plain form (arrays, objects, deep nesting)."""
+    if _has_array(v):
         return _SKIP
-    if v is None or isinstance(v, (bool, int, str)):
-        return v
-    if isinstance(v, Enum):
-        return str(v.value)
-    if isinstance(v, (np.bool_,)):
-        return bool(v)
-    if isinstance(v, np.integer):
-        return int(v)
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        return float(f"{f:.6g}") if math.isfinite(f) else str(f)
+    try:
+        return plain(v, significant=6, strict=True, max_depth=4)
+    except TypeError:
+        return _SKIP
+
+
+def _has_array(v: Any) -> bool:
+    if isinstance(v, np.ndarray):
+        return True
     if isinstance(v, (list, tuple)):
-        out = [_plain(x, depth + 1) for x in v]
-        return _SKIP if any(x is _SKIP for x in out) else out
-    if isinstance(v, dict):
-        d = {str(k): _plain(x, depth + 1) for k, x in v.items()}
-        return _SKIP if any(x is _SKIP for x in d.values()) else d
-    return _SKIP
+        return any(_has_array(x) for x in v)
+    return isinstance(v, dict) and any(_has_array(x) for x in v.values())
 
 
 __all__ = [

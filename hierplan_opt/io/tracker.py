@@ -44,9 +44,10 @@ from typing import Any
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.plan import Plan, path_cost
 from hierplan_opt.io._common import grid_2d, grid_xy
-from hierplan_opt.io._yaml import Ctx
+from hierplan_opt.io.files import limits, write_text
+from hierplan_opt.io.yaml import Ctx, check_nesting, read_yaml
 
 FIELDS = (
     "map_name",
@@ -120,7 +121,6 @@ def decode_moves(text: str, budget: int | None = None) -> str:
     >>> decode_moves("3r2dwl")
     'rrrddwl'
     """
-    from hierplan_opt.io.files import limits
 
     cap = limits().max_plan_steps if budget is None else budget
     text = text.strip()
@@ -153,7 +153,6 @@ def path_moves(graph: Graph, path: tuple[int, ...]) -> str:
     >>> path_moves(g, (0, 1, 4, 4, 3, 3))
     'rdwl'
     """
-    from hierplan_opt.core.plan import path_cost
 
     out = []
     for a, b in zip(path[: path_cost(path) + 1], path[1 : path_cost(path) + 1], strict=False):
@@ -277,7 +276,6 @@ def save(path: str | Path, sub: Submission) -> None:
     >>> json.load(open(f))["solution_plan"]
     'r'
     """
-    from hierplan_opt.io.files import write_text
 
     write_text(path, dumps(sub, _fmt(Path(path))))
 
@@ -367,7 +365,6 @@ def parse(
         strings = strings[:k]
     if len(strings) != k:
         raise ctx.error(f"solution_plan has {len(strings)} move strings for {k} agents", line)
-    from hierplan_opt.io.files import limits
 
     budget = limits().max_plan_steps
     decoded = []
@@ -460,7 +457,6 @@ def _rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
 
 
 def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-    from hierplan_opt.io._yaml import check_nesting
 
     check_nesting(text, name)
     try:
@@ -476,7 +472,6 @@ def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any
 
 
 def _yaml_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-    from hierplan_opt.io._yaml import read_yaml
 
     ctx = Ctx(name)
     docs = [d for d in re.split(r"(?m)^---[ \t]*$", text)]
@@ -503,7 +498,6 @@ def _csv_field_limit(n: int) -> Iterator[None]:
 
 
 def _csv_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-    from hierplan_opt.io.files import limits
 
     with _csv_field_limit(limits().max_bytes):
         reader = csv.DictReader(io.StringIO(text, newline=""))

@@ -25,9 +25,9 @@ import numpy as np
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import DEFAULT_KINEMATICS, DRIVES, Agent, Instance, Kinematics, Team
 from hierplan_opt.io._common import Unique, check_grid, location, wrap
-from hierplan_opt.io._yaml import Ctx, LDict, read_yaml, yaml_scalar
 from hierplan_opt.io.files import write_text
 from hierplan_opt.io.movingai import blocked_cells, load_map
+from hierplan_opt.io.yaml import Ctx, LDict, read_yaml, yaml_scalar
 
 FORMAT_TAG = "hierplan/1"
 TOP_KEYS = ("format", "name", "graph", "robot_types", "agents", "teams", "highways")

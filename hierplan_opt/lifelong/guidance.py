@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from hierplan_opt import registry
+from hierplan_opt.api import solve
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.lifelong.model import Grid
@@ -84,9 +85,7 @@ class RegistryGuide:
             [(v % cols, v // cols) for v in locs],
             [(v % cols, v // cols) for v in goals],
         )
-        res = registry.run(
-            self.solver, inst, time_limit=self.time_limit, seed=self.seed, **self.options
-        )
+        res = solve(inst, self.solver, time_limit=self.time_limit, seed=self.seed, **self.options)
         if res.plan is None:
             log.debug("guide: %s gave no plan (%s)", self.solver, res.status.value)
             return None

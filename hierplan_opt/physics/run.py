@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.execution.state import plain_values
+from hierplan_opt.io.values import plain
 from hierplan_opt.physics.disturbances import PhysicalDisturbance, from_execution
 from hierplan_opt.physics.models import robot_model
 from hierplan_opt.physics.plant import MujocoPlant
@@ -179,7 +179,7 @@ class PhysicsRun:
 
     def report(self) -> dict[str, Any]:
         """Plain values (YAML)."""
-        return {"statistics": plain_values(self.statistics, digits=6)}
+        return {"statistics": plain(self.statistics, digits=6)}
 
 
 def follow(

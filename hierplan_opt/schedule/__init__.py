@@ -10,10 +10,11 @@ times by graph algorithms (:mod:`.solve_graph`) or an LP (:mod:`.solve_lp`) ->
 from __future__ import annotations
 
 from hierplan_opt.schedule.clearance import ClearanceError, PairClearance, Requirement
-from hierplan_opt.schedule.files import load_schedule, plan_from_tree, plan_tree
+from hierplan_opt.schedule.files import load_schedule, plan_from_tree
 from hierplan_opt.schedule.output import (
     Schedule,
     Waypoints,
+    plan_tree,
     read_schedule,
     schedule_text,
     to_dot,

@@ -49,6 +49,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.schedule.geometry import segment_distance
 
 #: Relative widening of every claim radius: makes the coverage inequalities strict.
 ETA = 1e-12
@@ -418,7 +419,6 @@ def claim_precedences(
 def _claim_distance(c: Claims, seg: Segments, p: int, q: int, ends: str = "") -> float:
     """Smallest distance between the path pieces of claims ``p`` and ``q``; with
     ``ends="p-start"`` (``"p-end"``) between the start (end) point of ``p`` and ``q``."""
-    from hierplan_opt.schedule.geometry import segment_distance
 
     def pieces(k: int) -> tuple[np.ndarray, np.ndarray]:
         idx = np.arange(int(c.seg_in[k]), int(c.seg_out[k]) + 1)

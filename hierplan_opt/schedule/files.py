@@ -15,9 +15,8 @@ holds, next to its way-points, the **discrete plan** it was made from and the
 (CSV files carry ``settings`` and ``plan`` as ``# key: json`` lines.) Waits are the
 steps between two visits; a robot stays at its last location.
 
-:func:`load_schedule` (also :meth:`Schedule.load <hierplan_opt.schedule.Schedule.load>`)
-is the one reader every command uses (``simulate``, ``refine``, ``run``,
-``validate``): it takes the carried plan (never a reconstruction), checks it with the
+:func:`load_schedule` is the one reader every command uses (``simulate``, ``refine``,
+``run``, ``validate``): it takes the carried plan (never a reconstruction), checks it with the
 validator, rebuilds the temporal plan graph and STN with the file's settings, checks
 that the file's way-points are that graph's and that its times keep every bound, and
 returns a :class:`~hierplan_opt.schedule.Schedule` with the file's times and their
@@ -37,7 +36,11 @@ import numpy as np
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.validate import validate
 from hierplan_opt.schedule.output import Schedule, build_schedule, read_schedule
+from hierplan_opt.schedule.post import postprocess
+from hierplan_opt.schedule.replay import check_bounds
+from hierplan_opt.schedule.solve_graph import critical_path, windows
 
 log = logging.getLogger(__name__)
 
@@ -48,30 +51,6 @@ ROUND_TOL = 1e-8
 
 
 # ---------------------------------------------------------------------- the plan
-def plan_tree(instance: Instance, plan: Plan) -> dict[str, list[list[Any]]]:
-    """The plan as a file carries it: per robot its visits ``[*location, step]``.
-
-    Example
-    -------
-    >>> from hierplan_opt.core.graph import Graph
-    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0)], [(2, 1)])
-    >>> plan_tree(inst, Plan.from_paths([[0, 1, 1, 4, 5]]))
-    {'agent0': [[0, 0, 0], [1, 0, 1], [1, 1, 3], [2, 1, 4]]}
-    """
-    g = instance.graph
-    out: dict[str, list[list[Any]]] = {}
-    for agent, path in zip(instance.agents, plan.paths, strict=True):
-        rows: list[list[Any]] = []
-        prev = None
-        for t, v in enumerate(path):
-            if v != prev:
-                loc = g.plain_location(int(v))
-                rows.append([loc, t] if isinstance(loc, str) else [*loc, t])
-                prev = v
-        out[agent.name] = rows
-    return out
-
-
 def plan_from_tree(instance: Instance, tree: Any, where: str) -> Plan:
     """The plan of a file's ``plan`` block (:func:`plan_tree`'s layout).
 
@@ -324,11 +303,6 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     >>> s.plan == plan, s.margin, round(s.makespan, 6)
     (True, 0.1, 2.1)
     """
-    from hierplan_opt.core.validate import validate
-    from hierplan_opt.schedule.post import postprocess
-    from hierplan_opt.schedule.replay import check_bounds
-    from hierplan_opt.schedule.solve_graph import critical_path, windows
-
     where = str(path)
     data = read_schedule(path)
     g = instance.graph

@@ -26,7 +26,6 @@ import csv
 import io
 import json
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,14 +33,42 @@ from typing import Any
 import numpy as np
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.reprs import short_repr
+from hierplan_opt.io.files import read_text
+from hierplan_opt.io.values import plain
+from hierplan_opt.io.yaml import check_nesting, read_yaml
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
 
 #: Way-point kinds: STN node kinds plus the end of a turn in place.
 TURN = "turn"
+
+
+def plan_tree(instance: Instance, plan: Plan) -> dict[str, list[list[Any]]]:
+    """The plan as a file carries it: per robot its visits ``[*location, step]``.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0)], [(2, 1)])
+    >>> plan_tree(inst, Plan.from_paths([[0, 1, 1, 4, 5]]))
+    {'agent0': [[0, 0, 0], [1, 0, 1], [1, 1, 3], [2, 1, 4]]}
+    """
+    g = instance.graph
+    out: dict[str, list[list[Any]]] = {}
+    for agent, path in zip(instance.agents, plan.paths, strict=True):
+        rows: list[list[Any]] = []
+        prev = None
+        for t, v in enumerate(path):
+            if v != prev:
+                loc = g.plain_location(int(v))
+                rows.append([loc, t] if isinstance(loc, str) else [*loc, t])
+                prev = v
+        out[agent.name] = rows
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,7 +141,7 @@ class Schedule:
         ``acceleration``, ``epsilon``, ``deadlines``, ``radii`` (per robot) and the
         ``solver`` of the plan when known.
     plan_rows : dict or None
-        The plan as its file carries it (:func:`~hierplan_opt.schedule.files.plan_tree`).
+        The plan as its file carries it (:func:`plan_tree`).
     """
 
     __repr__ = short_repr  # arrays and long tuples summarised (core/reprs)
@@ -139,15 +166,6 @@ class Schedule:
     plan: Plan | None = field(default=None, repr=False)
     settings: dict[str, Any] = field(default_factory=dict)
     plan_rows: dict[str, list[list[Any]]] | None = field(default=None, repr=False)
-
-    @classmethod
-    def load(cls, path: str | Path, instance: Any) -> Schedule:
-        """Read a schedule file for ``instance``: the one reader of schedule files
-        (:func:`hierplan_opt.schedule.files.load_schedule`, which see)."""
-        # files.py builds on this module (and on post.py, which imports it).
-        from hierplan_opt.schedule.files import load_schedule
-
-        return load_schedule(path, instance)
 
     @property
     def slack(self) -> np.ndarray:
@@ -196,8 +214,8 @@ class Schedule:
             "clearance": [c.as_dict() for c in self.clearance],
         }
         for k, v in self.stats.items():
-            out[k] = _plain(v)
-        return _finite(out)
+            out[k] = _num(v)
+        return plain(out)
 
     def to_dict(self) -> dict[str, Any]:
         """``{statistics: {...}, schedule: {agent: [{x, y, [z,] theta, arrival}, ...]}}``."""
@@ -220,44 +238,15 @@ class Schedule:
         """The ``settings`` and ``plan`` blocks of the files (those known)."""
         out: dict[str, Any] = {}
         if self.settings:
-            out["settings"] = _finite(_plain(self.settings))
+            out["settings"] = _num(self.settings)
         if self.plan_rows is not None:
             out["plan"] = self.plan_rows
         return out
 
 
-def _num(x: float) -> float | int:
-    """A float rounded to 9 decimals; integral values stay readable (``2`` not ``2.0``)."""
-    f = float(x)
-    if not math.isfinite(f):
-        return f
-    r = round(f, 9)
-    return int(r) if r == int(r) and abs(r) < 1e15 else r
-
-
-def _finite(tree: Any) -> Any:
-    """``tree`` with every non-finite number replaced by None (files never hold them)."""
-    if isinstance(tree, float) and not math.isfinite(tree):
-        return None
-    if isinstance(tree, dict):
-        return {k: _finite(v) for k, v in tree.items()}
-    if isinstance(tree, list):
-        return [_finite(v) for v in tree]
-    return tree
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, (np.floating, float)):
-        return _num(float(v))
-    if isinstance(v, np.ndarray):
-        return [_plain(x) for x in v.tolist()]
-    if isinstance(v, (list, tuple)):
-        return [_plain(x) for x in v]
-    if isinstance(v, Mapping):
-        return {str(k): _plain(x) for k, x in v.items()}
-    return v
+def _num(x: Any) -> Any:
+    """Floats rounded to 9 decimals, whole ones written as ints (``2`` not ``2.0``)."""
+    return plain(x, digits=9, integral=True)
 
 
 # ---------------------------------------------------------------------- building
@@ -436,8 +425,6 @@ def read_schedule(path: str | Path) -> dict[str, Any]:
     CSV rows come back with the same keys as YAML (``x, y, [z,] theta, arrival``) plus
     ``earliest, latest, slack, kind``.
     """
-    from hierplan_opt.io._yaml import check_nesting, read_yaml
-    from hierplan_opt.io.files import read_text
 
     path = Path(path)
     text = read_text(path)  # regular files within the size limit only

@@ -24,8 +24,7 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import tick
 from hierplan_opt.core.validate import validate
 from hierplan_opt.schedule.clearance import default_margin, finite_nonnegative
-from hierplan_opt.schedule.files import plan_tree
-from hierplan_opt.schedule.output import Schedule, build_schedule
+from hierplan_opt.schedule.output import Schedule, build_schedule, plan_tree
 from hierplan_opt.schedule.solve_graph import critical_path, earliest_times, windows
 from hierplan_opt.schedule.solve_lp import BACKENDS, solve_lp
 from hierplan_opt.schedule.stn import STN, build_stn

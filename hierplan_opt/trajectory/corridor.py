@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from hierplan_opt.trajectory.model import corridor_ocp
+from hierplan_opt.trajectory.paths import path_bounds, path_problem, path_warm_start
 
 #: Radius of the cylinders the optimiser uses, as a share of the corridor half-width.
 INNER = 1.0 / np.sqrt(2.0)
@@ -22,8 +23,6 @@ INNER = 1.0 / np.sqrt(2.0)
 
 def solve_corridor(path, windows, opts: dict, warm=None) -> dict:
     """Solve one robot's corridor problem; the same result layout as path mode."""
-    from hierplan_opt.trajectory.refine import path_bounds, path_problem, path_warm_start
-
     pp = path_problem(path, opts["base"])
     N, dim = pp.N, path.knot_pos.shape[1]
     c = float(opts["corridor"]) * INNER

@@ -28,6 +28,9 @@ import numpy as np
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.reprs import short_repr
+from hierplan_opt.schedule.files import load_schedule
+from hierplan_opt.schedule.stn import PRECEDENCE
+from hierplan_opt.schedule.tpg import KIND_NAMES
 
 log = logging.getLogger(__name__)
 
@@ -186,8 +189,6 @@ def _from_stn(
     scale: float,
     names: tuple[str, ...],
 ) -> EventNetwork:
-    from hierplan_opt.schedule.stn import PRECEDENCE
-    from hierplan_opt.schedule.tpg import KIND_NAMES
 
     tpg = stn.tpg
     agent = np.asarray(tpg.node_agent, dtype=np.int64)
@@ -235,6 +236,5 @@ def from_file(instance: Instance, path: str | Path) -> EventNetwork:
     naming the file when the schedule does not belong to ``instance`` or its times
     break a bound.
     """
-    from hierplan_opt.schedule.files import load_schedule
 
     return from_schedule(load_schedule(path, instance))

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from hierplan_opt.trajectory.refine import PathProblem, _feasible, path_bounds
+from hierplan_opt.trajectory.paths import PathProblem, _feasible, path_bounds
 from hierplan_opt.trajectory.windows import Windows
 
 #: Grid lengths the QP is built for (a robot's grid is padded up to the next one with
@@ -141,7 +141,7 @@ def polish(pp: PathProblem, X: np.ndarray, U: np.ndarray, windows: Windows) -> P
 
     >>> from types import SimpleNamespace
     >>> from hierplan_opt.trajectory import profile
-    >>> from hierplan_opt.trajectory.refine import RobotPath
+    >>> from hierplan_opt.trajectory.paths import RobotPath
     >>> path = RobotPath.straight([0.0, 2.0, 4.0], [0.0, 3.0, 6.0], [True, False, True])
     >>> lo, hi = np.array([0.0, 3.0, 0.0]), np.array([0.0, 3.5, np.inf])
     >>> pr = profile.solve(path, 1.0, lo, hi)

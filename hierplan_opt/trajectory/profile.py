@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hierplan_opt.core.reprs import short_repr
-from hierplan_opt.trajectory.refine import PathProblem, RobotPath
+from hierplan_opt.trajectory.paths import PathProblem, RobotPath
 
 #: Tolerance of the speed intervals (m/s).
 TOL = 1e-9
@@ -227,7 +227,7 @@ def solve(
     A 4 m line whose middle knot (2 m) must be passed in [3, 3.5] s; the schedule says
     3 s there and 6 s at the end:
 
-    >>> from hierplan_opt.trajectory.refine import RobotPath
+    >>> from hierplan_opt.trajectory.paths import RobotPath
     >>> path = RobotPath.straight([0.0, 2.0, 4.0], [0.0, 3.0, 6.0], [True, False, True])
     >>> pr = solve(path, 1.0, np.array([0.0, 3.0, 0.0]), np.array([0.0, 3.5, np.inf]))
     >>> pr.ok, float(pr.X[2][pr.pp.knot_node[1]]), float(pr.X[2][-1])

@@ -30,6 +30,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.reprs import short_repr
+from hierplan_opt.io.values import plain
 
 #: Default sampling step of the output files (seconds).
 DEFAULT_DT = 0.1
@@ -288,7 +289,7 @@ def trajectories_csv(traj: Trajectories, dt: float = DEFAULT_DT) -> str:
     s = traj.sample(dt)
     buf = io.StringIO()
     for k, v in traj.statistics().items():
-        buf.write(f"# {k}: {json.dumps(_plain(v))}\n")
+        buf.write(f"# {k}: {json.dumps(plain(v))}\n")
     axes = ["x", "y", "z"][: traj.dim]
     head = ["agent", "t", *axes, *("v" + a for a in axes)]
     heading = traj.has_heading
@@ -325,7 +326,7 @@ def write_trajectories(traj: Trajectories, path: str | Path, dt: float = DEFAULT
                 acc=s["acc"],
                 theta=s["theta"],
                 agents=np.array(traj.agent_names),
-                meta=np.array(json.dumps({k: _plain(v) for k, v in traj.statistics().items()})),
+                meta=np.array(json.dumps({k: plain(v) for k, v in traj.statistics().items()})),
                 **_exact_arrays(traj),
             )
         os.replace(tmp, path)
@@ -354,7 +355,7 @@ def _exact_arrays(traj: Trajectories) -> dict[str, Any]:
             {
                 "name": r.name,
                 "model": r.model,
-                "limits": {k: _plain(v) for k, v in r.limits.items()},
+                "limits": {k: plain(v) for k, v in r.limits.items()},
                 **{f: len(getattr(r, f)) for f in _EXACT},
             }
             for r in traj.robots
@@ -413,7 +414,11 @@ def read_trajectories(path: str | Path) -> Trajectories:
                     omega=parts["omega"],
                     alpha=parts["alpha"],
                     event_times=parts["event_times"],
-                    limits={k: float(v) for k, v in rob["limits"].items()},
+                    limits={
+                        # null: no limit (files hold no inf; older files wrote "inf")
+                        k: math.inf if v is None else float(v)
+                        for k, v in rob["limits"].items()
+                    },
                 )
             )
         return Trajectories(
@@ -437,12 +442,3 @@ def _f(x: float) -> str:
     if r == 0:
         return "0"
     return repr(int(r)) if r == int(r) and abs(r) < 1e15 else repr(r)
-
-
-def _plain(v: Any) -> Any:
-    if isinstance(v, (np.floating, float)):
-        f = float(v)
-        return f if math.isfinite(f) else str(f)
-    if isinstance(v, np.integer):
-        return int(v)
-    return v

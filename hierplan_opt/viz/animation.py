@@ -16,7 +16,10 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.io.files import atomic_path
+from hierplan_opt.core.progress import Progress
+from hierplan_opt.io.files import atomic_path, check_output
+from hierplan_opt.viz.html import PALETTE
+from hierplan_opt.viz.scene import Scene, scene_from_execution
 
 if TYPE_CHECKING:
     from hierplan_opt.execution.simulate import Execution
@@ -182,9 +185,6 @@ def animate(
     >>> Image.open(p).n_frames
     7
     """
-    from hierplan_opt.core.progress import Progress
-    from hierplan_opt.io.files import check_output
-    from hierplan_opt.viz.scene import Scene, scene_from_execution
 
     path = Path(path)
     ext = path.suffix.lower()
@@ -239,7 +239,6 @@ class _Drawer:
         from matplotlib.figure import Figure
         from matplotlib.lines import Line2D
 
-        from hierplan_opt.viz.html import PALETTE
         from hierplan_opt.viz.scene import LAYER_COLORS
 
         self.scene = scene

@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from hierplan_opt.core.errors import InputError
+from hierplan_opt.io.files import atomic_path, check_output
 from hierplan_opt.schedule.output import Schedule
 
 #: File types :func:`plot_gantt` can save (matplotlib's own writers, no LaTeX needed).
@@ -72,8 +74,6 @@ def plot_gantt(
     ...     os.path.getsize(os.path.join(d, "g.png")) > 0
     True
     """
-    from hierplan_opt.core.errors import InputError
-    from hierplan_opt.io.files import atomic_path, check_output
 
     if path is not None:
         check_output(path, what="Gantt chart", suffixes=FIGURE_SUFFIXES)

@@ -33,6 +33,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.core.progress import tick
 
 #: Colour of each layer of the hierarchy that handles a disturbance.
 LAYER_COLORS = {
@@ -706,7 +707,6 @@ def closest_pairs(scene: Scene, samples: int = 300) -> dict[str, list[float] | l
     times = np.linspace(0.0, max(scene.end, 1e-9), max(2, samples))
     rad = scene.radius * scene.scale
     kq = min(K, 6)
-    from hierplan_opt.core.progress import tick
 
     for n, t in enumerate(times):
         tick("clearance samples", n, len(times))

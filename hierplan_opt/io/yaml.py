@@ -18,6 +18,8 @@ import numpy as np
 import yaml
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.io.files import limits
+from hierplan_opt.io.files import read_text as _read
 
 _Base = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -103,7 +105,6 @@ def clip(text: str, limit: int = MAX_MESSAGE) -> str:
 def read_text(path: str | Path) -> str:
     """The text of ``path``: a regular file within the size limit (see
     :func:`hierplan_opt.io.files.read_text`); every problem is an :class:`InputError`."""
-    from hierplan_opt.io.files import read_text as _read
 
     return _read(path)
 
@@ -173,7 +174,6 @@ def check_nesting(text: str, name: str) -> None:
     compact ``- `` / ``? `` markers. Only when it exceeds the limit are the parser's
     events counted exactly (the event parser is not recursive).
     """
-    from hierplan_opt.io.files import limits
 
     cap = limits().max_depth
     raw = text.encode("utf-8", "surrogatepass")
@@ -227,7 +227,6 @@ def _check_aliases(root: yaml.Node, name: str) -> None:
     data (printing a value in a message, iterating nested lists) sees the expanded
     tree: ten levels of ten aliases are 10^10 nodes from a 100-line file.
     """
-    from hierplan_opt.io.files import limits
 
     size: dict[int, int] = {}
     unique = 0
