@@ -304,6 +304,34 @@ def test_run_under_heavy_delays_stays_safe() -> None:
     assert res.log["delayIntervals"] == [[list(iv) for iv in ivs] for ivs in _stream(p, 120)]
 
 
+def test_delay_layers_slack_adg_stn_replan() -> None:
+    # Line of 10 cells, ticks per action 2. Robot 0 (cell 0) goes to cell 1, robot 1
+    # (cell 5) to cell 9: the window ends at tick 8, robot 0's move has 6 ticks of slack.
+    p = line_problem(10, [0, 5], [(1,), (9,)], k=2)
+
+    def layers(intervals, period=100):
+        r = run_lifelong(
+            p, ticks=20, scheduler="greedy", period=period, delays=ReplayDelays(intervals)
+        )
+        assert check_log(p, r.log).ok
+        return {k: v for k, v in r.handled.items() if v}, r
+
+    assert layers([[[0, 3]], []])[0] == {"adg": 1}  # 3 ticks late, within the slack
+    got, r = layers([[[0, 8]], []])  # 8 ticks late: 2 past the window's end
+    assert got == {"stn": 1} and r.stn_resolves == 1 and r.stn_pushed == 2.0
+    # the leader of a column has no slack: its follower's targets move (STN re-solve)
+    q = line_problem(8, [0, 1], [(2,), (5,)], k=2)
+    r = run_lifelong(
+        q, ticks=20, scheduler="greedy", period=100, delays=ReplayDelays([[], [[0, 3]]])
+    )
+    assert {k: v for k, v in r.handled.items() if v} == {"stn": 1} and r.stn_pushed == 3.0
+    # the same delay while a planning call comes: the re-plan handles it
+    r = run_lifelong(q, ticks=20, scheduler="greedy", period=2, delays=ReplayDelays([[], [[0, 3]]]))
+    assert {k: v for k, v in r.handled.items() if v} == {"replan": 1}
+    # a robot delayed while it had to wait anyway: slack
+    assert layers([[], [[12, 14]]])[0] == {"slack": 1}
+
+
 def _stream(p: LorrProblem, ticks: int):
     s = DelayStream(p.delay, p.team_size)
     for _ in range(ticks):

@@ -16,9 +16,13 @@ runs the planner in a thread against the wall clock, and applies a plan one peri
 after the state it was planned from.
 
 Each delay is put down to the first layer that absorbed it: ``slack`` (the robot would
-have waited anyway on every delayed tick), ``adg`` (the robot lost motion; robots that
-depend on it waited through the dependency graph) or ``replan`` (a planning call came
-while it was still delayed, and planned from where it stood).
+have waited anyway on every delayed tick), ``adg`` (the robot lost motion, but its next
+action is late by no more than its slack in the window's temporal network: robots that
+depend on it wait through the dependency graph and the window ends on time), ``stn``
+(late beyond that slack: the window's temporal network is re-solved from that action,
+:mod:`~hierplan_opt.lifelong.temporal`, pushing the targets of the robots after it) or
+``replan`` (a planning call came while it was still delayed, and planned from where it
+stood).
 """
 
 from __future__ import annotations
@@ -87,6 +91,8 @@ class LifelongResult:
     cycles_broken: int
     wall_time: float
     preprocess_time: float = 0.0
+    stn_resolves: int = 0
+    stn_pushed: float = 0.0
     log: dict[str, Any] = field(repr=False, default_factory=dict)
 
     @property
@@ -105,6 +111,8 @@ class LifelongResult:
             "delays": self.delays,
             "handled": dict(self.handled),
             "waits_on_delayed": self.waits_on_delayed,
+            "stn_resolves": self.stn_resolves,
+            "stn_pushed_ticks": round(self.stn_pushed, 1),
             "waits": dict(self.waits),
             "planner_calls": len(pt),
             "planner_s_median": round(pt[len(pt) // 2], 4) if pt else 0.0,
@@ -204,9 +212,20 @@ def run_lifelong(
     letters: list[list[str]] = [[] for _ in range(n)]
     snaps: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]
     planner_times: list[float] = []
-    handled = {"slack": 0, "adg": 0, "replan": 0}
+    handled = {"slack": 0, "adg": 0, "stn": 0, "replan": 0}
     lost = [0] * n  # delayed ticks on which the robot would have moved
     open_delay = [False] * n
+    pending = [0] * n  # the staged action (index in its window) a delay held up
+
+    def settle(i: int, now: int) -> None:
+        """Robot i's delay is over: put it down to slack, adg or stn."""
+        if lost[i] == 0:
+            handled["slack"] += 1
+            return
+        s = robots[i]
+        ready = now + (k - s.count if s.count > 0 and s.cur != NA else 0)
+        handled[ex.absorb_delay(i, pending[i], ready, grid.cols)] += 1
+
     waits_on_delayed = 0
     waits = {"delayed": 0, "blocked": 0, "idle": 0, "no_task": 0}
     cycles = 0
@@ -253,7 +272,7 @@ def run_lifelong(
             paths = guide.paths(locs, errands, prio) if guide is not None else None
             plan = pl.plan(locs, oris, errands, prio, paths)
             cycles += plan.cycles_broken
-            ex.load(plan, robots)
+            ex.load(plan, robots, t, k)
             for i in range(n):
                 if current[i] >= 0:
                     prio[i] += 1.0
@@ -266,9 +285,10 @@ def run_lifelong(
         for a, _d in stream.next_tick():
             n_delays += 1
             if open_delay[a]:  # back to back with its previous delay
-                handled["slack" if lost[a] == 0 else "adg"] += 1
+                settle(a, t)
             open_delay[a] = True
             lost[a] = 0
+            pending[a] = ex.started_n[a]
         # commands from the state at the start of the tick (all robots at once) ...
         delayed = [stream.delayed(i) for i in range(n)]
         cmds = ex.commands(robots, delayed, k)
@@ -283,7 +303,7 @@ def run_lifelong(
                 waits["delayed"] += 1
                 continue
             if open_delay[i]:  # its delay just ended
-                handled["slack" if lost[i] == 0 else "adg"] += 1
+                settle(i, t)
                 open_delay[i] = False
             if cmds[i] == W:
                 b = ex.blocked_by[i]
@@ -322,7 +342,7 @@ def run_lifelong(
         reveal(ts)
     for i in range(n):
         if open_delay[i]:
-            handled["slack" if lost[i] == 0 else "adg"] += 1
+            settle(i, ticks)
     tick("ticks", ticks, ticks, finished=finished)
 
     paths = [encode_path("".join(letters[i]), snaps[i], SEGMENT) for i in range(n)]
@@ -376,6 +396,8 @@ def run_lifelong(
         cycles_broken=cycles,
         wall_time=time.perf_counter() - t0,
         preprocess_time=preprocess,
+        stn_resolves=ex.stn_resolves,
+        stn_pushed=ex.stn_pushed,
         log=out_log,
     )
 
