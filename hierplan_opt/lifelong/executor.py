@@ -33,7 +33,6 @@ class ADGExecutor:
         Example
         -------
         >>> from hierplan_opt.lifelong.planner import WindowPlan
-    from hierplan_opt.lifelong.temporal import WindowSTN
         >>> ex = ADGExecutor((1, 3, -1, -3))
         >>> robots = [RobotState(0), RobotState(1)]
         >>> ex.load(WindowPlan([[FW], [FW]], [[1], [2]], {1: [0], 2: [1]}), robots)
