@@ -30,14 +30,14 @@ from hierplan_opt.lifelong.temporal import WindowSTN
 class ADGExecutor:
     """Per-robot staged actions and per-cell visit queues (see the module doc).
 
-        Example
-        -------
-        >>> from hierplan_opt.lifelong.planner import WindowPlan
-        >>> ex = ADGExecutor((1, 3, -1, -3))
-        >>> robots = [RobotState(0), RobotState(1)]
-        >>> ex.load(WindowPlan([[FW], [FW]], [[1], [2]], {1: [0], 2: [1]}), robots)
-        >>> ex.command(0, robots[0]), ex.command(1, robots[1])  # 0 waits until 1 has left
-        (3, 0)
+    Example
+    -------
+    >>> from hierplan_opt.lifelong.planner import WindowPlan
+    >>> ex = ADGExecutor((1, 3, -1, -3))
+    >>> robots = [RobotState(0), RobotState(1)]
+    >>> ex.load(WindowPlan([[FW], [FW]], [[1], [2]], {1: [0], 2: [1]}), robots)
+    >>> ex.command(0, robots[0]), ex.command(1, robots[1])  # 0 waits until 1 has left
+    (3, 0)
     """
 
     def __init__(self, moves: tuple[int, int, int, int]) -> None:
