@@ -22,7 +22,7 @@ from hierplan_opt.io.lorr import (
 from hierplan_opt.lifelong import check_log, run_lifelong
 from hierplan_opt.lifelong.delays import MT19937, DelayStream, ReplayDelays
 from hierplan_opt.lifelong.model import CR, FW, NA, Distances, Grid, RobotState, W, step_state
-from hierplan_opt.lifelong.planner import WindowedPIBT
+from hierplan_opt.lifelong.planner import WindowedLaCAM, WindowedPIBT
 from hierplan_opt.lifelong.scheduler import assign
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -269,6 +269,49 @@ def test_planner_never_plans_a_rotation_cycle() -> None:
     assert all(not a for a in plan.actions) or any(a and a[0] != FW for a in plan.actions)
 
 
+def test_windowed_planners_respect_a_deadline() -> None:
+    import time
+
+    g = Grid(8, 8, np.zeros(64, dtype=bool))
+    locs = list(range(0, 64, 3))
+    goals = [[(v * 7 + 5) % 64] for v in locs]
+    for kind in (WindowedPIBT, WindowedLaCAM):
+        pl = kind(g, Distances(g), window=5, seed=1)
+        past = pl.plan(
+            locs,
+            [0] * len(locs),
+            goals,
+            [float(i) for i in range(len(locs))],
+            deadline=time.perf_counter() - 1.0,
+        )
+        assert past.cut and past.steps == 0 and not any(past.actions) and not past.order
+        full = pl.plan(locs, [0] * len(locs), goals, [float(i) for i in range(len(locs))])
+        assert not full.cut and full.steps == 5 and any(full.actions)
+
+
+def test_windowed_lacam_searches_beyond_the_rollout_and_stays_valid() -> None:
+    g = Grid(4, 4, np.zeros(16, dtype=bool))
+    pl = WindowedLaCAM(g, Distances(g), window=4, seed=0, max_nodes=50)
+    # two robots facing each other in a row: they must get out of each other's way
+    plan = pl.plan([4, 7], [0, 2], [[7], [4]], [2.0, 1.0])
+    assert plan.nodes > 4 and plan.steps == 4
+    p = load_problem(MAZE)
+    res = run_lifelong(p, ticks=60, planner="lacam")
+    rep = check_log(p, res.log)
+    assert rep.ok, rep.problems
+    assert res.tasks_finished > 0 and res.log["hierplan"]["planner"] == "lacam"
+
+
+def test_budget_cuts_calls_and_the_run_stays_safe() -> None:
+    p = load_problem(RANDOM)
+    res = run_lifelong(p, ticks=30, budget=0.06, preprocess_seconds=0.5)
+    rep = check_log(p, res.log)
+    assert rep.ok, rep.problems
+    s = res.summary()
+    assert s["calls_cut_by_deadline"] >= 1 and s["steps_per_call"] < 6
+    assert s["budget_s"] == 0.06
+
+
 def test_hungarian_assignment_is_no_worse_than_greedy() -> None:
     g = Grid(1, 10, np.zeros(10, dtype=bool))
     d = Distances(g)
@@ -388,7 +431,7 @@ def test_bench_runs_ours_and_refuses_unknown_problems(capsys) -> None:
 def test_registry_guided_run_is_safe() -> None:
     # the registry's lacam plans each call's guide paths; the run stays collision-free
     p = load_problem(MAZE)
-    res = run_lifelong(p, ticks=40, planner="lacam")
+    res = run_lifelong(p, ticks=40, planner="lacam-guided")
     assert check_log(p, res.log).ok
     assert res.log["hierplan"]["guideCalls"] == 4
     assert res.log["hierplan"]["guidePlans"] >= 1

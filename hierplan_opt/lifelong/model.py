@@ -25,9 +25,11 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from hierplan_opt.search.windowed import CCR, CR, FW
+
 log = logging.getLogger(__name__)
 
-FW, CR, CCR, W, NA = 0, 1, 2, 3, 4
+W, NA = 3, 4  # wait, and no action in progress (FW, CR, CCR: search.windowed)
 #: One letter per action in the compressed path strings.
 LETTERS = "FRCWT"
 CODES = {c: i for i, c in enumerate(LETTERS)}

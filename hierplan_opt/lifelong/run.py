@@ -50,16 +50,17 @@ from hierplan_opt.lifelong.model import (
     W,
     step_state,
 )
-from hierplan_opt.lifelong.planner import WindowedPIBT
+from hierplan_opt.lifelong.planner import PLANNERS, WindowedLaCAM, WindowedPIBT
 from hierplan_opt.lifelong.scheduler import SCHEDULERS, assign, chain_length
 
 log = logging.getLogger(__name__)
 
-PLANNERS = ("pibt", "lacam", "pibt-guided")
 #: Actions planned per call (default), and for fleets over LARGE_FLEET robots.
 WINDOW = 6
 WINDOW_LARGE = 4
 LARGE_FLEET = 1000
+#: Seconds a planning call keeps for itself after the planner's deadline (bookkeeping).
+BUDGET_MARGIN = 0.05
 #: Output segment length of the Start-Kit's path strings (its ``simulate(..., 100)``).
 SEGMENT = 100
 
@@ -91,6 +92,9 @@ class LifelongResult:
     cycles_broken: int
     wall_time: float
     preprocess_time: float = 0.0
+    budget: float | None = None
+    cut_calls: int = 0
+    steps_planned: int = 0
     stn_resolves: int = 0
     stn_pushed: float = 0.0
     log: dict[str, Any] = field(repr=False, default_factory=dict)
@@ -117,6 +121,10 @@ class LifelongResult:
             "planner_calls": len(pt),
             "planner_s_median": round(pt[len(pt) // 2], 4) if pt else 0.0,
             "planner_s_max": round(pt[-1], 4) if pt else 0.0,
+            "budget_s": self.budget,
+            "over_budget_calls": sum(x > self.budget for x in pt) if self.budget else 0,
+            "calls_cut_by_deadline": self.cut_calls,
+            "steps_per_call": round(self.steps_planned / len(pt), 2) if pt else 0.0,
             "preprocess_s": round(self.preprocess_time, 2),
             "wall_s": round(self.wall_time, 2),
         }
@@ -136,11 +144,15 @@ def run_lifelong(
     max_table_bytes: int = 1 << 30,
     table_seconds: float | None = 0.3,
     preprocess_seconds: float = 30.0,
+    budget: float | None = 1.0,
 ) -> LifelongResult:
     """Run the lifelong loop on ``problem`` for ``ticks`` ticks (see the module doc).
 
     ``window`` defaults to 6 actions, 4 above 1,000 robots. ``delays`` defaults to the
-    problem's own ``delayConfig`` stream. After every
+    problem's own ``delayConfig`` stream. ``budget`` is each planning call's time in
+    seconds (the Start-Kit's: a plan per second of wall time; None: no limit): the
+    planner returns the steps done by then (robots without a plan wait); calls that
+    still take longer are counted as over budget. After every
     planning call the active progress (:func:`hierplan_opt.core.progress.reporting`)
     gets the tick and the tasks finished. Bad settings raise
     :class:`~hierplan_opt.core.errors.InputError` before any work.
@@ -165,6 +177,8 @@ def run_lifelong(
         window = WINDOW if problem.team_size <= LARGE_FLEET else WINDOW_LARGE
     if period < 1 or window < 1:
         raise InputError(f"period and window must be at least 1, got {period} and {window}")
+    if budget is not None and not budget > BUDGET_MARGIN:
+        raise InputError(f"budget must be more than {BUDGET_MARGIN} s, got {budget}")
     if congestion < 0:
         raise InputError(f"congestion must be >= 0, got {congestion}")
     if delays is not None and delays.n != problem.team_size:
@@ -179,10 +193,11 @@ def run_lifelong(
     t0 = time.perf_counter()
     grid = Grid(problem.rows, problem.cols, problem.blocked)
     dist = Distances(grid, max_table_bytes, table_seconds)
-    pl = WindowedPIBT(grid, dist, window=window, seed=seed, congestion=congestion)
+    kind = WindowedLaCAM if planner == "lacam" else WindowedPIBT
+    pl = kind(grid, dist, window=window, seed=seed, congestion=congestion)
     guide = None
-    if planner != "pibt":  # guide paths from the registry's solver of that name
-        guide = RegistryGuide(grid, "pibt" if planner == "pibt-guided" else planner, seed=seed)
+    if planner.endswith("-guided"):  # guide paths from the registry's solver of that name
+        guide = RegistryGuide(grid, planner.removesuffix("-guided"), seed=seed)
     ex = ADGExecutor(grid.moves)
     stream = delays if delays is not None else DelayStream(problem.delay, problem.team_size)
     n = problem.team_size
@@ -230,6 +245,7 @@ def run_lifelong(
     waits = {"delayed": 0, "blocked": 0, "idle": 0, "no_task": 0}
     cycles = 0
     n_delays = 0
+    cut_calls = steps_planned = 0
     reveal(0)
     # preprocessing (the Start-Kit allows 30 s): the tables of the revealed errands
     p0 = time.perf_counter()
@@ -270,7 +286,10 @@ def run_lifelong(
                 errands.append(tk.errands[tk.next :] if tk is not None else ())
             dist.prefetch([e[0] for e in errands if e])
             paths = guide.paths(locs, errands, prio) if guide is not None else None
-            plan = pl.plan(locs, oris, errands, prio, paths)
+            limit = None if budget is None else c0 + budget - BUDGET_MARGIN
+            plan = pl.plan(locs, oris, errands, prio, paths, deadline=limit)
+            cut_calls += plan.cut
+            steps_planned += plan.steps
             cycles += plan.cycles_broken
             ex.load(plan, robots, t, k)
             for i in range(n):
@@ -376,6 +395,8 @@ def run_lifelong(
             "period": period,
             "window": window,
             "seed": seed,
+            "budget": budget,
+            "callsCut": cut_calls,
             "delaysExact": stream.exact,
             "distanceTables": dist.made_total,
             "distanceSeconds": round(dist.seconds, 3),
@@ -396,6 +417,9 @@ def run_lifelong(
         cycles_broken=cycles,
         wall_time=time.perf_counter() - t0,
         preprocess_time=preprocess,
+        budget=budget,
+        cut_calls=cut_calls,
+        steps_planned=steps_planned,
         stn_resolves=ex.stn_resolves,
         stn_pushed=ex.stn_pushed,
         log=out_log,

@@ -26,7 +26,7 @@ move, the window ends later). See :meth:`WindowSTN.absorb`.
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -81,7 +81,7 @@ class WindowSTN:
         locs: Sequence[int],
         moving_into: Sequence[int],
         remaining: Sequence[int],
-        queues: dict[int, Sequence[int]],
+        queues: Mapping[int, Sequence[int]],
         *,
         t0: int,
         k: int,
