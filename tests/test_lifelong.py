@@ -422,8 +422,8 @@ def test_bench_runs_ours_and_refuses_unknown_problems(capsys) -> None:
 
     assert main(["--instance", "maze", "--ticks", "30", "--no-baseline"]) == 0
     out = capsys.readouterr().out
-    assert "ours (greedy)" in out and "ours (hungarian)" in out
-    assert out.count(" ok") == 2
+    assert "ours (greedy+pibt)" in out and "ours (hungarian+lacam)" in out
+    assert out.count(" ok") == 4 and out.count("over budget") == 4
     with pytest.raises(InputError, match="--instance nowhere: unknown problem"):
         main(["--instance", "nowhere", "--no-baseline"])
 
