@@ -209,7 +209,13 @@ class Distances:
                 left = float("inf")
             if left <= 0:
                 break
-            fit = int(left / self.per_table) if self.per_table > 0 else 1
+            fit = (
+                1
+                if self.per_table <= 0
+                else cap
+                if left == float("inf")
+                else int(left / self.per_table)
+            )
             if fit < 1:
                 break
             batch = min(cap, fit)
