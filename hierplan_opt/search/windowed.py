@@ -179,28 +179,33 @@ class WindowedPIBT:
         self.guide = guide
         self._deadline = deadline
         st = self._start(locs, oris, errands, priority)
-        n = len(locs)
+        with _deep_recursion(len(locs)):
+            plan = self._search(st, errands)
+        self._forget()
+        return plan
+
+    def _search(self, st: _Search, errands: Sequence[Sequence[int]]) -> WindowPlan:
+        """PIBT's answer: one step after another from ``st`` (see the module doc)."""
+        n = len(st.q)
         acts: list[list[int]] = [[] for _ in range(n)]
         enters: list[list[int]] = [[] for _ in range(n)]
         order: dict[int, list[int]] = {}
         broken = steps = 0
         cut = False
-        with _deep_recursion(n):
-            for _ in range(self.window):
-                if self._expired():
-                    cut = True
-                    break
-                res = self._one_step(st, errands, None)
-                assert res is not None  # no constraints: every step is complete
-                new, moved, turned, b, partial = res
-                broken += b
-                self._record(st.q, new.q, moved, turned, acts, enters, order)
-                st = new
-                steps += 1
-                if partial:
-                    cut = True
-                    break
-        self._forget()
+        for _ in range(self.window):
+            if self._expired():
+                cut = True
+                break
+            res = self._one_step(st, errands, None)
+            assert res is not None  # no constraints: every step is complete
+            new, moved, turned, b, partial = res
+            broken += b
+            self._record(st.q, new.q, moved, turned, acts, enters, order)
+            st = new
+            steps += 1
+            if partial:
+                cut = True
+                break
         return WindowPlan(acts, enters, order, broken, steps, cut)
 
     # ------------------------------------------------------------------ shared parts
@@ -485,21 +490,10 @@ class WindowedLaCAM(WindowedPIBT):
         super().__init__(grid, dist, **kw)
         self.max_nodes = max_nodes
 
-    def plan(
-        self,
-        locs: Sequence[int],
-        oris: Sequence[int],
-        errands: Sequence[Sequence[int]],
-        priority: Sequence[float],
-        guide: list[dict[int, int]] | None = None,
-        *,
-        deadline: float | None = None,
-    ) -> WindowPlan:
-        """As :meth:`WindowedPIBT.plan`, searching configurations (see the module doc)."""
-        self.guide = guide
-        self._deadline = deadline
-        n = len(locs)
-        root = _Node(self._start(locs, oris, errands, priority), 0, None, [], {}, 0)
+    def _search(self, st: _Search, errands: Sequence[Sequence[int]]) -> WindowPlan:
+        """LaCAM's answer: the best leaf of the configuration search from ``st``."""
+        n = len(st.q)
+        root = _Node(st, 0, None, [], {}, 0)
         root.order = sorted(range(n), key=root.st.prio.__getitem__, reverse=True)
         stack = [root]
         seen = {(tuple(root.st.q), tuple(root.st.o), 0)}
@@ -507,35 +501,34 @@ class WindowedLaCAM(WindowedPIBT):
         best_key = self._score(root)
         expanded = 0
         cut = False
-        with _deep_recursion(n):
-            while stack and expanded < self.max_nodes:
-                if self._expired():
-                    cut = True
-                    break
-                node = stack[-1]
-                if node.depth >= self.window or not node.cons:
-                    stack.pop()
-                    continue
-                cons = node.cons.pop(0)
-                self._grow(node, cons)
-                res = self._one_step(node.st, errands, cons)
-                expanded += 1
-                if res is None:
-                    continue
-                new, moved, turned, b, partial = res
-                key = (tuple(new.q), tuple(new.o), node.depth + 1)
-                if key in seen and not partial:
-                    continue
-                seen.add(key)
-                child = _Node(new, node.depth + 1, node, moved, turned, node.broken + b)
-                child.order = sorted(range(n), key=new.prio.__getitem__, reverse=True)
-                score = self._score(child)
-                if score < best_key:
-                    best, best_key = child, score
-                if partial:
-                    cut = True
-                    break
-                stack.append(child)
+        while stack and expanded < self.max_nodes:
+            if self._expired():
+                cut = True
+                break
+            node = stack[-1]
+            if node.depth >= self.window or not node.cons:
+                stack.pop()
+                continue
+            cons = node.cons.pop(0)
+            self._grow(node, cons)
+            res = self._one_step(node.st, errands, cons)
+            expanded += 1
+            if res is None:
+                continue
+            new, moved, turned, b, partial = res
+            key = (tuple(new.q), tuple(new.o), node.depth + 1)
+            if key in seen and not partial:
+                continue
+            seen.add(key)
+            child = _Node(new, node.depth + 1, node, moved, turned, node.broken + b)
+            child.order = sorted(range(n), key=new.prio.__getitem__, reverse=True)
+            score = self._score(child)
+            if score < best_key:
+                best, best_key = child, score
+            if partial:
+                cut = True
+                break
+            stack.append(child)
         chain: list[_Node] = []
         node: _Node | None = best
         while node is not None and node.parent is not None:
@@ -548,7 +541,6 @@ class WindowedLaCAM(WindowedPIBT):
         for nd in reversed(chain):
             self._record(prev.st.q, nd.st.q, nd.moved, nd.turned, acts, enters, order)
             prev = nd
-        self._forget()
         return WindowPlan(acts, enters, order, best.broken, best.depth, cut, expanded)
 
     def _score(self, node: _Node) -> tuple[int, int, int]:
