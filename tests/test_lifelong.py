@@ -403,6 +403,13 @@ def test_cli_writes_a_log_the_replay_accepts(tmp_path: Path, capsys) -> None:
     log = read_log(out)
     assert log["actionModel"] == "MAPF_T" and log["makespan"] == 60
     assert len(log["actualPaths"]) == 40 and check_log(load_problem(MAZE), log).ok
+    args = ["lifelong", str(MAZE), "--ticks", "30", "--planner", "lacam", "--budget", "0.5"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "planner lacam" in text and "STN re-solve" in text and "over the 0.5 s budget" in text
+    with pytest.raises(SystemExit) as exc:
+        main(["lifelong", str(MAZE), "--budget", "0"])
+    assert exc.value.code == 2 and "--budget" in capsys.readouterr().err
 
 
 def test_cli_bad_input_one_line_no_file(tmp_path: Path, capsys) -> None:
