@@ -27,9 +27,12 @@ stood).
 
 from __future__ import annotations
 
+import gc
 import logging
 import random
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -256,51 +259,52 @@ def run_lifelong(
 
     for t in range(ticks):
         if t % period == 0:
-            # ---- plan: assign, then a window from the committed states
-            c0 = time.perf_counter()
-            dist.new_round()
-            free = [i for i in range(n) if current[i] < 0]
-            if free:
-                open_ids = [tid for tid, tk in tasks.items() if tk.robot < 0]
-                for tid in open_ids:
-                    if tid not in chains:
-                        chains[tid] = chain_length(dist, tasks[tid].errands)
-                got = assign(
-                    scheduler,
-                    dist,
-                    free,
-                    [_committed(robots[i], grid.moves)[0] for i in free],
-                    open_ids,
-                    [tasks[tid].errands for tid in open_ids],
-                    [chains[tid] for tid in open_ids],
-                )
-                for i, tid in got.items():
-                    current[i] = tid
-                    tasks[tid].robot = i
-                    schedule[i].append((t, tid))
-                    prio[i] = rng.random()
-            locs, oris, errands = [], [], []
-            for i in range(n):
-                loc, ori = _committed(robots[i], grid.moves)
-                locs.append(loc)
-                oris.append(ori)
-                tk = tasks.get(current[i])
-                errands.append(tk.errands[tk.next :] if tk is not None else ())
-            dist.prefetch([e[0] for e in errands if e])
-            paths = guide.paths(locs, errands, prio) if guide is not None else None
-            limit = None if budget is None else c0 + budget - BUDGET_MARGIN
-            plan = pl.plan(locs, oris, errands, prio, paths, deadline=limit)
-            cut_calls += plan.cut
-            steps_planned += plan.steps
-            cycles += plan.cycles_broken
-            ex.load(plan, robots, t, k)
-            for i in range(n):
-                if current[i] >= 0:
-                    prio[i] += 1.0
-                if open_delay[i] and stream.delayed(i):
-                    handled["replan"] += 1
-                    open_delay[i] = False
-            planner_times.append(time.perf_counter() - c0)
+            with _collector_paused():  # no cyclic GC pass inside a timed call
+                # ---- plan: assign, then a window from the committed states
+                c0 = time.perf_counter()
+                dist.new_round()
+                free = [i for i in range(n) if current[i] < 0]
+                if free:
+                    open_ids = [tid for tid, tk in tasks.items() if tk.robot < 0]
+                    for tid in open_ids:
+                        if tid not in chains:
+                            chains[tid] = chain_length(dist, tasks[tid].errands)
+                    got = assign(
+                        scheduler,
+                        dist,
+                        free,
+                        [_committed(robots[i], grid.moves)[0] for i in free],
+                        open_ids,
+                        [tasks[tid].errands for tid in open_ids],
+                        [chains[tid] for tid in open_ids],
+                    )
+                    for i, tid in got.items():
+                        current[i] = tid
+                        tasks[tid].robot = i
+                        schedule[i].append((t, tid))
+                        prio[i] = rng.random()
+                locs, oris, errands = [], [], []
+                for i in range(n):
+                    loc, ori = _committed(robots[i], grid.moves)
+                    locs.append(loc)
+                    oris.append(ori)
+                    tk = tasks.get(current[i])
+                    errands.append(tk.errands[tk.next :] if tk is not None else ())
+                dist.prefetch([e[0] for e in errands if e])
+                paths = guide.paths(locs, errands, prio) if guide is not None else None
+                limit = None if budget is None else c0 + budget - BUDGET_MARGIN
+                plan = pl.plan(locs, oris, errands, prio, paths, deadline=limit)
+                cut_calls += plan.cut
+                steps_planned += plan.steps
+                cycles += plan.cycles_broken
+                ex.load(plan, robots, t, k)
+                for i in range(n):
+                    if current[i] >= 0:
+                        prio[i] += 1.0
+                    if open_delay[i] and stream.delayed(i):
+                        handled["replan"] += 1
+                        open_delay[i] = False
+                planner_times.append(time.perf_counter() - c0)
             tick("ticks", t, ticks, finished=finished)
         # ---- delays, commands, one tick of motion
         for a, _d in stream.next_tick():
@@ -426,6 +430,20 @@ def run_lifelong(
         stn_pushed=ex.stn_pushed,
         log=out_log,
     )
+
+
+@contextmanager
+def _collector_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector (a full pass over a large run's objects
+    takes up to 0.5 s) for one planning call; it runs again between calls. The call's
+    garbage is acyclic (freed by reference counting) except what waits for that pass."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _committed(s: RobotState, moves: tuple[int, int, int, int]) -> tuple[int, int]:

@@ -501,8 +501,11 @@ class WindowedLaCAM(WindowedPIBT):
         best_key = self._score(root)
         expanded = 0
         cut = False
+        last = 0.0  # seconds of the last expansion: none starts that could not end in time
+        clock = time.perf_counter
         while stack and expanded < self.max_nodes:
-            if self._expired():
+            t0 = clock()
+            if self._deadline is not None and t0 + last >= self._deadline:
                 cut = True
                 break
             node = stack[-1]
@@ -513,6 +516,7 @@ class WindowedLaCAM(WindowedPIBT):
             self._grow(node, cons)
             res = self._one_step(node.st, errands, cons)
             expanded += 1
+            last = clock() - t0
             if res is None:
                 continue
             new, moved, turned, b, partial = res
