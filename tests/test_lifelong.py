@@ -22,7 +22,7 @@ from hierplan_opt.io.lorr import (
 from hierplan_opt.lifelong import check_log, run_lifelong
 from hierplan_opt.lifelong.delays import MT19937, DelayStream, ReplayDelays
 from hierplan_opt.lifelong.model import CR, FW, NA, Distances, Grid, RobotState, W, step_state
-from hierplan_opt.lifelong.planner import WindowedPIBT
+from hierplan_opt.lifelong.planner import WindowedLaCAM, WindowedPIBT
 from hierplan_opt.lifelong.scheduler import assign
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -269,6 +269,49 @@ def test_planner_never_plans_a_rotation_cycle() -> None:
     assert all(not a for a in plan.actions) or any(a and a[0] != FW for a in plan.actions)
 
 
+def test_windowed_planners_respect_a_deadline() -> None:
+    import time
+
+    g = Grid(8, 8, np.zeros(64, dtype=bool))
+    locs = list(range(0, 64, 3))
+    goals = [[(v * 7 + 5) % 64] for v in locs]
+    for kind in (WindowedPIBT, WindowedLaCAM):
+        pl = kind(g, Distances(g), window=5, seed=1)
+        past = pl.plan(
+            locs,
+            [0] * len(locs),
+            goals,
+            [float(i) for i in range(len(locs))],
+            deadline=time.perf_counter() - 1.0,
+        )
+        assert past.cut and past.steps == 0 and not any(past.actions) and not past.order
+        full = pl.plan(locs, [0] * len(locs), goals, [float(i) for i in range(len(locs))])
+        assert not full.cut and full.steps == 5 and any(full.actions)
+
+
+def test_windowed_lacam_searches_beyond_the_rollout_and_stays_valid() -> None:
+    g = Grid(4, 4, np.zeros(16, dtype=bool))
+    pl = WindowedLaCAM(g, Distances(g), window=4, seed=0, max_nodes=50)
+    # two robots facing each other in a row: they must get out of each other's way
+    plan = pl.plan([4, 7], [0, 2], [[7], [4]], [2.0, 1.0])
+    assert plan.nodes > 4 and plan.steps == 4
+    p = load_problem(MAZE)
+    res = run_lifelong(p, ticks=60, planner="lacam")
+    rep = check_log(p, res.log)
+    assert rep.ok, rep.problems
+    assert res.tasks_finished > 0 and res.log["hierplan"]["planner"] == "lacam"
+
+
+def test_budget_cuts_calls_and_the_run_stays_safe() -> None:
+    p = load_problem(RANDOM)
+    res = run_lifelong(p, ticks=30, budget=0.06, preprocess_seconds=0.5)
+    rep = check_log(p, res.log)
+    assert rep.ok, rep.problems
+    s = res.summary()
+    assert s["calls_cut_by_deadline"] >= 1 and s["steps_per_call"] < 6
+    assert s["budget_s"] == 0.06
+
+
 def test_hungarian_assignment_is_no_worse_than_greedy() -> None:
     g = Grid(1, 10, np.zeros(10, dtype=bool))
     d = Distances(g)
@@ -304,6 +347,34 @@ def test_run_under_heavy_delays_stays_safe() -> None:
     assert res.log["delayIntervals"] == [[list(iv) for iv in ivs] for ivs in _stream(p, 120)]
 
 
+def test_delay_layers_slack_adg_stn_replan() -> None:
+    # Line of 10 cells, ticks per action 2. Robot 0 (cell 0) goes to cell 1, robot 1
+    # (cell 5) to cell 9: the window ends at tick 8, robot 0's move has 6 ticks of slack.
+    p = line_problem(10, [0, 5], [(1,), (9,)], k=2)
+
+    def layers(intervals, period=100):
+        r = run_lifelong(
+            p, ticks=20, scheduler="greedy", period=period, delays=ReplayDelays(intervals)
+        )
+        assert check_log(p, r.log).ok
+        return {k: v for k, v in r.handled.items() if v}, r
+
+    assert layers([[[0, 3]], []])[0] == {"adg": 1}  # 3 ticks late, within the slack
+    got, r = layers([[[0, 8]], []])  # 8 ticks late: 2 past the window's end
+    assert got == {"stn": 1} and r.stn_resolves == 1 and r.stn_pushed == 2.0
+    # the leader of a column has no slack: its follower's targets move (STN re-solve)
+    q = line_problem(8, [0, 1], [(2,), (5,)], k=2)
+    r = run_lifelong(
+        q, ticks=20, scheduler="greedy", period=100, delays=ReplayDelays([[], [[0, 3]]])
+    )
+    assert {k: v for k, v in r.handled.items() if v} == {"stn": 1} and r.stn_pushed == 3.0
+    # the same delay while a planning call comes: the re-plan handles it
+    r = run_lifelong(q, ticks=20, scheduler="greedy", period=2, delays=ReplayDelays([[], [[0, 3]]]))
+    assert {k: v for k, v in r.handled.items() if v} == {"replan": 1}
+    # a robot delayed while it had to wait anyway: slack
+    assert layers([[], [[12, 14]]])[0] == {"slack": 1}
+
+
 def _stream(p: LorrProblem, ticks: int):
     s = DelayStream(p.delay, p.team_size)
     for _ in range(ticks):
@@ -332,6 +403,13 @@ def test_cli_writes_a_log_the_replay_accepts(tmp_path: Path, capsys) -> None:
     log = read_log(out)
     assert log["actionModel"] == "MAPF_T" and log["makespan"] == 60
     assert len(log["actualPaths"]) == 40 and check_log(load_problem(MAZE), log).ok
+    args = ["lifelong", str(MAZE), "--ticks", "30", "--planner", "lacam", "--budget", "0.5"]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "planner lacam" in text and "STN re-solve" in text and "over the 0.5 s budget" in text
+    with pytest.raises(SystemExit) as exc:
+        main(["lifelong", str(MAZE), "--budget", "0"])
+    assert exc.value.code == 2 and "--budget" in capsys.readouterr().err
 
 
 def test_cli_bad_input_one_line_no_file(tmp_path: Path, capsys) -> None:
@@ -351,8 +429,8 @@ def test_bench_runs_ours_and_refuses_unknown_problems(capsys) -> None:
 
     assert main(["--instance", "maze", "--ticks", "30", "--no-baseline"]) == 0
     out = capsys.readouterr().out
-    assert "ours (greedy)" in out and "ours (hungarian)" in out
-    assert out.count(" ok") == 2
+    assert "ours (greedy+pibt)" in out and "ours (hungarian+lacam)" in out
+    assert out.count(" ok") == 4 and out.count("over budget") == 4
     with pytest.raises(InputError, match="--instance nowhere: unknown problem"):
         main(["--instance", "nowhere", "--no-baseline"])
 
@@ -360,7 +438,7 @@ def test_bench_runs_ours_and_refuses_unknown_problems(capsys) -> None:
 def test_registry_guided_run_is_safe() -> None:
     # the registry's lacam plans each call's guide paths; the run stays collision-free
     p = load_problem(MAZE)
-    res = run_lifelong(p, ticks=40, planner="lacam")
+    res = run_lifelong(p, ticks=40, planner="lacam-guided")
     assert check_log(p, res.log).ok
     assert res.log["hierplan"]["guideCalls"] == 4
     assert res.log["hierplan"]["guidePlans"] >= 1

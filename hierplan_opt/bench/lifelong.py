@@ -73,12 +73,19 @@ def baseline(binary: Path, problem: Path, ticks: int, timeout: float) -> dict[st
 
 
 def ours(
-    problem, ticks: int, scheduler: str, window: int | None, planner: str = "pibt"
+    problem,
+    ticks: int,
+    scheduler: str,
+    window: int | None,
+    planner: str = "pibt",
+    budget: float | None = 1.0,
 ) -> dict[str, Any]:
     """One run of our loop (same process); its result and peak memory so far."""
     from hierplan_opt.lifelong import run_lifelong  # heavy module (scipy): on use only
 
-    res = run_lifelong(problem, ticks=ticks, scheduler=scheduler, window=window, planner=planner)
+    res = run_lifelong(
+        problem, ticks=ticks, scheduler=scheduler, window=window, planner=planner, budget=budget
+    )
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return {"res": res, "peak_mb": peak}
 
@@ -109,8 +116,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--planner",
         action="append",
-        choices=("pibt", "lacam", "pibt-guided"),
-        help="our planners (repeatable; default pibt; lacam: guided by the registry's lacam)",
+        choices=("pibt", "lacam", "pibt-guided", "lacam-guided"),
+        help="our planners (repeatable; default pibt and lacam, the windowed planners of "
+        "search/windowed; *-guided: windowed PIBT guided by that registry solver)",
+    )
+    ap.add_argument(
+        "--budget", type=float, default=1.0, help="our seconds per planning call (default 1)"
     )
     ap.add_argument("--json", metavar="FILE", help="also write the rows as JSON")
     args = ap.parse_args(argv)
@@ -129,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         use_baseline = False
     rows: list[dict[str, Any]] = []
     print(
-        f"{'problem':<10} {'robots':>6} {'ticks':>5}  {'who':<18} {'tasks':>6} {'per tick':>8} "
+        f"{'problem':<10} {'robots':>6} {'ticks':>5}  {'who':<24} {'tasks':>6} {'per tick':>8} "
         f"{'wall s':>7} {'ms/tick':>7} {'plan med/max s':>14} {'peak MB':>7}  replay"
     )
     for name in names:
@@ -161,8 +172,9 @@ def main(argv: list[str] | None = None) -> int:
                 }
                 _print(row)
             rows.append(row)
-        for sched, planner in [(s_, p_) for p_ in (args.planner or ["pibt"]) for s_ in schedulers]:
-            o = ours(problem, ticks, sched, args.window, planner)
+        planners = args.planner or ["pibt", "lacam"]
+        for sched, planner in [(s_, p_) for p_ in planners for s_ in schedulers]:
+            o = ours(problem, ticks, sched, args.window, planner, args.budget)
             res = o["res"]
             rep = check_log(problem, res.log)
             same = None
@@ -173,11 +185,14 @@ def main(argv: list[str] | None = None) -> int:
                 "problem": name,
                 "robots": problem.team_size,
                 "ticks": ticks,
-                "who": f"ours ({sched})" if planner == "pibt" else f"ours ({sched}+{planner})",
+                "who": f"ours ({sched}+{planner})",
                 "tasks": res.tasks_finished,
                 "wall": res.wall_time,
                 "plan_med": s["planner_s_median"],
                 "plan_max": s["planner_s_max"],
+                "over_budget": s["over_budget_calls"],
+                "calls": s["planner_calls"],
+                "cut": s["calls_cut_by_deadline"],
                 "preprocess": s["preprocess_s"],
                 "peak_mb": o["peak_mb"],
                 "replay_ok": rep.ok,
@@ -204,8 +219,10 @@ def _print(row: dict[str, Any]) -> None:
     peak = f"{row['peak_mb']:.0f}" if "peak_mb" in row else "-"
     same = row.get("same_delays")
     extra = "" if same is None else ("; same delays" if same else "; DELAYS DIFFER")
+    if "over_budget" in row:
+        extra += f"; over budget {row['over_budget']}/{row['calls']}, cut {row['cut']}"
     print(
-        f"{row['problem']:<10} {row['robots']:>6} {t:>5}  {row['who']:<18} {row['tasks']:>6} "
+        f"{row['problem']:<10} {row['robots']:>6} {t:>5}  {row['who']:<24} {row['tasks']:>6} "
         f"{row['tasks'] / t:>8.3f} {row['wall']:>7.1f} {1000 * row['wall'] / t:>7.1f} "
         f"{row['plan_med']:>6.3f}/{row['plan_max']:<7.3f} {peak:>7}  {row['replay']}{extra}",
         flush=True,

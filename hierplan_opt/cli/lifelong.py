@@ -27,6 +27,13 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def _positive(text: str) -> float:
+    value = _non_negative(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("problem", metavar="PROBLEM.json", help="LoRR problem file (Start-Kit 3.x)")
     p.add_argument(
@@ -41,10 +48,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--planner",
-        choices=("pibt", "lacam", "pibt-guided"),
+        choices=("pibt", "lacam", "pibt-guided", "lacam-guided"),
         default="pibt",
-        help="windowed PIBT alone (default), or guided by the registry's lacam / pibt "
-        "plan of each call",
+        help="windowed PIBT (default) or windowed LaCAM (search/windowed), or windowed "
+        "PIBT guided by the registry's pibt / lacam plan of each call",
+    )
+    p.add_argument(
+        "--budget",
+        type=_positive,
+        default=1.0,
+        metavar="S",
+        help="seconds per planning call (default 1, the Start-Kit's); the planner returns "
+        "the steps done by then and robots without a plan wait",
     )
     p.add_argument(
         "--period", type=positive_int, default=10, help="ticks between planning calls (default 10)"
@@ -119,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
             seed=args.seed,
             congestion=args.congestion,
             delays=delays,
+            budget=args.budget,
         )
     summary = res.summary()
     failed = False
@@ -150,11 +166,14 @@ def run(args: argparse.Namespace) -> int:
         h = res.handled
         print(
             f"delays {res.delays} (slack {h['slack']}, action dependencies {h['adg']}, "
-            f"re-plan {h['replan']}); waits behind a delayed robot {res.waits_on_delayed}"
+            f"STN re-solve {h['stn']}, re-plan {h['replan']}); "
+            f"waits behind a delayed robot {res.waits_on_delayed}"
         )
         print(
             f"planner: {len(pt)} calls, median {summary['planner_s_median']:.3f} s, "
-            f"max {summary['planner_s_max']:.3f} s; wall {res.wall_time:.1f} s"
+            f"max {summary['planner_s_max']:.3f} s, over the {args.budget:g} s budget "
+            f"{summary['over_budget_calls']}, cut by the deadline "
+            f"{summary['calls_cut_by_deadline']}; wall {res.wall_time:.1f} s"
         )
         if "replay" in summary:
             print(f"replay: {summary['replay']}")

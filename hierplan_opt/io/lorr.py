@@ -418,6 +418,17 @@ def decode_path(text: str, where: str = "path") -> tuple[tuple[int, int, int, in
     return first, "".join(letters)
 
 
+def is_lorr(data: Any) -> bool:
+    """Whether a parsed JSON document is a LoRR output (an ``actualPaths`` list).
+
+    Example
+    -------
+    >>> is_lorr({"start": [], "actualPaths": []}), is_lorr({"schedule": {}})
+    (True, False)
+    """
+    return isinstance(data, dict) and isinstance(data.get("actualPaths"), list)
+
+
 def write_log(path: str | Path, log: dict[str, Any]) -> Path:
     """Write a run's log (a dict in the Start-Kit's layout) atomically as one-line JSON.
 
@@ -449,8 +460,8 @@ def read_log(path: str | Path) -> dict[str, Any]:
         data = json.loads(read_text(path))
     except json.JSONDecodeError as exc:
         raise InputError(f"{name}:{exc.lineno}: not valid JSON ({exc.msg})") from None
-    if not isinstance(data, dict) or "actualPaths" not in data:
-        raise InputError(f"{name}: not a LoRR log (expected an object with actualPaths)")
+    if not is_lorr(data):
+        raise InputError(f"{name}: not a LoRR log (expected an object with an actualPaths list)")
     return data
 
 
@@ -459,6 +470,7 @@ __all__ = [
     "LorrProblem",
     "decode_path",
     "encode_path",
+    "is_lorr",
     "load_problem",
     "parse_delay_config",
     "parse_lorr_map",

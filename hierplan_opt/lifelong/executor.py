@@ -24,6 +24,7 @@ from collections import deque
 
 from hierplan_opt.lifelong.model import FW, NA, RobotState, W
 from hierplan_opt.lifelong.planner import WindowPlan
+from hierplan_opt.lifelong.temporal import WindowSTN
 
 
 class ADGExecutor:
@@ -43,11 +44,24 @@ class ADGExecutor:
         self.moves = moves
         self.staged: list[deque[int]] = []
         self.queues: dict[int, deque[int]] = {}
+        self._orders: dict[int, list[int]] = {}
         self.blocked_by: list[int] = []
+        self.started_n: list[int] = []
+        self._window: tuple[WindowPlan, list[int], list[int], list[int], int, int] | None = None
+        self._stn: WindowSTN | None = None
+        self.stn_resolves = 0
+        self.stn_pushed = 0.0
 
-    def load(self, plan: WindowPlan, robots: list[RobotState]) -> None:
-        """Replace the staged actions by a new plan made from the robots' committed states."""
+    def load(self, plan: WindowPlan, robots: list[RobotState], t0: int = 0, k: int = 1) -> None:
+        """Replace the staged actions by a new plan made from the robots' committed
+        states (``t0``: the tick it starts at; ``k``: ticks per action, for its temporal
+        network)."""
         self.staged = [deque(a) for a in plan.actions]
+        self.started_n = [0] * len(robots)
+        into = [s.loc + self.moves[s.ori] if s.cur == FW and s.count > 0 else -1 for s in robots]
+        rem = [k - s.count if s.count > 0 and s.cur != NA else 0 for s in robots]
+        self._window = (plan, [s.loc for s in robots], into, rem, t0, k)
+        self._stn = None
         self.blocked_by = [-1] * len(robots)
         q: dict[int, deque[int]] = {}
         # a robot leaving a cell comes before one following it in (at most one each)
@@ -59,6 +73,29 @@ class ADGExecutor:
         for cell, who in plan.order.items():
             q.setdefault(cell, deque()).extend(who)
         self.queues = q
+        self._orders = {c: list(w) for c, w in q.items()}
+
+    def window_stn(self, cols: int) -> WindowSTN:
+        """The temporal network of the loaded window (built on first use)."""
+        if self._stn is None:
+            assert self._window is not None, "no window loaded"
+            plan, locs, into, rem, t0, k = self._window
+            self._stn = WindowSTN(
+                plan.actions, plan.enters, locs, into, rem, self._orders, t0=t0, k=k, cols=cols
+            )
+        return self._stn
+
+    def absorb_delay(self, i: int, j: int, now: int, cols: int) -> str:
+        """The layer that absorbs a delay after which robot ``i`` can start its ``j``-th
+        staged action of this window at tick ``now`` at the earliest: ``adg`` (within its
+        slack in the window's temporal network) or ``stn`` (the network re-solved, see
+        :meth:`~hierplan_opt.lifelong.temporal.WindowSTN.absorb`)."""
+        w = self.window_stn(cols)
+        before = w.resolves, w.pushed
+        layer = w.absorb(i, j, now)
+        self.stn_resolves += w.resolves - before[0]
+        self.stn_pushed += w.pushed - before[1]
+        return layer
 
     def command(self, i: int, s: RobotState) -> int:
         """Robot ``i``'s action this tick by the cell rule alone (no following); W when
@@ -133,6 +170,7 @@ class ADGExecutor:
     def started(self, i: int) -> None:
         """Robot ``i`` began its next staged action this tick."""
         self.staged[i].popleft()
+        self.started_n[i] += 1
 
     def left(self, i: int, cell: int) -> None:
         """Robot ``i`` finished moving out of ``cell``: the next robot may enter it."""

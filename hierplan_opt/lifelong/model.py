@@ -25,9 +25,11 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from hierplan_opt.search.windowed import CCR, CR, FW
+
 log = logging.getLogger(__name__)
 
-FW, CR, CCR, W, NA = 0, 1, 2, 3, 4
+W, NA = 3, 4  # wait, and no action in progress (FW, CR, CCR: search.windowed)
 #: One letter per action in the compressed path strings.
 LETTERS = "FRCWT"
 CODES = {c: i for i, c in enumerate(LETTERS)}
@@ -175,6 +177,7 @@ class Distances:
         self.seconds_per_call = seconds_per_call
         self._call_start = time.perf_counter()
         self.made_total = 0
+        self.per_table = 0.0  # seconds per breadth-first table (last batch)
         self.fallbacks = 0
         self.seconds = 0.0
 
@@ -193,14 +196,34 @@ class Distances:
         if not want:
             return
         t0 = time.perf_counter()
-        batch = max(1, min(len(want), 16, (64 << 20) // (8 * self.m)))
-        for s in range(0, len(want), batch):
-            if budget is not None and time.perf_counter() - t0 > budget:
+        cap = max(1, min(len(want), 16, (64 << 20) // (8 * self.m)))
+        s = 0
+        while s < len(want):
+            # time left: this call's (or the given) budget; batches sized to fit in it
+            # from the measured time per table, so a call does not overrun by a batch
+            if budget is not None:
+                left = budget - (time.perf_counter() - t0)
+            elif self.seconds_per_call is not None:
+                left = self.seconds_per_call - (time.perf_counter() - self._call_start)
+            else:
+                left = float("inf")
+            if left <= 0:
                 break
-            if budget is None and self._over_budget():
+            fit = (
+                1
+                if self.per_table <= 0
+                else cap
+                if left == float("inf")
+                else int(left / self.per_table)
+            )
+            if fit < 1:
                 break
+            batch = min(cap, fit)
             part = want[s : s + batch]
+            s += batch
+            b0 = time.perf_counter()
             d = shortest_path(self._csr, directed=False, unweighted=True, indices=self.cid_np[part])
+            self.per_table = (time.perf_counter() - b0) / len(part)
             d = np.atleast_2d(d)
             d[~np.isfinite(d)] = FAR
             di = np.minimum(d, FAR).astype(np.uint16)

@@ -16,16 +16,23 @@ runs the planner in a thread against the wall clock, and applies a plan one peri
 after the state it was planned from.
 
 Each delay is put down to the first layer that absorbed it: ``slack`` (the robot would
-have waited anyway on every delayed tick), ``adg`` (the robot lost motion; robots that
-depend on it waited through the dependency graph) or ``replan`` (a planning call came
-while it was still delayed, and planned from where it stood).
+have waited anyway on every delayed tick), ``adg`` (the robot lost motion, but its next
+action is late by no more than its slack in the window's temporal network: robots that
+depend on it wait through the dependency graph and the window ends on time), ``stn``
+(late beyond that slack: the window's temporal network is re-solved from that action,
+:mod:`~hierplan_opt.lifelong.temporal`, pushing the targets of the robots after it) or
+``replan`` (a planning call came while it was still delayed, and planned from where it
+stood).
 """
 
 from __future__ import annotations
 
+import gc
 import logging
 import random
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,16 +53,17 @@ from hierplan_opt.lifelong.model import (
     W,
     step_state,
 )
-from hierplan_opt.lifelong.planner import WindowedPIBT
+from hierplan_opt.lifelong.planner import PLANNERS, WindowedLaCAM, WindowedPIBT
 from hierplan_opt.lifelong.scheduler import SCHEDULERS, assign, chain_length
 
 log = logging.getLogger(__name__)
 
-PLANNERS = ("pibt", "lacam", "pibt-guided")
 #: Actions planned per call (default), and for fleets over LARGE_FLEET robots.
 WINDOW = 6
 WINDOW_LARGE = 4
 LARGE_FLEET = 1000
+#: Seconds a planning call keeps for itself after the planner's deadline (bookkeeping).
+BUDGET_MARGIN = 0.05
 #: Output segment length of the Start-Kit's path strings (its ``simulate(..., 100)``).
 SEGMENT = 100
 
@@ -87,6 +95,11 @@ class LifelongResult:
     cycles_broken: int
     wall_time: float
     preprocess_time: float = 0.0
+    budget: float | None = None
+    cut_calls: int = 0
+    steps_planned: int = 0
+    stn_resolves: int = 0
+    stn_pushed: float = 0.0
     log: dict[str, Any] = field(repr=False, default_factory=dict)
 
     @property
@@ -105,10 +118,16 @@ class LifelongResult:
             "delays": self.delays,
             "handled": dict(self.handled),
             "waits_on_delayed": self.waits_on_delayed,
+            "stn_resolves": self.stn_resolves,
+            "stn_pushed_ticks": round(self.stn_pushed, 1),
             "waits": dict(self.waits),
             "planner_calls": len(pt),
             "planner_s_median": round(pt[len(pt) // 2], 4) if pt else 0.0,
             "planner_s_max": round(pt[-1], 4) if pt else 0.0,
+            "budget_s": self.budget,
+            "over_budget_calls": sum(x > self.budget for x in pt) if self.budget else 0,
+            "calls_cut_by_deadline": self.cut_calls,
+            "steps_per_call": round(self.steps_planned / len(pt), 2) if pt else 0.0,
             "preprocess_s": round(self.preprocess_time, 2),
             "wall_s": round(self.wall_time, 2),
         }
@@ -128,11 +147,15 @@ def run_lifelong(
     max_table_bytes: int = 1 << 30,
     table_seconds: float | None = 0.3,
     preprocess_seconds: float = 30.0,
+    budget: float | None = 1.0,
 ) -> LifelongResult:
     """Run the lifelong loop on ``problem`` for ``ticks`` ticks (see the module doc).
 
     ``window`` defaults to 6 actions, 4 above 1,000 robots. ``delays`` defaults to the
-    problem's own ``delayConfig`` stream. After every
+    problem's own ``delayConfig`` stream. ``budget`` is each planning call's time in
+    seconds (the Start-Kit's: a plan per second of wall time; None: no limit): the
+    planner returns the steps done by then (robots without a plan wait); calls that
+    still take longer are counted as over budget. After every
     planning call the active progress (:func:`hierplan_opt.core.progress.reporting`)
     gets the tick and the tasks finished. Bad settings raise
     :class:`~hierplan_opt.core.errors.InputError` before any work.
@@ -157,6 +180,8 @@ def run_lifelong(
         window = WINDOW if problem.team_size <= LARGE_FLEET else WINDOW_LARGE
     if period < 1 or window < 1:
         raise InputError(f"period and window must be at least 1, got {period} and {window}")
+    if budget is not None and not budget > BUDGET_MARGIN:
+        raise InputError(f"budget must be more than {BUDGET_MARGIN} s, got {budget}")
     if congestion < 0:
         raise InputError(f"congestion must be >= 0, got {congestion}")
     if delays is not None and delays.n != problem.team_size:
@@ -171,10 +196,11 @@ def run_lifelong(
     t0 = time.perf_counter()
     grid = Grid(problem.rows, problem.cols, problem.blocked)
     dist = Distances(grid, max_table_bytes, table_seconds)
-    pl = WindowedPIBT(grid, dist, window=window, seed=seed, congestion=congestion)
+    kind = WindowedLaCAM if planner == "lacam" else WindowedPIBT
+    pl = kind(grid, dist, window=window, seed=seed, congestion=congestion)
     guide = None
-    if planner != "pibt":  # guide paths from the registry's solver of that name
-        guide = RegistryGuide(grid, "pibt" if planner == "pibt-guided" else planner, seed=seed)
+    if planner.endswith("-guided"):  # guide paths from the registry's solver of that name
+        guide = RegistryGuide(grid, planner.removesuffix("-guided"), seed=seed)
     ex = ADGExecutor(grid.moves)
     stream = delays if delays is not None else DelayStream(problem.delay, problem.team_size)
     n = problem.team_size
@@ -201,16 +227,30 @@ def run_lifelong(
             all_tasks.append(task)
             next_id += 1
 
-    letters: list[list[str]] = [[] for _ in range(n)]
+    # one byte per robot and tick (10,000 robots x 5,000 ticks: 50 MB, not 400 MB of lists)
+    letters = [bytearray() for _ in range(n)]
+    codes = LETTERS.encode()
     snaps: list[list[tuple[int, int, int, int]]] = [[] for _ in range(n)]
     planner_times: list[float] = []
-    handled = {"slack": 0, "adg": 0, "replan": 0}
+    handled = {"slack": 0, "adg": 0, "stn": 0, "replan": 0}
     lost = [0] * n  # delayed ticks on which the robot would have moved
     open_delay = [False] * n
+    pending = [0] * n  # the staged action (index in its window) a delay held up
+
+    def settle(i: int, now: int) -> None:
+        """Robot i's delay is over: put it down to slack, adg or stn."""
+        if lost[i] == 0:
+            handled["slack"] += 1
+            return
+        s = robots[i]
+        ready = now + (k - s.count if s.count > 0 and s.cur != NA else 0)
+        handled[ex.absorb_delay(i, pending[i], ready, grid.cols)] += 1
+
     waits_on_delayed = 0
     waits = {"delayed": 0, "blocked": 0, "idle": 0, "no_task": 0}
     cycles = 0
     n_delays = 0
+    cut_calls = steps_planned = 0
     reveal(0)
     # preprocessing (the Start-Kit allows 30 s): the tables of the revealed errands
     p0 = time.perf_counter()
@@ -219,56 +259,61 @@ def run_lifelong(
 
     for t in range(ticks):
         if t % period == 0:
-            # ---- plan: assign, then a window from the committed states
-            c0 = time.perf_counter()
-            dist.new_round()
-            free = [i for i in range(n) if current[i] < 0]
-            if free:
-                open_ids = [tid for tid, tk in tasks.items() if tk.robot < 0]
-                for tid in open_ids:
-                    if tid not in chains:
-                        chains[tid] = chain_length(dist, tasks[tid].errands)
-                got = assign(
-                    scheduler,
-                    dist,
-                    free,
-                    [_committed(robots[i], grid.moves)[0] for i in free],
-                    open_ids,
-                    [tasks[tid].errands for tid in open_ids],
-                    [chains[tid] for tid in open_ids],
-                )
-                for i, tid in got.items():
-                    current[i] = tid
-                    tasks[tid].robot = i
-                    schedule[i].append((t, tid))
-                    prio[i] = rng.random()
-            locs, oris, errands = [], [], []
-            for i in range(n):
-                loc, ori = _committed(robots[i], grid.moves)
-                locs.append(loc)
-                oris.append(ori)
-                tk = tasks.get(current[i])
-                errands.append(tk.errands[tk.next :] if tk is not None else ())
-            dist.prefetch([e[0] for e in errands if e])
-            paths = guide.paths(locs, errands, prio) if guide is not None else None
-            plan = pl.plan(locs, oris, errands, prio, paths)
-            cycles += plan.cycles_broken
-            ex.load(plan, robots)
-            for i in range(n):
-                if current[i] >= 0:
-                    prio[i] += 1.0
-                if open_delay[i] and stream.delayed(i):
-                    handled["replan"] += 1
-                    open_delay[i] = False
-            planner_times.append(time.perf_counter() - c0)
+            with _collector_paused():  # no cyclic GC pass inside a timed call
+                # ---- plan: assign, then a window from the committed states
+                c0 = time.perf_counter()
+                dist.new_round()
+                free = [i for i in range(n) if current[i] < 0]
+                if free:
+                    open_ids = [tid for tid, tk in tasks.items() if tk.robot < 0]
+                    for tid in open_ids:
+                        if tid not in chains:
+                            chains[tid] = chain_length(dist, tasks[tid].errands)
+                    got = assign(
+                        scheduler,
+                        dist,
+                        free,
+                        [_committed(robots[i], grid.moves)[0] for i in free],
+                        open_ids,
+                        [tasks[tid].errands for tid in open_ids],
+                        [chains[tid] for tid in open_ids],
+                    )
+                    for i, tid in got.items():
+                        current[i] = tid
+                        tasks[tid].robot = i
+                        schedule[i].append((t, tid))
+                        prio[i] = rng.random()
+                locs, oris, errands = [], [], []
+                for i in range(n):
+                    loc, ori = _committed(robots[i], grid.moves)
+                    locs.append(loc)
+                    oris.append(ori)
+                    tk = tasks.get(current[i])
+                    errands.append(tk.errands[tk.next :] if tk is not None else ())
+                dist.prefetch([e[0] for e in errands if e])
+                paths = guide.paths(locs, errands, prio) if guide is not None else None
+                limit = None if budget is None else c0 + budget - BUDGET_MARGIN
+                plan = pl.plan(locs, oris, errands, prio, paths, deadline=limit)
+                cut_calls += plan.cut
+                steps_planned += plan.steps
+                cycles += plan.cycles_broken
+                ex.load(plan, robots, t, k)
+                for i in range(n):
+                    if current[i] >= 0:
+                        prio[i] += 1.0
+                    if open_delay[i] and stream.delayed(i):
+                        handled["replan"] += 1
+                        open_delay[i] = False
+                planner_times.append(time.perf_counter() - c0)
             tick("ticks", t, ticks, finished=finished)
         # ---- delays, commands, one tick of motion
         for a, _d in stream.next_tick():
             n_delays += 1
             if open_delay[a]:  # back to back with its previous delay
-                handled["slack" if lost[a] == 0 else "adg"] += 1
+                settle(a, t)
             open_delay[a] = True
             lost[a] = 0
+            pending[a] = ex.started_n[a]
         # commands from the state at the start of the tick (all robots at once) ...
         delayed = [stream.delayed(i) for i in range(n)]
         cmds = ex.commands(robots, delayed, k)
@@ -283,7 +328,7 @@ def run_lifelong(
                 waits["delayed"] += 1
                 continue
             if open_delay[i]:  # its delay just ended
-                handled["slack" if lost[i] == 0 else "adg"] += 1
+                settle(i, t)
                 open_delay[i] = False
             if cmds[i] == W:
                 b = ex.blocked_by[i]
@@ -302,7 +347,7 @@ def run_lifelong(
                 ex.started(i)
             if s.loc != prev_loc:
                 ex.left(i, prev_loc)
-            letters[i].append(LETTERS[a])
+            letters[i].append(codes[a])
         # ---- tasks: errands reached at timestep t + 1, then reveal
         ts = t + 1
         for i in range(n):
@@ -322,10 +367,10 @@ def run_lifelong(
         reveal(ts)
     for i in range(n):
         if open_delay[i]:
-            handled["slack" if lost[i] == 0 else "adg"] += 1
+            settle(i, ticks)
     tick("ticks", ticks, ticks, finished=finished)
 
-    paths = [encode_path("".join(letters[i]), snaps[i], SEGMENT) for i in range(n)]
+    paths = [encode_path(letters[i].decode(), snaps[i], SEGMENT) for i in range(n)]
     out_log = {
         "actionModel": "MAPF_T",
         "version": "2026 LoRR",
@@ -356,6 +401,8 @@ def run_lifelong(
             "period": period,
             "window": window,
             "seed": seed,
+            "budget": budget,
+            "callsCut": cut_calls,
             "delaysExact": stream.exact,
             "distanceTables": dist.made_total,
             "distanceSeconds": round(dist.seconds, 3),
@@ -376,8 +423,27 @@ def run_lifelong(
         cycles_broken=cycles,
         wall_time=time.perf_counter() - t0,
         preprocess_time=preprocess,
+        budget=budget,
+        cut_calls=cut_calls,
+        steps_planned=steps_planned,
+        stn_resolves=ex.stn_resolves,
+        stn_pushed=ex.stn_pushed,
         log=out_log,
     )
+
+
+@contextmanager
+def _collector_paused() -> Iterator[None]:
+    """Pause Python's cyclic garbage collector (a full pass over a large run's objects
+    takes up to 0.5 s) for one planning call; it runs again between calls. The call's
+    garbage is acyclic (freed by reference counting) except what waits for that pass."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
 
 
 def _committed(s: RobotState, moves: tuple[int, int, int, int]) -> tuple[int, int]:

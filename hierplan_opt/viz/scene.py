@@ -19,9 +19,7 @@ that the browser viewer and the animations must agree with.
 
 from __future__ import annotations
 
-import json
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +32,7 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import tick
+from hierplan_opt.io.lorr import decode_path, is_lorr, read_log
 
 #: Colour of each layer of the hierarchy that handles a disturbance.
 LAYER_COLORS = {
@@ -423,41 +422,8 @@ _ORDER = "ESWN"
 _MOVES = {"U": (0, -1), "D": (0, 1), "L": (-1, 0), "R": (1, 0)}
 
 
-def is_lorr(data: Any) -> bool:
-    """Whether a parsed JSON document is a LoRR output (an ``actualPaths`` list).
-
-    Example
-    -------
-    >>> is_lorr({"start": [], "actualPaths": []}), is_lorr({"schedule": {}})
-    (True, False)
-    """
-    return isinstance(data, dict) and isinstance(data.get("actualPaths"), list)
-
-
-_SEG = re.compile(r"\[\((-?\d+),(-?\d+),(-?\d+),(-?\d+),(-?\d+)\):\(([^)]*)\)\]")
 #: (d_row, d_col) of the LoRR orientation codes 0 E, 1 S, 2 W, 3 N.
 _DRC = {0: (0, 1), 1: (1, 0), 2: (0, -1), 3: (-1, 0)}
-
-
-def _segments(text: str, where: str) -> tuple[tuple[int, int, int, int], str]:
-    """Start-Kit 3.x compressed path ``[(t,row,col,ori,counter):(F 3,W 2)]...``: the first
-    state ``(row, col, ori, counter)`` and one action letter per tick."""
-    pos, letters, first = 0, [], None
-    while pos < len(text):
-        m = _SEG.match(text, pos)
-        if m is None:
-            raise InputError(f"{where}: bad segment at character {pos}: {text[pos : pos + 30]!r}")
-        if first is None:
-            first = (int(m[2]), int(m[3]), int(m[4]), int(m[5]))
-        for run in filter(None, (s.strip() for s in m[6].split(","))):
-            parts = run.split()
-            if len(parts) != 2 or parts[0] not in "FRCWT" or not parts[1].isdigit():
-                raise InputError(f"{where}: bad action run {run!r}")
-            letters.append(parts[0] * int(parts[1]))
-        pos = m.end()
-    if first is None:
-        raise InputError(f"{where}: empty path string")
-    return first, "".join(letters)
 
 
 def _segment_keys(
@@ -470,7 +436,7 @@ def _segment_keys(
     W, H = graph.shape[0], graph.shape[1]
     keys = []
     for i, text in enumerate(paths):
-        (r, c, o, cnt), acts = _segments(str(text), f"{path}: actualPaths[{i}]")
+        (r, c, o, cnt), acts = decode_path(str(text), f"{path}: actualPaths[{i}]")
         cur = "T"
         xy = np.empty((len(acts) + 1, 2))
         xy[0] = (c, r)
@@ -673,16 +639,9 @@ def _lorr_goals(data: Mapping[str, Any], W: int, goals: np.ndarray) -> bool:
 
 
 def read_lorr(path: str | Path) -> dict[str, Any]:
-    """Parse a LoRR output JSON (one-line errors for anything else)."""
-    from hierplan_opt.io.files import read_text
-
-    try:
-        data = json.loads(read_text(path))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
-    if not is_lorr(data):
-        raise InputError(f"{path}: not a LoRR output (no 'actualPaths' list)")
-    return data
+    """Parse a LoRR output JSON (one-line errors for anything else): :func:`hierplan_opt.
+    io.lorr.read_log`, the one reader of the layout."""
+    return read_log(path)
 
 
 def closest_pairs(scene: Scene, samples: int = 300) -> dict[str, list[float] | list[int]]:
