@@ -38,7 +38,6 @@ import numpy as np
 from hierplan_opt.core.errors import HierplanError, InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import positive_amount
-from hierplan_opt.formulations.time_expanded import commodities_of
 
 GB = 1 << 30
 
@@ -89,6 +88,8 @@ def estimate_network(
     >>> est.arcs >= TimeExpandedNetwork.build(inst, 16).num_arcs
     True
     """
+    # not at the top: the memory guard runs on `hierplan solve`'s path, the model does not
+    from hierplan_opt.formulations.time_expanded import commodities_of
 
     g = instance.graph
     specs = commodities_of(instance)

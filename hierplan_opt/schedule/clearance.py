@@ -49,7 +49,6 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.schedule.geometry import segment_distance
 
 #: Relative widening of every claim radius: makes the coverage inequalities strict.
 ETA = 1e-12
@@ -419,6 +418,8 @@ def claim_precedences(
 def _claim_distance(c: Claims, seg: Segments, p: int, q: int, ends: str = "") -> float:
     """Smallest distance between the path pieces of claims ``p`` and ``q``; with
     ``ends="p-start"`` (``"p-end"``) between the start (end) point of ``p`` and ``q``."""
+    # not at the top: `hierplan solve` loads this module (radii), not the geometry
+    from hierplan_opt.schedule.geometry import segment_distance
 
     def pieces(k: int) -> tuple[np.ndarray, np.ndarray]:
         idx = np.arange(int(c.seg_in[k]), int(c.seg_out[k]) + 1)

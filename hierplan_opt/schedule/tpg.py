@@ -53,7 +53,6 @@ from hierplan_opt.schedule.clearance import (
     describe_types,
 )
 from hierplan_opt.schedule.dag import csr, find_cycle, topo_order
-from hierplan_opt.schedule.geometry import segment_distance
 
 #: Node kinds: a visited vertex; markers that end a claim (precedence source), begin
 #: one (precedence target), or both; and a robot's start again where it waits, at
@@ -707,6 +706,8 @@ def _grid_like(vis: _Visits, req: Requirement) -> bool:
     with ``D = 2 r_max + margin``, every vertex has a used edge at least ``D`` long, used
     edges meet at 90 degrees or more, and used segments without a common vertex (and
     robots that never move) are at least ``D`` apart (``docs/post.md``)."""
+    # not at the top: `hierplan solve` loads this module, not the geometry
+    from hierplan_opt.schedule.geometry import segment_distance
 
     need = 2.0 * float(req.radius.max(initial=0.0)) + req.margin
     u, w = vis.V[vis.mv], vis.V[vis.mv + 1]
