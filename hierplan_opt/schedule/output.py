@@ -17,7 +17,7 @@ YAML layout (JSON is the same tree; CSV has one row per way-point, and the
       agent0: [{x: 0, y: 0, theta: 0.0, arrival: 0.0}, ...]   # z: on 3D maps
 
 ``settings`` and ``plan`` say what the schedule came from; they are read back by
-:func:`hierplan_opt.schedule.files.load_schedule` (``Schedule.load``).
+:func:`hierplan_opt.schedule.files.load_schedule`, the one reader of schedule files.
 """
 
 from __future__ import annotations
