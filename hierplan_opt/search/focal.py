@@ -140,6 +140,84 @@ def focal_path(
     return out
 
 
+def scored_moves(
+    succ_v: tuple[int, ...],
+    v: int,
+    nt: int,
+    n: int,
+    c: int,
+    vcons: set[int] | frozenset[int],
+    econs: set[int] | frozenset[int],
+    vt: dict[int, list[int]],
+    et: dict[int, list[int]],
+    park_t: list[int],
+    partner: int = -1,
+    partner_goal: int = -1,
+) -> list[tuple[int, int]]:
+    """The moves out of ``v`` (``succ_v``, its successors) arriving at ``nt`` that the
+    vertex and edge constraints allow, each with its conflict count: ``[(u, c_u)]``
+    with ``c_u`` = ``c`` (the state's count) plus the move's conflicts.
+
+    The successor rule of the focal searches, written once (:func:`focal_path`'s loop
+    and :func:`~hierplan_opt.search.highways.inflated_focal_path`): a constraint prunes
+    the move; each other agent at ``u`` at ``nt`` (``vt``), parked at ``u`` before
+    ``nt`` (``park_t``) or moving ``u -> v`` at the same step (``et``, a swap) is one
+    conflict, :data:`PARTNER_WEIGHT` more when it is the ``partner``.
+
+    Example
+    -------
+    >>> res = Reservations(3)
+    >>> res.add(0, (2, 1))  # agent 0 moves 2 -> 1 at time 1
+    >>> scored_moves((0, 2, 1), 1, 1, 3, 0, set(), set(), res.vt, res.et, res.park_t)
+    [(0, 0), (2, 1), (1, 1)]
+    >>> scored_moves((0, 2, 1), 1, 1, 3, 0, {3}, set(), res.vt, res.et, res.park_t)
+    [(2, 1), (1, 1)]
+    """
+    base = nt * n
+    out: list[tuple[int, int]] = []
+    for u in succ_v:
+        nk = base + u
+        if nk in vcons or (u != v and (base + v) * n + u in econs):
+            continue
+        nc = c
+        occ = vt.get(nk)
+        if occ:
+            nc += len(occ)
+            if partner in occ:
+                nc += PARTNER_WEIGHT
+        if nt > park_t[u]:
+            nc += 1
+            if u == partner_goal:  # the partner is the one parked at u
+                nc += PARTNER_WEIGHT
+        if u != v:
+            occ = et.get((base + u) * n + v)  # someone moves u -> v: a swap
+            if occ:
+                nc += len(occ)
+                if partner in occ:
+                    nc += PARTNER_WEIGHT
+        out.append((u, nc))
+    return out
+
+
+def park_conflicts(
+    c: int, nt: int, goal_times: Sequence[int], partner_times: Sequence[int] = ()
+) -> int:
+    """The conflict count of parking at the goal from ``nt`` on, reached with ``c``
+    conflicts: plus each later visit of another agent to the goal (``goal_times``,
+    sorted; :meth:`Reservations.visits`), :data:`PARTNER_WEIGHT` more each for the
+    partner's (``partner_times``).
+
+    Example
+    -------
+    >>> park_conflicts(1, 2, [1, 3, 5])
+    3
+    """
+    c += len(goal_times) - bisect_right(goal_times, nt)
+    if partner_times:
+        c += PARTNER_WEIGHT * (len(partner_times) - bisect_right(partner_times, nt))
+    return c
+
+
 def _raise_bound(
     live: dict[int, int],
     buckets: dict[int, list[tuple[int, int, int, int]]],
@@ -238,10 +316,6 @@ def _focal_loop(
     limit: int,
 ) -> tuple[tuple[tuple[int, ...], int] | None, int]:
     """The search of :func:`focal_path`: ``(its result, expansions)``."""
-    n_goal_times = len(goal_times)
-    pw = PARTNER_WEIGHT
-    has_v = bool(vcons)
-    has_e = bool(econs)
     best: dict[int, int] = {start: 0}  # key -> fewest conflicts found so far
     parent: dict[int, int] = {start: -1}
     closed: set[int] = set()
@@ -252,7 +326,7 @@ def _focal_loop(
     focal: list[tuple[int, int, int, int]] = [(0, (f0 + h[start]) * _TIE, f0, start)]
     fmin = f0
     bound = int(w * fmin + 1e-9)
-    c = n_goal_times - bisect_right(goal_times, 0)
+    c = park_conflicts(0, 0, goal_times)  # parked from the start (no partner term)
     if start == goal and hold == 0 and not (avoid and c):
         n_live += _park(-(start + 1), c, start, 0, False, bound, best, parent, live, focal, buckets)
     expanded = 0
@@ -299,31 +373,12 @@ def _focal_loop(
         v = key - t * n
         nt = t + 1
         if nt <= max_t:
-            base = nt * n
-            for u in succ[v]:
-                nk = base + u
-                if has_v and nk in vcons:
-                    continue
-                if has_e and u != v and (base + v) * n + u in econs:
-                    continue
-                nc = c
-                occ = vt.get(nk)
-                if occ:
-                    nc += len(occ)
-                    if partner in occ:
-                        nc += pw
-                if nt > park_t[u]:
-                    nc += 1
-                    if u == partner_goal:  # the partner is the one parked at u
-                        nc += pw
-                if u != v:
-                    occ = et.get((base + u) * n + v)  # someone moves u -> v: a swap
-                    if occ:
-                        nc += len(occ)
-                        if partner in occ:
-                            nc += pw
+            for u, nc in scored_moves(
+                succ[v], v, nt, n, c, vcons, econs, vt, et, park_t, partner, partner_goal
+            ):
                 if avoid and nc:
                     continue
+                nk = nt * n + u
                 hu = h[u]
                 nf = nt + hu if nt + hu > hold else hold
                 old = best.get(nk)
@@ -347,9 +402,7 @@ def _focal_loop(
                         else:
                             b.append(entry)
                 if u == goal and nt >= hold:
-                    tc = nc + n_goal_times - bisect_right(goal_times, nt)
-                    if partner_times:
-                        tc += pw * (len(partner_times) - bisect_right(partner_times, nt))
+                    tc = park_conflicts(nc, nt, goal_times, partner_times)
                     if not (avoid and tc):
                         n_live += _park(
                             -(nk + 1), tc, key, nt, fallback, bound, best, parent, live,
