@@ -289,9 +289,10 @@ def _park(
     return 1
 
 
-# See the note above astar.space_time_astar: one of the hot inner loops, its state
-# expansion written out in one body on purpose (complexity 34: a call per successor
-# costs measurable time on `hierplan bench ecbs`); the rare steps are the helpers above.
+# See the note above astar.space_time_astar: one of the hot inner loops. Which moves a
+# state has and their conflict counts are scored_moves (one call per expansion, shared
+# with highways.inflated_focal_path); the queue bookkeeping per successor stays written
+# out in this body (a call per successor costs measurable time on `hierplan bench ecbs`).
 def _focal_loop(
     succ: list[tuple[int, ...]],
     n: int,

@@ -111,10 +111,9 @@ class HighwayHeuristic:
 
 
 # ---------------------------------------------------------------- the edge-cost variant
-# The inner loop of the cost-mode low level, in one body with its relax/push closures
-# (complexity 27): the same reason as the note above astar.space_time_astar (a call or
-# an attribute lookup more per successor costs measurable time); its successor rule and
-# conflict counts are focal.focal_path's, which tests/test_search_core.py checks.
+# The inner loop of the cost-mode low level, with its relax/push closures (complexity
+# 27): its successor rule, conflict counts and park count are focal.scored_moves and
+# focal.park_conflicts, the focal search's own; only the float-cost queues are its own.
 def inflated_focal_path(
     adj: Sequence[Sequence[int]],
     start: int,
