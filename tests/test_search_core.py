@@ -234,3 +234,44 @@ def test_scored_moves_is_the_rule_and_counts_conflicts(seed):
                 # of the move there, counted above)
                 later = sum(1 for p in paths for t in range(nt + 1, len(p)) if p[t] == goal)
                 assert park_conflicts(0, nt, goal_times) == later, (seed, nt)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_focal_loop_counts_as_scored_moves(seed):
+    """The focal loop writes ``scored_moves`` / ``park_conflicts`` out (speed): a path it
+    returns with ``avoid`` (conflicts forbidden) takes only moves the shared rule allows
+    and has no conflict by its counts."""
+    rng = random.Random(900 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    ends: set[int] = set()
+    for a in range(rng.randint(1, 4)):
+        p = walk(g, rng, free, rng.randint(0, 10))
+        if p[-1] not in ends:
+            res.add(a, p)
+            ends.add(p[-1])
+    succ = successors(g.adj)
+    for _ in range(5):
+        open_cells = [v for v in free if v not in ends]
+        if len(open_cells) < 2:
+            return
+        s, goal = rng.sample(open_cells, 2)
+        cons = constraints(g, rng, free, goal, FOCAL_KINDS)
+        dist = g.dist_list(goal)
+        found = focal_path(g.adj, s, goal, dist, cons, res, avoid=True)
+        if found is None:
+            continue
+        path = found[0]
+        c = 0
+        for t in range(1, len(path)):
+            moves = dict(
+                scored_moves(
+                    succ[path[t - 1]], path[t - 1], t, g.n, c, cons.vertex, cons.edge,
+                    res.vt, res.et, res.park_t,
+                )
+            )  # fmt: skip
+            assert path[t] in moves, (seed, t)
+            c = moves[path[t]]
+        assert park_conflicts(c, len(path) - 1, res.visits(goal)) == 0, seed

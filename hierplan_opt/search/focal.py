@@ -289,10 +289,12 @@ def _park(
     return 1
 
 
-# See the note above astar.space_time_astar: one of the hot inner loops. Which moves a
-# state has and their conflict counts are scored_moves (one call per expansion, shared
-# with highways.inflated_focal_path); the queue bookkeeping per successor stays written
-# out in this body (a call per successor costs measurable time on `hierplan bench ecbs`).
+# See the note above astar.space_time_astar: one of the hot inner loops, its state
+# expansion written out in one body on purpose (complexity 34). Its move rule and
+# conflict counts are scored_moves and park_conflicts written out (those helpers are the
+# rule's one definition, used by highways.inflated_focal_path, and tied to this loop by
+# tests/test_search_core.py): calling scored_moves here, once per expansion, made
+# `hierplan bench ecbs --quick` 5.6 % slower (CPU, farm-bench medians of 3).
 def _focal_loop(
     succ: list[tuple[int, ...]],
     n: int,
@@ -317,6 +319,10 @@ def _focal_loop(
     limit: int,
 ) -> tuple[tuple[tuple[int, ...], int] | None, int]:
     """The search of :func:`focal_path`: ``(its result, expansions)``."""
+    n_goal_times = len(goal_times)
+    pw = PARTNER_WEIGHT
+    has_v = bool(vcons)
+    has_e = bool(econs)
     best: dict[int, int] = {start: 0}  # key -> fewest conflicts found so far
     parent: dict[int, int] = {start: -1}
     closed: set[int] = set()
@@ -327,7 +333,7 @@ def _focal_loop(
     focal: list[tuple[int, int, int, int]] = [(0, (f0 + h[start]) * _TIE, f0, start)]
     fmin = f0
     bound = int(w * fmin + 1e-9)
-    c = park_conflicts(0, 0, goal_times)  # parked from the start (no partner term)
+    c = n_goal_times - bisect_right(goal_times, 0)
     if start == goal and hold == 0 and not (avoid and c):
         n_live += _park(-(start + 1), c, start, 0, False, bound, best, parent, live, focal, buckets)
     expanded = 0
@@ -374,12 +380,31 @@ def _focal_loop(
         v = key - t * n
         nt = t + 1
         if nt <= max_t:
-            for u, nc in scored_moves(
-                succ[v], v, nt, n, c, vcons, econs, vt, et, park_t, partner, partner_goal
-            ):
+            base = nt * n
+            for u in succ[v]:
+                nk = base + u
+                if has_v and nk in vcons:
+                    continue
+                if has_e and u != v and (base + v) * n + u in econs:
+                    continue
+                nc = c
+                occ = vt.get(nk)
+                if occ:
+                    nc += len(occ)
+                    if partner in occ:
+                        nc += pw
+                if nt > park_t[u]:
+                    nc += 1
+                    if u == partner_goal:  # the partner is the one parked at u
+                        nc += pw
+                if u != v:
+                    occ = et.get((base + u) * n + v)  # someone moves u -> v: a swap
+                    if occ:
+                        nc += len(occ)
+                        if partner in occ:
+                            nc += pw
                 if avoid and nc:
                     continue
-                nk = nt * n + u
                 hu = h[u]
                 nf = nt + hu if nt + hu > hold else hold
                 old = best.get(nk)
@@ -403,7 +428,9 @@ def _focal_loop(
                         else:
                             b.append(entry)
                 if u == goal and nt >= hold:
-                    tc = park_conflicts(nc, nt, goal_times, partner_times)
+                    tc = nc + n_goal_times - bisect_right(goal_times, nt)
+                    if partner_times:
+                        tc += pw * (len(partner_times) - bisect_right(partner_times, nt))
                     if not (avoid and tc):
                         n_live += _park(
                             -(nk + 1), tc, key, nt, fallback, bound, best, parent, live,
