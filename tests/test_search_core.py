@@ -9,6 +9,8 @@ spacetime.Moves` (which move is allowed at which time, with which lower bound):
   exactly ``Moves.at`` for every state of random instances and constraint sets;
 * the Python A*'s path takes only moves of ``Moves``, lies in the MDD of its cost, and
   no path of one step less exists (the MDD of that cost is empty);
+* the focal searches' shared rule (``focal.scored_moves``, ``park_conflicts``) allows
+  the moves of ``Moves`` and counts conflicts as the other agents' paths say;
 * the focal search at ``w = 1`` and the inflated search with every edge costing 1 find
   the A*'s cost under the same vertex and edge constraints, with or without other
   agents' paths to count conflicts with.
@@ -36,11 +38,11 @@ from hierplan_opt.search.constraints import (
     POS_V,
     AgentConstraints,
 )
-from hierplan_opt.search.focal import focal_path
+from hierplan_opt.search.focal import focal_path, park_conflicts, scored_moves
 from hierplan_opt.search.highways import inflated_focal_path
 from hierplan_opt.search.mdd import build_mdd
 from hierplan_opt.search.reservations import Reservations
-from hierplan_opt.search.spacetime import Moves
+from hierplan_opt.search.spacetime import Moves, successors
 
 
 def grid(rng: random.Random) -> tuple[Graph, list[int]]:
@@ -179,3 +181,97 @@ def test_focal_and_inflated_find_the_astar_cost(seed):
             assert infl is not None and len(infl[0]) - 1 == cost and infl[1] == cost
     finally:
         jit.set_low_level(None)
+
+
+def brute_conflicts(paths: list[tuple[int, ...]], v: int, u: int, nt: int) -> int:
+    """Conflicts of the move ``v -> u`` arriving at ``nt`` with ``paths`` (parked at
+    their last vertex forever), counted from the paths themselves."""
+    c = 0
+    for p in paths:
+        at = p[nt] if nt < len(p) else p[-1]
+        if at == u:
+            c += 1  # on u at nt (moving there or parked there)
+        elif u != v and nt < len(p) and p[nt - 1] == u and p[nt] == v:
+            c += 1  # swap
+    return c
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_scored_moves_is_the_rule_and_counts_conflicts(seed):
+    """The focal searches' shared rule (``focal.scored_moves``, used by the focal loop
+    and the inflated search) allows exactly the moves of ``Moves`` (vertex and edge
+    constraints, goal reachable), counts each move's conflicts as the paths say, and
+    ``park_conflicts`` counts every later visit to the goal."""
+    rng = random.Random(500 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    paths = []
+    for a in range(rng.randint(1, 4)):
+        p = walk(g, rng, free, rng.randint(0, 10))
+        if p[-1] in {q[-1] for q in paths}:
+            continue  # one agent parked per vertex
+        res.add(a, p)
+        paths.append(p)
+    succ = successors(g.adj)
+    for _ in range(3):
+        goal = rng.choice(free)
+        cons = constraints(g, rng, free, goal, FOCAL_KINDS)
+        dist = g.dist_list(goal)
+        moves = Moves(g.adj, goal, dist, cons)
+        goal_times = res.visits(goal)
+        for v in free:
+            for nt in range(1, 14):
+                got = scored_moves(
+                    succ[v], v, nt, g.n, 5, cons.vertex, cons.edge, res.vt, res.et, res.park_t
+                )
+                allowed = [u for u, _ in moves.at(v, nt)]
+                assert [u for u, _ in got if dist[u] < UNREACHABLE] == allowed, (seed, v, nt)
+                for u, c in got:
+                    assert c == 5 + brute_conflicts(paths, v, u, nt), (seed, v, u, nt)
+                # visits along the paths (an agent parked at the goal is one conflict
+                # of the move there, counted above)
+                later = sum(1 for p in paths for t in range(nt + 1, len(p)) if p[t] == goal)
+                assert park_conflicts(0, nt, goal_times) == later, (seed, nt)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_focal_loop_counts_as_scored_moves(seed):
+    """The focal loop writes ``scored_moves`` / ``park_conflicts`` out (speed): a path it
+    returns with ``avoid`` (conflicts forbidden) takes only moves the shared rule allows
+    and has no conflict by its counts."""
+    rng = random.Random(900 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    ends: set[int] = set()
+    for a in range(rng.randint(1, 4)):
+        p = walk(g, rng, free, rng.randint(0, 10))
+        if p[-1] not in ends:
+            res.add(a, p)
+            ends.add(p[-1])
+    succ = successors(g.adj)
+    for _ in range(5):
+        open_cells = [v for v in free if v not in ends]
+        if len(open_cells) < 2:
+            return
+        s, goal = rng.sample(open_cells, 2)
+        cons = constraints(g, rng, free, goal, FOCAL_KINDS)
+        dist = g.dist_list(goal)
+        found = focal_path(g.adj, s, goal, dist, cons, res, avoid=True)
+        if found is None:
+            continue
+        path = found[0]
+        c = 0
+        for t in range(1, len(path)):
+            moves = dict(
+                scored_moves(
+                    succ[path[t - 1]], path[t - 1], t, g.n, c, cons.vertex, cons.edge,
+                    res.vt, res.et, res.park_t,
+                )
+            )  # fmt: skip
+            assert path[t] in moves, (seed, t)
+            c = moves[path[t]]
+        assert park_conflicts(c, len(path) - 1, res.visits(goal)) == 0, seed

@@ -140,6 +140,84 @@ def focal_path(
     return out
 
 
+def scored_moves(
+    succ_v: tuple[int, ...],
+    v: int,
+    nt: int,
+    n: int,
+    c: int,
+    vcons: set[int] | frozenset[int],
+    econs: set[int] | frozenset[int],
+    vt: dict[int, list[int]],
+    et: dict[int, list[int]],
+    park_t: list[int],
+    partner: int = -1,
+    partner_goal: int = -1,
+) -> list[tuple[int, int]]:
+    """The moves out of ``v`` (``succ_v``, its successors) arriving at ``nt`` that the
+    vertex and edge constraints allow, each with its conflict count: ``[(u, c_u)]``
+    with ``c_u`` = ``c`` (the state's count) plus the move's conflicts.
+
+    The successor rule of the focal searches, written once (:func:`focal_path`'s loop
+    and :func:`~hierplan_opt.search.highways.inflated_focal_path`): a constraint prunes
+    the move; each other agent at ``u`` at ``nt`` (``vt``), parked at ``u`` before
+    ``nt`` (``park_t``) or moving ``u -> v`` at the same step (``et``, a swap) is one
+    conflict, :data:`PARTNER_WEIGHT` more when it is the ``partner``.
+
+    Example
+    -------
+    >>> res = Reservations(3)
+    >>> res.add(0, (2, 1))  # agent 0 moves 2 -> 1 at time 1
+    >>> scored_moves((0, 2, 1), 1, 1, 3, 0, set(), set(), res.vt, res.et, res.park_t)
+    [(0, 0), (2, 1), (1, 1)]
+    >>> scored_moves((0, 2, 1), 1, 1, 3, 0, {3}, set(), res.vt, res.et, res.park_t)
+    [(2, 1), (1, 1)]
+    """
+    base = nt * n
+    out: list[tuple[int, int]] = []
+    for u in succ_v:
+        nk = base + u
+        if nk in vcons or (u != v and (base + v) * n + u in econs):
+            continue
+        nc = c
+        occ = vt.get(nk)
+        if occ:
+            nc += len(occ)
+            if partner in occ:
+                nc += PARTNER_WEIGHT
+        if nt > park_t[u]:
+            nc += 1
+            if u == partner_goal:  # the partner is the one parked at u
+                nc += PARTNER_WEIGHT
+        if u != v:
+            occ = et.get((base + u) * n + v)  # someone moves u -> v: a swap
+            if occ:
+                nc += len(occ)
+                if partner in occ:
+                    nc += PARTNER_WEIGHT
+        out.append((u, nc))
+    return out
+
+
+def park_conflicts(
+    c: int, nt: int, goal_times: Sequence[int], partner_times: Sequence[int] = ()
+) -> int:
+    """The conflict count of parking at the goal from ``nt`` on, reached with ``c``
+    conflicts: plus each later visit of another agent to the goal (``goal_times``,
+    sorted; :meth:`Reservations.visits`), :data:`PARTNER_WEIGHT` more each for the
+    partner's (``partner_times``).
+
+    Example
+    -------
+    >>> park_conflicts(1, 2, [1, 3, 5])
+    3
+    """
+    c += len(goal_times) - bisect_right(goal_times, nt)
+    if partner_times:
+        c += PARTNER_WEIGHT * (len(partner_times) - bisect_right(partner_times, nt))
+    return c
+
+
 def _raise_bound(
     live: dict[int, int],
     buckets: dict[int, list[tuple[int, int, int, int]]],
@@ -212,8 +290,11 @@ def _park(
 
 
 # See the note above astar.space_time_astar: one of the hot inner loops, its state
-# expansion written out in one body on purpose (complexity 34: a call per successor
-# costs measurable time on `hierplan bench ecbs`); the rare steps are the helpers above.
+# expansion written out in one body on purpose (complexity 34). Its move rule and
+# conflict counts are scored_moves and park_conflicts written out (those helpers are the
+# rule's one definition, used by highways.inflated_focal_path, and tied to this loop by
+# tests/test_search_core.py): calling scored_moves here, once per expansion, made
+# `hierplan bench ecbs --quick` 5.6 % slower (CPU, farm-bench medians of 3).
 def _focal_loop(
     succ: list[tuple[int, ...]],
     n: int,

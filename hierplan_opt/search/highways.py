@@ -38,7 +38,6 @@ solver. The highway sets (generators, learned ones, by name) are in
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
 from collections.abc import Iterable, Sequence
 from heapq import heappop, heappush
 from typing import Any
@@ -50,7 +49,7 @@ from hierplan_opt.core.highways import Highways, highway_share
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints
-from hierplan_opt.search.focal import FocalLowLevel, LowLevelHost
+from hierplan_opt.search.focal import FocalLowLevel, LowLevelHost, park_conflicts, scored_moves
 from hierplan_opt.search.reservations import Reservations
 from hierplan_opt.search.spacetime import SearchTimeout, successors, unwind
 
@@ -112,10 +111,9 @@ class HighwayHeuristic:
 
 
 # ---------------------------------------------------------------- the edge-cost variant
-# The inner loop of the cost-mode low level, in one body with its relax/push closures
-# (complexity 27): the same reason as the note above astar.space_time_astar (a call or
-# an attribute lookup more per successor costs measurable time); its successor rule and
-# conflict counts are focal.focal_path's, which tests/test_search_core.py checks.
+# The inner loop of the cost-mode low level, with its relax/push closures (complexity
+# 27): its successor rule, conflict counts and park count are focal.scored_moves and
+# focal.park_conflicts, the focal search's own; only the float-cost queues are its own.
 def inflated_focal_path(
     adj: Sequence[Sequence[int]],
     start: int,
@@ -190,7 +188,7 @@ def inflated_focal_path(
             push(key)
 
     if start == goal and hold == 0:  # already there: park from time 0
-        relax(-(start + 1), 0.0, len(goal_times) - bisect_right(goal_times, 0), -1)
+        relax(-(start + 1), 0.0, park_conflicts(0, 0, goal_times), -1)
     result: tuple[tuple[int, ...], float] | None = None
     while True:
         while open_f and (open_f[0][1] in closed or abs(open_f[0][0] - f_of(open_f[0][1])) > 1e-12):
@@ -224,23 +222,14 @@ def inflated_focal_path(
             continue
         base = nt * n
         gv = g_of[key]
-        for u in succ[v]:
-            nk = base + u
-            if nk in vcons or (u != v and (base + v) * n + u in econs):
-                continue
-            nc = c + len(vt.get(nk, ()))
-            if nt > park_t[u]:
-                nc += 1
-            if u != v:
-                nc += len(et.get((base + u) * n + v, ()))
-            step = 1.0 if (v, u) in highways else w_hwy
-            ng = gv + step
+        for u, nc in scored_moves(succ[v], v, nt, n, c, vcons, econs, vt, et, park_t):
             if h[u] == inf:
                 continue
+            ng = gv + (1.0 if (v, u) in highways else w_hwy)
+            nk = base + u
             relax(nk, ng, nc, key)
             if u == goal and nt >= hold:
-                tc = nc + len(goal_times) - bisect_right(goal_times, nt)
-                relax(-(nk + 1), ng, tc, key)
+                relax(-(nk + 1), ng, park_conflicts(nc, nt, goal_times), key)
     if stats is not None:
         stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
     return result

@@ -18,7 +18,9 @@ A* with conflict counts as tie-breaker (:mod:`~hierplan_opt.search.astar`, and i
 compiled twin :mod:`~hierplan_opt.search._astar_kernel`), MDD construction
 (:mod:`~hierplan_opt.search.mdd`, all paths of one cost), focal search with a focal
 order by conflicts (:mod:`~hierplan_opt.search.focal`), and the highway-inflated focal
-search with edge costs (:func:`hierplan_opt.search.highways.inflated_focal_path`). The
+search with edge costs (:func:`hierplan_opt.search.highways.inflated_focal_path`); the
+two focal searches share their move rule and conflict counts
+(:func:`hierplan_opt.search.focal.scored_moves`, ``park_conflicts``). The
 loops that write the rule out are tied to :class:`Moves` by
 ``tests/test_search_core.py`` and ``tests/test_jit_astar.py``.
 """
