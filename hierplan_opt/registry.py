@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from hierplan_opt.core.errors import OptionError, UnknownSolverError
+from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.core.options import Option, Options
 from hierplan_opt.core.result import Result, Status
@@ -252,7 +253,6 @@ def _targets(instance: Instance) -> set[int]:
 def cheap_infeasibility(instance: Instance) -> str | None:
     """A one-line reason why no plan exists, from the checks that take milliseconds
     (after the distance tables of every goal: batches the solvers reuse)."""
-    from hierplan_opt.core.feasibility import quick_infeasibility
 
     instance.graph.fill_distances(_targets(instance))
     return quick_infeasibility(instance)

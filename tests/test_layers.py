@@ -181,3 +181,32 @@ def test_checker_is_quiet_on_a_clean_tree(tmp_path: Path) -> None:
     assert len(edges) == 3  # other distributions are not edges
     assert layer_violations(edges, [{"core"}, {"io"}, {"cli"}]) == []
     assert cycles(edges) == []
+
+
+def test_imports_inside_functions_say_why_outside_the_command_layers() -> None:
+    """An import of the package inside a function hides a circle unless it saves start-up
+    time (issue 31): outside ``cli`` and ``bench`` (where each command loads its own code
+    when it runs) every such import carries a comment on its line or the two above that
+    says why (a heavy module, a format's reader loaded on use, ...)."""
+    import ast
+
+    bare = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = path.relative_to(PACKAGE)
+        if rel.parts[0] in ("cli", "bench"):
+            continue
+        lines = path.read_text().splitlines()
+        for fn in ast.walk(ast.parse("\n".join(lines))):
+            if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            for node in ast.walk(fn):
+                if isinstance(node, ast.ImportFrom):
+                    internal = node.level > 0 or (node.module or "").startswith("hierplan_opt")
+                elif isinstance(node, ast.Import):
+                    internal = any(a.name.startswith("hierplan_opt") for a in node.names)
+                else:
+                    continue
+                near = lines[max(0, node.lineno - 3) : node.end_lineno or node.lineno]
+                if internal and not any("#" in line for line in near):
+                    bare.append(f"{rel}:{node.lineno}")
+    assert not bare, bare

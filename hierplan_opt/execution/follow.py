@@ -36,6 +36,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError, OptionError
 from hierplan_opt.execution.state import ExecState
+from hierplan_opt.trajectory.result import Trajectories
 
 if TYPE_CHECKING:
     from hierplan_opt.trajectory.result import Trajectories
@@ -46,7 +47,6 @@ MAX_STEP = 0.05
 
 def check_trajectories(schedule: Any, traj: Trajectories, mode: str = "agent") -> None:
     """Refuse trajectories that were not refined from ``schedule`` (one line)."""
-    from hierplan_opt.trajectory.result import Trajectories
 
     if not isinstance(traj, Trajectories):
         raise OptionError(f"trajectories must be a Trajectories object, got {type(traj).__name__}")

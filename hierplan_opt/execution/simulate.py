@@ -74,6 +74,7 @@ from hierplan_opt.execution.statistics import finish
 from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.solve_graph import InconsistentSTNError
 from hierplan_opt.schedule.stn import STN
+from hierplan_opt.trajectory import refine
 
 if TYPE_CHECKING:
     from hierplan_opt.trajectory.result import Trajectories
@@ -138,7 +139,6 @@ class Simulation(ExecState):
     def _refine_again(self, sched: Schedule, t_r: float) -> Any:
         """Refined trajectories of a re-planned schedule (as the first ones were made),
         or None (logged): then it is followed at constant velocity."""
-        from hierplan_opt.trajectory import refine
 
         t0 = time.perf_counter()
         try:

@@ -17,6 +17,8 @@ from hierplan_opt import registry
 from hierplan_opt.core.errors import HierplanError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Result
+from hierplan_opt.execution.chain import plan_and_post
+from hierplan_opt.schedule import replay
 
 #: Statistics of :func:`hierplan_opt.schedule.postprocess` a post run records (``post_`` +).
 POST_STATS = (
@@ -63,8 +65,6 @@ def post(
     >>> r.cost, st["post_tpg_nodes"], round(st["post_makespan"], 6), st["post_replay_ok"]
     (4, 10, 2.1, True)
     """
-    from hierplan_opt.execution.chain import plan_and_post
-    from hierplan_opt.schedule import replay
 
     if method not in ("graph", "lp"):
         raise OptionError(f"post option method must be 'graph' or 'lp', got {method!r}")

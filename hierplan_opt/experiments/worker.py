@@ -219,7 +219,7 @@ def preload() -> list[str]:
     here = Path(__file__).resolve().parent.parent / "search" / "__pycache__"
     if not os.environ.get("NUMBA_CACHE_DIR") and any(here.glob("_astar_kernel.*.nbi")):
         try:
-            from hierplan_opt.search import jit
+            from hierplan_opt.search import jit  # heavy module: numba (loaded only here)
 
             jit.load()
             done.append("kernels")

@@ -27,7 +27,10 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result, Status, relative_gap
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.core.validate import Violation, validate
+from hierplan_opt.formulations.cpsat import CpSatBackend
+from hierplan_opt.formulations.horizon import Outcome, detours, solve_with
 from hierplan_opt.formulations.memory import ModelTooLarge, check_model
+from hierplan_opt.formulations.mip import MipBackend
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 
 if TYPE_CHECKING:
@@ -122,12 +125,8 @@ class VerifyResult:
 
 def _backend(method: str) -> Backend:
     if method == "cpsat":
-        from hierplan_opt.formulations.cpsat import CpSatBackend
-
         return CpSatBackend()
     if method == "mip":
-        from hierplan_opt.formulations.mip import MipBackend
-
         return MipBackend()
     raise OptionError(f"unknown verification method {method!r} (use 'cpsat' or 'mip')")
 
@@ -176,8 +175,6 @@ def verify(
     lb = instance.soc_lower_bound() if objective == "soc" else instance.makespan_lower_bound()
     if cost <= lb:
         return done(Status.OPTIMAL, cost=cost, optimum=cost, lower_bound=lb, proof="lower bound")
-
-    from hierplan_opt.formulations.horizon import Outcome, detours, solve_with
 
     remaining = None if time_limit is None else deadline.remaining()
     if objective == "makespan":
@@ -284,7 +281,6 @@ def _solve_rest(
     time_limit: float | None,
     seed: int,
 ) -> Result | None:
-    from hierplan_opt.formulations.horizon import solve_with
 
     if time_limit is not None and deadline.expired():
         return None

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
+from hierplan_opt.io import lmrp_yaml, movingai, yaml_format
 from hierplan_opt.io.files import write_text
 from hierplan_opt.io.plans import PLAN_FORMATS, load_plan, read_plan, save_plan
 from hierplan_opt.io.yaml import Ctx, read_yaml
@@ -66,7 +67,6 @@ def load_instance(
     >>> load_instance(f)
     Instance('tiny', MAPF, 1 agents, Graph(grid 3x1, 3 free cells))
     """
-    from hierplan_opt.io import lmrp_yaml, movingai, yaml_format
 
     p = Path(path)
     ctx = Ctx(p)
@@ -121,7 +121,6 @@ def save_instance(path: str | Path, instance: Instance, format: str | None = Non
     hierplan 3
     lmrp 3
     """
-    from hierplan_opt.io import lmrp_yaml, movingai, yaml_format
 
     p = Path(path)
     if format is None:

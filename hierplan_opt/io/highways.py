@@ -41,6 +41,7 @@ from hierplan_opt.core.highways import (
     is_2d_grid,
 )
 from hierplan_opt.io.yaml import Ctx, read_text, read_yaml
+from hierplan_opt.io.yaml_format import _highways as parse_highway_edges
 
 FORMATS = ("hierplan", "grid", "edges")
 _SUFFIX = {".yaml": "hierplan", ".yml": "hierplan", ".highway": "grid", ".hwy": "edges"}
@@ -253,7 +254,6 @@ def edges_text(graph: Graph, highways: Highways) -> str:
 # ---------------------------------------------------------------- the project's YAML
 def parse_yaml(path: str | Path, graph: Graph, text: str | None = None) -> Highways:
     """Highways from the project's YAML (``highways:`` edges and/or ``directions:`` rows)."""
-    from hierplan_opt.io.yaml_format import _highways as parse_highway_edges
 
     ctx = Ctx(path)
     data: Any = read_yaml(path, text)

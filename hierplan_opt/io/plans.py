@@ -28,6 +28,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.result import Result
+from hierplan_opt.io import eecbs, lacam, tracker
 from hierplan_opt.io.files import write_text
 from hierplan_opt.io.values import plain
 from hierplan_opt.io.yaml import Ctx, LDict, LList, read_text, read_yaml, yaml_scalar
@@ -52,7 +53,6 @@ def plan_format(text: str) -> str:
     >>> plan_format("Agent 0: (0,0)->"), plan_format("agents=1\\nsolution=\\n")
     ('eecbs', 'lacam')
     """
-    from hierplan_opt.io import eecbs, lacam, tracker
 
     if eecbs.looks_like(text):
         return "eecbs"
@@ -107,7 +107,6 @@ def read_plan(
     >>> read_plan(f, inst)
     (Plan(paths=((0, 1, 2),)), {})
     """
-    from hierplan_opt.io import eecbs, lacam, tracker
 
     if text is None:
         text = read_text(path)
@@ -413,7 +412,6 @@ def save_plan(
         - {x: 0, y: 0, t: 0}
         - {x: 1, y: 0, t: 1}
     """
-    from hierplan_opt.io import eecbs, lacam, tracker
 
     p = Path(path)
     fmt = format or ("json" if p.suffix.lower() == ".json" else "yaml")

@@ -19,12 +19,11 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.io.files import atomic_path, check_output
 from hierplan_opt.viz.html import PALETTE
-from hierplan_opt.viz.scene import Scene, scene_from_execution
+from hierplan_opt.viz.scene import LAYER_COLORS, Scene, scene_from_execution
+from hierplan_opt.viz.scene import positions_at as scene_positions
 
 if TYPE_CHECKING:
     from hierplan_opt.execution.simulate import Execution
-
-LAYER_COLORS = {"slack": "tab:green", "stn": "tab:orange", "replan": "tab:red", "none": "grey"}
 
 
 def positions_at(ex: Execution, t: float) -> np.ndarray:
@@ -239,8 +238,6 @@ class _Drawer:
         from matplotlib.figure import Figure
         from matplotlib.lines import Line2D
 
-        from hierplan_opt.viz.scene import LAYER_COLORS
-
         self.scene = scene
         self.highlight = highlight
         dpi = 100
@@ -383,10 +380,8 @@ class _Drawer:
         from PIL import Image, ImageDraw
         from scipy.spatial import cKDTree
 
-        from hierplan_opt.viz.scene import positions_at
-
         sc = self.scene
-        p = positions_at(sc, t)
+        p = scene_positions(sc, t)
         K = sc.num_agents
         self.canvas.restore_region(self.background)
         edges = np.zeros((K, 4))

@@ -27,6 +27,8 @@ import numpy as np
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
+from hierplan_opt.io.files import atomic_path, check_output
+from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -821,9 +823,6 @@ def save_plan_figure(instance: Instance, plan: Plan, path: Any, **kwargs: Any) -
     True
     """
     from matplotlib.figure import Figure
-
-    from hierplan_opt.io.files import atomic_path, check_output
-    from hierplan_opt.viz.gantt import FIGURE_SUFFIXES
 
     check_output(path, what="plan plot", suffixes=FIGURE_SUFFIXES)
     g = instance.graph
