@@ -252,21 +252,34 @@ def _rows_to_keys(
     return keys
 
 
-def scene_from_schedule_file(
-    instance: Instance, path: str | Path, data: Mapping[str, Any], title: str = ""
+def _scene_from_rows(
+    instance: Instance,
+    path: str | Path,
+    data: Mapping[str, Any],
+    *,
+    what: str,
+    source: str,
+    guarantee_key: str,
+    title: str,
+    events: list[dict[str, Any]] | None = None,
+    with_margin: bool = False,
 ) -> Scene:
-    """A schedule file as written (arrival times only: no slack without its STN)."""
+    """The scene of a file whose ``schedule`` mapping holds way-point rows per robot (a
+    schedule file or an execution report); ``guarantee_key`` names the statistic that
+    holds its guaranteed distance."""
     sched = data.get("schedule")
     if not isinstance(sched, dict):
-        raise InputError(f"{path}: not a schedule file (no 'schedule' mapping)")
+        raise InputError(f"{path}: not {what} (no 'schedule' mapping)")
     stats = data.get("statistics") or {}
+    if not isinstance(stats, dict):
+        stats = {}
     names, radius, goals, team, team_names = _robots(instance)
     keys = _rows_to_keys(path, sched, instance)
-    g = stats.get("safety_distance")
+    g = stats.get(guarantee_key)
     return _with_targets(
         Scene(
-            title=title or f"{Path(path).name}: schedule, {len(keys)} robots",
-            source="schedule",
+            title=title or f"{Path(path).name}: {source}, {len(keys)} robots",
+            source=source,
             graph=instance.graph,
             names=names,
             radius=radius,
@@ -274,11 +287,28 @@ def scene_from_schedule_file(
             team=team,
             team_names=team_names,
             keys=keys,
+            events=events if events is not None else [],
             guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
-            margin=float(stats.get("margin", 0.0) or 0.0),
+            margin=float(stats.get("margin", 0.0) or 0.0) if with_margin else 0.0,
             stats={k: v for k, v in stats.items() if isinstance(v, (int, float, str))},
         ),
         instance,
+    )
+
+
+def scene_from_schedule_file(
+    instance: Instance, path: str | Path, data: Mapping[str, Any], title: str = ""
+) -> Scene:
+    """A schedule file as written (arrival times only: no slack without its STN)."""
+    return _scene_from_rows(
+        instance,
+        path,
+        data,
+        what="a schedule file",
+        source="schedule",
+        guarantee_key="safety_distance",
+        title=title,
+        with_margin=True,
     )
 
 
@@ -298,14 +328,6 @@ def scene_from_report(
     >>> positions_at(sc, 1.5).tolist(), sc.events[0]["layer"]
     ([[1.0, 0.0]], 'slack')
     """
-    sched = data.get("schedule")
-    if not isinstance(sched, dict):
-        raise InputError(f"{path}: not an execution report (no 'schedule' mapping)")
-    stats = data.get("statistics") or {}
-    if not isinstance(stats, dict):
-        stats = {}
-    names, radius, goals, team, team_names = _robots(instance)
-    keys = _rows_to_keys(path, sched, instance)
     events = []
     raw = data.get("events") or []
     for e in raw if isinstance(raw, list) else []:
@@ -326,23 +348,15 @@ def scene_from_report(
                 "detail": str(e.get("detail", "")),
             }
         )
-    g = stats.get("guaranteed_distance")
-    return _with_targets(
-        Scene(
-            title=title or f"{Path(path).name}: execution, {len(keys)} robots",
-            source="execution",
-            graph=instance.graph,
-            names=names,
-            radius=radius,
-            goals=goals,
-            team=team,
-            team_names=team_names,
-            keys=keys,
-            events=events,
-            guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
-            stats={k: v for k, v in stats.items() if isinstance(v, (int, float, str, bool))},
-        ),
+    return _scene_from_rows(
         instance,
+        path,
+        data,
+        what="an execution report",
+        source="execution",
+        guarantee_key="guaranteed_distance",
+        title=title,
+        events=events,
     )
 
 
