@@ -255,8 +255,7 @@ def _solve(
     inside[nodes] = True
     arcs = np.flatnonzero(inside[stn.arc_src] & inside[stn.arc_dst])
 
-    def lb_ms(k: int) -> int:
-        return int(np.ceil(float(stn.lb[k]) * ms - 1e-6))
+    lb = np.ceil(np.asarray(stn.lb, dtype=float) * ms - 1e-6).astype(np.int64)
 
     def arc(u: int, v: int, lb: int, cond: list) -> None:
         c = m.add(t[idx[v]] >= t[idx[u]] + lb)
@@ -265,13 +264,13 @@ def _solve(
 
     for k in arcs.tolist():
         u, v = int(stn.arc_src[k]), int(stn.arc_dst[k])
-        arc(u, v, lb_ms(k), [~x[i] for i in owners.get(k, [])])
+        arc(u, v, int(lb[k]), [~x[i] for i in owners.get(k, [])])
     for i, p in enumerate(pairs):
-        arc(p.b_leave, p.a_enter, lb_ms(p.arc), [x[i]])
+        arc(p.b_leave, p.a_enter, int(lb[p.arc]), [x[i]])
         if p.before >= 0:
-            arc(int(stn.arc_src[p.before]), p.b_enter, lb_ms(p.before), [x[i]])
+            arc(int(stn.arc_src[p.before]), p.b_enter, int(lb[p.before]), [x[i]])
         if p.after >= 0:
-            arc(p.a_leave, int(stn.arc_dst[p.after]), lb_ms(p.after), [x[i]])
+            arc(p.a_leave, int(stn.arc_dst[p.after]), int(lb[p.after]), [x[i]])
     tpg = stn.tpg
     lasts = []
     node_set = np.array(nodes)
@@ -284,7 +283,7 @@ def _solve(
     solver.parameters.max_time_in_seconds = TIME_LIMIT
     solver.parameters.num_workers = 1
     solver.parameters.random_seed = 0
-    current = _current_orders_ms(stn, arcs, lo_ms, happened, ms)
+    current = _current_orders_ms(stn, arcs, lo_ms, lb, happened)
     if current is None:
         return []  # the current orders cannot keep the robots' recorded times
     base = float(current[lasts].sum())
@@ -301,10 +300,11 @@ def _solve(
 
 
 def _current_orders_ms(
-    stn: STN, arcs: np.ndarray, lo_ms: np.ndarray, happened: np.ndarray, ms: float
+    stn: STN, arcs: np.ndarray, lo_ms: np.ndarray, lb: np.ndarray, happened: np.ndarray
 ) -> np.ndarray | None:
     """Earliest times (integer ms) of the model's nodes under the current passing orders:
-    the longest path over ``arcs`` from the lower bounds ``lo_ms``, happened nodes fixed.
+    the longest path over ``arcs`` (lower bounds ``lb``, ms) from the node bounds
+    ``lo_ms``, happened nodes fixed.
     This is the optimum of the model with no switch, computed exactly by the STN's
     topological waves instead of a first CP-SAT solve (it was half of reorder's time).
     None when a happened node's recorded time is earlier than its arcs allow (the model
@@ -312,7 +312,6 @@ def _current_orders_ms(
     t = lo_ms.copy()
     use = np.zeros(stn.num_arcs, dtype=bool)
     use[arcs] = True
-    lb = np.ceil(np.asarray(stn.lb, dtype=float) * ms - 1e-6).astype(np.int64)
     topo = stn.topo
     if not topo.is_dag:
         return None
