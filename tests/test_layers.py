@@ -32,6 +32,7 @@ from import_graph import (
     cycles,
     import_graph,
     layer_violations,
+    modules,
     private_imports,
 )
 
@@ -81,8 +82,7 @@ def test_no_import_points_up_or_sideways_outside_search() -> None:
 
 
 def test_no_import_points_up_or_sideways_from_search() -> None:
-    # search -> formulations (the min-cut highway generator) is moved on the
-    # search-core branch.
+    # search -> formulations (the min-cut highway generator) was one (issue 31).
     edges = _edges()
     bad = [v for v in layer_violations(edges, LAYERS) if _in_search(v)]
     assert bad == [], "\n".join(bad)
@@ -100,7 +100,7 @@ def test_no_import_circle_outside_search() -> None:
 
 
 def test_no_import_circle_in_search() -> None:
-    # search/jit <-> reservations and cbs/ecbs/eecbs/highways: the search-core branch.
+    # search/jit <-> reservations and cbs/ecbs/eecbs/highways were two (issue 31).
     edges = _edges()
     bad = [c for c in cycles(edges) if all(_in_search(m + ".") for m in c)]
     assert bad == [], "\n".join(circle_text(c, edges) for c in bad)
@@ -188,25 +188,12 @@ def test_imports_inside_functions_say_why_outside_the_command_layers() -> None:
     time (issue 31): outside ``cli`` and ``bench`` (where each command loads its own code
     when it runs) every such import carries a comment on its line or the two above that
     says why (a heavy module, a format's reader loaded on use, ...)."""
-    import ast
-
+    files = modules(PACKAGE)
     bare = []
-    for path in sorted(PACKAGE.rglob("*.py")):
-        rel = path.relative_to(PACKAGE)
-        if rel.parts[0] in ("cli", "bench"):
+    for e in _edges():
+        if e.kind != "function" or e.importer.split(".")[1:2] in (["cli"], ["bench"]):
             continue
-        lines = path.read_text().splitlines()
-        for fn in ast.walk(ast.parse("\n".join(lines))):
-            if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
-                continue
-            for node in ast.walk(fn):
-                if isinstance(node, ast.ImportFrom):
-                    internal = node.level > 0 or (node.module or "").startswith("hierplan_opt")
-                elif isinstance(node, ast.Import):
-                    internal = any(a.name.startswith("hierplan_opt") for a in node.names)
-                else:
-                    continue
-                near = lines[max(0, node.lineno - 3) : node.end_lineno or node.lineno]
-                if internal and not any("#" in line for line in near):
-                    bare.append(f"{rel}:{node.lineno}")
+        lines = files[e.importer].read_text().splitlines()
+        if not any("#" in line for line in lines[max(0, e.line - 3) : e.line]):
+            bare.append(str(e))
     assert not bare, bare
