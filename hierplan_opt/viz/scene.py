@@ -124,10 +124,11 @@ def positions_at(scene: Scene, t: float) -> np.ndarray:
     return out
 
 
-def _robots(instance: Instance) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, list[str]]:
+def _instance_scene(instance: Instance, **fields: Any) -> Scene:
+    """A :class:`Scene` of ``instance``'s robots (names, radii in cells, goals, teams)
+    and, for TAPF, its teams' targets (drawn in team colours; robots have no own goal);
+    ``fields`` are the rest of the scene (title, source, motion, ...)."""
     g = instance.graph
-    names = [a.name for a in instance.agents]
-    radius = np.array([a.kinematics.radius / g.scale for a in instance.agents], dtype=float)
     goals = np.full((instance.num_agents, g.dim), np.nan)
     for k, a in enumerate(instance.agents):
         if a.goal is not None:
@@ -138,13 +139,16 @@ def _robots(instance: Instance) -> tuple[list[str], np.ndarray, np.ndarray, np.n
     else:
         team = np.full(instance.num_agents, -1)
         team_names = []
-    return names, radius, goals, team, team_names
-
-
-def _with_targets(scene: Scene, instance: Instance) -> Scene:
-    """TAPF: the teams' targets (drawn in team colours; robots have no own goal)."""
+    scene = Scene(
+        graph=g,
+        names=[a.name for a in instance.agents],
+        radius=np.array([a.kinematics.radius / g.scale for a in instance.agents], dtype=float),
+        goals=goals,
+        team=team,
+        team_names=team_names,
+        **fields,
+    )
     if instance.is_tapf and instance.teams:
-        g = instance.graph
         tg = [(int(v), t) for t, team in enumerate(instance.teams) for v in team.targets]
         if tg:
             scene.targets = g.coords[[v for v, _ in tg]].astype(float)
@@ -174,21 +178,12 @@ def scene_from_plan(instance: Instance, plan: Plan, title: str = "") -> Scene:
         arr = np.asarray(p, dtype=np.int64)
         steps[: len(arr), k] = arr
         steps[len(arr) :, k] = arr[-1]
-    names, radius, goals, team, team_names = _robots(instance)
-    return _with_targets(
-        Scene(
-            title=title or f"{instance.name}: plan, {K} robots, makespan {plan.makespan}",
-            source="plan",
-            graph=instance.graph,
-            names=names,
-            radius=radius,
-            goals=goals,
-            team=team,
-            team_names=team_names,
-            steps=steps,
-            stats={"sum_of_costs": plan.sum_of_costs, "makespan": plan.makespan},
-        ),
+    return _instance_scene(
         instance,
+        title=title or f"{instance.name}: plan, {K} robots, makespan {plan.makespan}",
+        source="plan",
+        steps=steps,
+        stats={"sum_of_costs": plan.sum_of_costs, "makespan": plan.makespan},
     )
 
 
@@ -204,30 +199,21 @@ def scene_from_schedule(instance: Instance, schedule: Any, title: str = "") -> S
     >>> sc.keys[0][:, 0].tolist(), sc.slack[0].tolist()
     ([0.0, 1.0, 2.0], [0.0, 0.0, 0.0])
     """
-    names, radius, goals, team, team_names = _robots(instance)
     keys, slack = [], []
     for wp in schedule.waypoints:
         keys.append(np.column_stack([wp.arrival, wp.coords]).astype(float))
         slack.append(np.asarray(wp.latest - wp.arrival, dtype=float))
-    return _with_targets(
-        Scene(
-            title=title
-            or f"{instance.name}: {schedule.objective} schedule ({schedule.method}), "
-            f"{len(keys)} robots, makespan {schedule.makespan:.4g} s",
-            source="schedule",
-            graph=instance.graph,
-            names=names,
-            radius=radius,
-            goals=goals,
-            team=team,
-            team_names=team_names,
-            keys=keys,
-            slack=slack,
-            guaranteed=float(schedule.safety_distance) or None,
-            margin=float(schedule.margin),
-            stats={"makespan": float(schedule.makespan), "flowtime": float(schedule.flowtime)},
-        ),
+    return _instance_scene(
         instance,
+        title=title
+        or f"{instance.name}: {schedule.objective} schedule ({schedule.method}), "
+        f"{len(keys)} robots, makespan {schedule.makespan:.4g} s",
+        source="schedule",
+        keys=keys,
+        slack=slack,
+        guaranteed=float(schedule.safety_distance) or None,
+        margin=float(schedule.margin),
+        stats={"makespan": float(schedule.makespan), "flowtime": float(schedule.flowtime)},
     )
 
 
@@ -273,26 +259,17 @@ def _scene_from_rows(
     stats = data.get("statistics") or {}
     if not isinstance(stats, dict):
         stats = {}
-    names, radius, goals, team, team_names = _robots(instance)
     keys = _rows_to_keys(path, sched, instance)
     g = stats.get(guarantee_key)
-    return _with_targets(
-        Scene(
-            title=title or f"{Path(path).name}: {source}, {len(keys)} robots",
-            source=source,
-            graph=instance.graph,
-            names=names,
-            radius=radius,
-            goals=goals,
-            team=team,
-            team_names=team_names,
-            keys=keys,
-            events=events if events is not None else [],
-            guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
-            margin=float(stats.get("margin", 0.0) or 0.0) if with_margin else 0.0,
-            stats={k: v for k, v in stats.items() if isinstance(v, (int, float, str))},
-        ),
+    return _instance_scene(
         instance,
+        title=title or f"{Path(path).name}: {source}, {len(keys)} robots",
+        source=source,
+        keys=keys,
+        events=events if events is not None else [],
+        guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
+        margin=float(stats.get("margin", 0.0) or 0.0) if with_margin else 0.0,
+        stats={k: v for k, v in stats.items() if isinstance(v, (int, float, str))},
     )
 
 
@@ -374,27 +351,21 @@ def scene_from_execution(instance: Instance, ex: Any, title: str = "") -> Scene:
     >>> positions_at(scene_from_execution(inst, ex), 0.5).tolist()
     [[0.5, 0.0]]
     """
-    names, radius, goals, team, team_names = _robots(instance)
     keys = [np.asarray(tr, dtype=float) for tr in ex.trajectories]
     st = ex.statistics
     g = st.get("guaranteed_distance")
-    return _with_targets(
-        Scene(
-            title=title or f"{instance.name}: execution ({ex.policy}), {len(keys)} robots",
-            source="execution",
-            graph=instance.graph,
-            names=list(ex.agent_names) if len(ex.agent_names) == len(keys) else names,
-            radius=radius,
-            goals=goals,
-            team=team,
-            team_names=team_names,
-            keys=keys,
-            events=[e.as_dict() for e in ex.log],
-            guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
-            margin=float(ex.schedule.margin),
-        ),
+    scene = _instance_scene(
         instance,
+        title=title or f"{instance.name}: execution ({ex.policy}), {len(keys)} robots",
+        source="execution",
+        keys=keys,
+        events=[e.as_dict() for e in ex.log],
+        guaranteed=float(g) if isinstance(g, (int, float)) and g > 0 else None,
+        margin=float(ex.schedule.margin),
     )
+    if len(ex.agent_names) == len(keys):
+        scene.names = list(ex.agent_names)
+    return scene
 
 
 def scene_from_trajectories(
@@ -410,23 +381,13 @@ def scene_from_trajectories(
     s = traj.sample(dt)
     scale = instance.graph.scale
     keys = [np.column_stack([s["t"], s["pos"][k] / scale]) for k in range(traj.num_agents)]
-    names, radius, goals, team, team_names = _robots(instance)
-    return _with_targets(
-        Scene(
-            title=title
-            or f"{instance.name}: refined trajectories ({traj.mode}), {len(keys)} robots",
-            source="trajectories",
-            graph=instance.graph,
-            names=names,
-            radius=radius,
-            goals=goals,
-            team=team,
-            team_names=team_names,
-            keys=keys,
-            guaranteed=float(traj.safety_distance) or None,
-            stats={"makespan": float(traj.makespan)},
-        ),
+    return _instance_scene(
         instance,
+        title=title or f"{instance.name}: refined trajectories ({traj.mode}), {len(keys)} robots",
+        source="trajectories",
+        keys=keys,
+        guaranteed=float(traj.safety_distance) or None,
+        stats={"makespan": float(traj.makespan)},
     )
 
 
