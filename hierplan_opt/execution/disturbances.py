@@ -117,6 +117,22 @@ class RandomDelays:
 Disturbance = Stop | Breakdown | Slow | RandomDelays
 
 
+def on_map(graph: Any, cell: tuple[int, ...]) -> bool:
+    """Whether a disturbance's ``cell`` lies on ``graph`` (cells outside are ignored).
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> on_map(Graph.grid(2, 2), (1, 1)), on_map(Graph.grid(2, 2), (2, 0))
+    (True, False)
+    """
+    try:
+        graph.vertex(cell)
+    except InputError:
+        return False
+    return True
+
+
 def _nonneg(what: str, x: float) -> None:
     if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or x < 0:
         raise InputError(f"{what} must be a finite number >= 0, got {x!r}")

@@ -25,13 +25,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
-from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance, Kinematics
-from hierplan_opt.execution.disturbances import Disturbance, Slow
+from hierplan_opt.execution.disturbances import Disturbance, Slow, on_map
 from hierplan_opt.schedule.output import Schedule
 
 #: Distance tolerance (metres).
@@ -271,9 +269,9 @@ def kinematic_plant(
     slippery: list[Slippery] = []
     for d in disturbances:
         if isinstance(d, Slow):
-            cells = [c for c in d.cells if _on_map(g, c)]
+            cells = [c for c in d.cells if on_map(g, c)]
             for a, b in d.edges:
-                cells += [c for c in (a, b) if _on_map(g, c)]
+                cells += [c for c in (a, b) if on_map(g, c)]
             if cells:
                 centres = np.array([_pad(np.asarray(c, dtype=float) * scale) for c in cells])
                 slippery.append((centres, 0.5 * scale, d.factor, d.start, d.end))
@@ -284,11 +282,3 @@ def _pad(p: np.ndarray) -> np.ndarray:
     out = np.zeros(3)
     out[: len(p)] = p
     return out
-
-
-def _on_map(g: Any, c: tuple[int, ...]) -> bool:
-    try:
-        g.vertex(c)
-    except InputError:
-        return False
-    return True

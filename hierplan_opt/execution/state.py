@@ -22,6 +22,7 @@ from hierplan_opt.execution.disturbances import (
     RandomDelays,
     Slow,
     Stop,
+    on_map,
 )
 from hierplan_opt.io.values import plain
 from hierplan_opt.schedule.output import Schedule
@@ -220,9 +221,9 @@ class Structure:
         g = instance.graph
         self.slows: list[tuple[Slow, set[int], set[tuple[int, int]]]] = []
         for s in slows:
-            cells = {g.vertex(c) for c in s.cells if _on_map(g, c)}
+            cells = {g.vertex(c) for c in s.cells if on_map(g, c)}
             edges = {
-                (g.vertex(a), g.vertex(b)) for a, b in s.edges if _on_map(g, a) and _on_map(g, b)
+                (g.vertex(a), g.vertex(b)) for a, b in s.edges if on_map(g, a) and on_map(g, b)
             }
             edges |= {(b, a) for a, b in edges}
             self.slows.append((s, cells, edges))
@@ -236,14 +237,6 @@ class Structure:
             if hit and s.start <= t_depart < s.end and s.factor < best:
                 best, which = s.factor, s
         return best, which
-
-
-def _on_map(g: Any, c: tuple[int, ...]) -> bool:
-    try:
-        g.vertex(c)
-    except InputError:
-        return False
-    return True
 
 
 # ---------------------------------------------------------------------- simulation
