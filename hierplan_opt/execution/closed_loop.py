@@ -34,7 +34,7 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Agent, Instance
 from hierplan_opt.execution import layers
 from hierplan_opt.execution.disturbances import Breakdown, Disturbance, Stop
-from hierplan_opt.execution.plant import Plant
+from hierplan_opt.execution.plant import Plant, pad3
 from hierplan_opt.execution.reorder import arc_locks, try_reorder
 from hierplan_opt.execution.replan import (
     _distinct_starts,
@@ -57,15 +57,6 @@ MAX_REPLANS = 8
 PHYSICAL_KINDS = ("spill", "payload", "weak_motor", "wind")
 #: Smallest lateness (seconds) at a node worth an event when slack absorbed it.
 ABSORBED_MIN = 0.2
-
-
-def _pad3(p: np.ndarray) -> np.ndarray:
-    p = np.asarray(p, dtype=float)
-    if p.shape[-1] == 3:
-        return p
-    out = np.zeros(p.shape[:-1] + (3,))
-    out[..., : p.shape[-1]] = p
-    return out
 
 
 class ClosedLoop:
@@ -152,7 +143,7 @@ class ClosedLoop:
         here = self.plant.positions()
         for j, g in enumerate(gid):
             nodes = tpg.agent_nodes(j)
-            route = _pad3(tpg.node_pos[nodes])
+            route = pad3(tpg.node_pos[nodes])
             self.plant.assign(g, route, st.T[nodes])
             self.plant.release(g, -1)
             if float(np.linalg.norm(here[g] - route[0])) <= 1e-9:

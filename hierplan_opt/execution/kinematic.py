@@ -30,6 +30,7 @@ import numpy as np
 
 from hierplan_opt.core.instance import Instance, Kinematics
 from hierplan_opt.execution.disturbances import Disturbance, Slow, on_map
+from hierplan_opt.execution.plant import pad3
 from hierplan_opt.schedule.output import Schedule
 
 #: Distance tolerance (metres).
@@ -263,7 +264,7 @@ def kinematic_plant(
         )
         for a in instance.agents
     ]
-    starts = np.array([_pad(w.coords[0] * scale) for w in schedule.waypoints])
+    starts = np.array([pad3(w.coords[0] * scale) for w in schedule.waypoints])
     headings = np.array([float(w.theta[0]) for w in schedule.waypoints])
     g = instance.graph
     slippery: list[Slippery] = []
@@ -273,12 +274,6 @@ def kinematic_plant(
             for a, b in d.edges:
                 cells += [c for c in (a, b) if on_map(g, c)]
             if cells:
-                centres = np.array([_pad(np.asarray(c, dtype=float) * scale) for c in cells])
+                centres = np.array([pad3(np.asarray(c, dtype=float) * scale) for c in cells])
                 slippery.append((centres, 0.5 * scale, d.factor, d.start, d.end))
     return KinematicPlant(kins, starts, headings=headings, slippery=slippery)
-
-
-def _pad(p: np.ndarray) -> np.ndarray:
-    out = np.zeros(3)
-    out[: len(p)] = p
-    return out

@@ -19,6 +19,22 @@ from typing import Protocol
 import numpy as np
 
 
+def pad3(p: np.ndarray) -> np.ndarray:
+    """Positions with their last axis padded to 3 (x, y, z): plants work in 3D.
+
+    Example
+    -------
+    >>> pad3(np.array([[1.0, 2.0]])).tolist()
+    [[1.0, 2.0, 0.0]]
+    """
+    p = np.asarray(p, dtype=float)
+    if p.shape[-1] == 3:
+        return p
+    out = np.zeros(p.shape[:-1] + (3,))
+    out[..., : p.shape[-1]] = p
+    return out
+
+
 class Plant(Protocol):
     """Robots that follow way-points; the execution monitor drives them.
 
