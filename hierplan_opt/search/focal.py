@@ -31,11 +31,13 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections.abc import Sequence
 from heapq import heapify, heappop, heappush
+from time import perf_counter
 from typing import Any, Protocol
 
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.timer import Deadline
+from hierplan_opt.search import jit
 from hierplan_opt.search.constraints import NO_BOUND, AgentConstraints
 from hierplan_opt.search.reservations import Reservations
 from hierplan_opt.search.spacetime import SearchTimeout, successors, unwind
@@ -124,17 +126,31 @@ def focal_path(
     hold = cons.min_finish  # earliest time the agent may stay at its goal forever
     if max_t is None:
         max_t = cons.tmax + n + 1
-    partner_path = res.paths[partner] if 0 <= partner < len(res.paths) else None
-    partner_goal = partner_path[-1] if partner_path is not None else -1
-    # the partner's visits to this agent's goal (it would meet the parked agent there)
-    partner_times = (
-        [t for t, x in enumerate(partner_path) if x == goal] if partner_path is not None else []
-    )
-    out, expanded = _focal_loop(
-        successors(adj), n, start, goal, dist, cons.vertex, cons.edge, hold, max_t,
-        res.visits(goal), res.vt, res.et, res.park_t, partner, partner_goal, partner_times,
-        w, deadline, budget, avoid, limit,
-    )  # fmt: skip
+    fk = jit.focal_kernel()
+    found = None
+    if fk is not None and res.moves:  # the compiled twin (see search.jit): same results
+        found = jit.run_focal(
+            fk, adj, start, goal, dist, cons, res, hold=hold, max_t=max_t, partner=partner,
+            w=w, deadline=deadline, budget=budget, avoid=avoid, limit=limit,
+        )  # fmt: skip
+    if found is None:
+        res.undense()  # a table the kernel took over back into the dicts this loop reads
+        partner_path = res.paths[partner] if 0 <= partner < len(res.paths) else None
+        partner_goal = partner_path[-1] if partner_path is not None else -1
+        # the partner's visits to this agent's goal (it would meet the parked agent there)
+        partner_times = (
+            [t for t, x in enumerate(partner_path) if x == goal] if partner_path is not None else []
+        )
+        t0 = perf_counter()
+        try:
+            found = _focal_loop(
+                successors(adj), n, start, goal, dist, cons.vertex, cons.edge, hold, max_t,
+                res.visits(goal), res.vt, res.et, res.park_t, partner, partner_goal,
+                partner_times, w, deadline, budget, avoid, limit,
+            )  # fmt: skip
+        finally:
+            jit.note_python(perf_counter() - t0)
+    out, expanded = found
     if stats is not None:
         stats["low_level_expanded"] = stats.get("low_level_expanded", 0) + expanded
     return out

@@ -1,15 +1,20 @@
-"""Which low level runs: the pure-Python space-time A* or its compiled (numba) twin.
+"""Which low level runs: the pure-Python searches or their compiled (numba) twins.
 
-Both give identical results (same path, same expansion count, same tie-breaking), so the
-choice only changes the speed. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
+Two searches have a twin: CBS's space-time A* (:func:`.astar.space_time_astar`, kernel
+module ``_astar_kernel``) and the focal search of ECBS / EECBS (:func:`.focal.focal_path`,
+``_focal_kernel``; :func:`run_focal`). Each pair gives identical results (same path,
+same bound, same expansion count, same tie-breaking), so the choice only changes the
+speed. Both kernels are loaded, compiled and cached together, and one policy picks for
+both. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
 
 ``auto`` (default)
-    Python first. Once the Python low level has spent :data:`JIT_AFTER_S` seconds in one
-    solve (:func:`new_solve` starts the count), a helper process compiles the kernels
-    into numba's on-disk cache (about 6 s the first time on a fresh checkout, about 1 s
-    once cached; on the other core, so it does not slow the search, which a compiling
-    thread would through the GIL); when it is done, the next call loads the kernels from
-    the cache (a pause of about 0.6 s) and runs them. A small solve never imports numba;
+    Python first. Once the Python low level (A* and focal calls together) has spent
+    :data:`JIT_AFTER_S` seconds in one solve (:func:`new_solve` starts the count), a
+    helper process compiles the kernels into numba's on-disk cache (about 6 s the first
+    time on a fresh checkout, about 1 s once cached; on the other core, so it does not
+    slow the search, which a compiling thread would through the GIL); when it is done,
+    the next call loads the kernels from the cache (a pause of about 0.6 s) and runs
+    them. A small solve never imports numba;
     a long one is never blocked by the compiler. Should the helper outlive its parent,
     it finishes writing the cache. In a process where an earlier solve loaded the
     kernel, a solve switches after :data:`JIT_WARM_S` seconds of Python low level
@@ -39,11 +44,13 @@ True
 from __future__ import annotations
 
 import logging
+import math
 import os
 import subprocess
 import sys
 import threading
 from collections.abc import Callable, Sequence
+from time import perf_counter
 from types import ModuleType
 from typing import Any
 
@@ -51,10 +58,11 @@ import numpy as np
 
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
+from hierplan_opt.core.timer import Deadline
 from hierplan_opt.search.conflicts import Conflict
 from hierplan_opt.search.constraints import AgentConstraints
 from hierplan_opt.search.reservations import Reservations
-from hierplan_opt.search.spacetime import Moves, successors
+from hierplan_opt.search.spacetime import Moves, SearchTimeout, successors
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +78,7 @@ NEVER = 1 << 60
 
 _mode: str | None = None
 _kernel: ModuleType | None = None
+_focal: ModuleType | None = None  # the focal kernel, loaded with _kernel
 _loading = False
 _failed = False
 _cached = False  # the compiler process is done: the kernels are in the cache
@@ -144,19 +153,28 @@ def kernel() -> ModuleType | None:
     return k
 
 
+def focal_kernel() -> ModuleType | None:
+    """The loaded focal kernel module if the compiled low level should run now, else None
+    (the policy of :func:`kernel`)."""
+    return _focal if kernel() is not None else None
+
+
 def load() -> ModuleType:
     """Import numba and the kernels and run them once (compiles or reads the cache)."""
-    global _kernel, _failed
+    global _kernel, _focal, _failed
     with _lock:
         if _kernel is not None:
             return _kernel
         try:
             from hierplan_opt.search import _astar_kernel as k  # heavy module: numba
+            from hierplan_opt.search import _focal_kernel as fk  # heavy module: numba
 
             _warm_up(k)
+            _warm_up_focal(k, fk)
         except Exception:
             _failed = True
             raise
+        _focal = fk
         _kernel = k
         return k
 
@@ -168,8 +186,10 @@ def compile_to_cache() -> None:
     pause of seconds), so ``auto`` then stays with Python.
     """
     k = load()
-    if type(k.astar._cache).__name__ == "NullCache":  # no writable cache location
-        raise SystemExit(3)
+    assert _focal is not None
+    for f in (k.astar, _focal.focal):
+        if type(f._cache).__name__ == "NullCache":  # no writable cache location
+            raise SystemExit(3)
 
 
 def _start_loading() -> None:
@@ -219,6 +239,18 @@ def _warm_up(k: ModuleType) -> None:
     own.remove(0)
     raw = build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
     mdd_restrict(raw, 2, 2, [None, {0}, None], [None, None, 2], {(0, 0, 1)}, k)
+
+
+def _warm_up_focal(k: ModuleType, fk: ModuleType) -> None:
+    """One tiny focal call with the argument types real calls use."""
+    g = Graph.grid(3, 1)
+    res = Reservations(g.n)
+    res.add(0, (2, 1, 0))
+    root = AgentConstraints.root(g.n, 2)
+    run_focal(
+        fk, g.adj, 0, 2, g.dist_list(2), root, res, hold=0, max_t=8, partner=0, w=1.0,
+        deadline=Deadline(None), budget=-1, avoid=False, limit=-1, k=k,
+    )  # fmt: skip
 
 
 # ---------------------------------------------------------------------- data
@@ -656,3 +688,68 @@ def mdd_levels(raw: tuple[Any, ...], cost: int, goal: int) -> list[dict[int, lis
     ]
     levels[cost] = {goal: []} if last else {}
     return levels
+
+
+# ---------------------------------------------------------------------- focal search
+_FCONS: dict[int, tuple[AgentConstraints, np.ndarray, np.ndarray]] = {}
+_NO_KEYS = np.zeros(0, np.int64)
+
+
+def _focal_cons(cons: AgentConstraints) -> tuple[np.ndarray, np.ndarray]:
+    """The vertex and edge constraint keys of ``cons``, sorted (cached per object)."""
+    hit = _FCONS.get(cons.ver)
+    if hit is None or hit[0] is not cons:
+        if len(_FCONS) > 4096:
+            _FCONS.clear()
+        vk = np.array(sorted(cons.vertex), np.int64) if cons.vertex else _NO_KEYS
+        ek = np.array(sorted(cons.edge), np.int64) if cons.edge else _NO_KEYS
+        hit = _FCONS[cons.ver] = (cons, vk, ek)
+    return hit[1], hit[2]
+
+
+def run_focal(
+    fk: ModuleType,
+    adj: Sequence[Sequence[int]],
+    start: int,
+    goal: int,
+    dist: Sequence[int],
+    cons: AgentConstraints,
+    res: Reservations,
+    *,
+    hold: int,
+    max_t: int,
+    partner: int,
+    w: float,
+    deadline: Deadline | None,
+    budget: int,
+    avoid: bool,
+    limit: int,
+    k: ModuleType | None = None,
+) -> tuple[tuple[tuple[int, ...], int] | None, int] | None:
+    """The search of ``focal._focal_loop`` in the focal kernel ``fk``: ``(its result,
+    expansions)``, or None when the kernel declines the call (an ``f`` beyond its
+    tables: a reachable vertex at an unreachable distance), which the Python loop then
+    runs. Raises :class:`~hierplan_opt.search.spacetime.SearchTimeout` as the loop does.
+
+    The reservations reach the kernel as the table's :class:`CatMirror` (``k``: the A*
+    kernel whose routines keep it, default the loaded one); ``res`` must keep its moves.
+    """
+    k = k or _kernel
+    assert k is not None and res.moves
+    g = _graph(adj)
+    m = _mirror(k, g, res)
+    vkeys, ekeys = _focal_cons(cons)
+    pp = res.paths[partner] if 0 <= partner < len(res.paths) else None
+    end = math.inf if deadline is None else perf_counter() + deadline.remaining()
+    status, expanded, fmin, path = fk.focal(
+        g.ptr, g.idx, _array(dist), start, goal, vkeys, ekeys, hold, max_t, m.vt, m.et, m.h,
+        m.park_t, partner, _NO_KEYS if pp is None else np.array(pp, np.int64), float(w), end,
+        budget, bool(avoid), limit,
+    )  # fmt: skip
+    if status == fk.DECLINED:
+        return None
+    if status == fk.TIMEOUT:
+        raise SearchTimeout
+    if status == fk.FOUND:
+        return (tuple(path.tolist()), int(fmin)), int(expanded)
+    return None, int(expanded)

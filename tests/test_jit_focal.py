@@ -1,0 +1,207 @@
+"""The compiled focal search (numba) against the pure-Python one: identical results."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+
+from hierplan_opt.core.graph import UNREACHABLE, Graph
+from hierplan_opt.core.timer import Deadline
+from hierplan_opt.search import focal, jit
+from hierplan_opt.search.constraints import NEG_E, NEG_V, AgentConstraints
+from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.spacetime import SearchTimeout, successors
+
+
+def random_grid(rng: random.Random) -> tuple[Graph, list[int]]:
+    """A small grid with random obstacles, and its free vertices."""
+    w, h = rng.choice([(5, 4), (6, 6), (8, 3), (7, 7)])
+    obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
+    g = Graph.grid(w, h, obstacles=obst)
+    return g, [v for v in range(g.n) if g.passable[v]]
+
+
+def walk(g: Graph, rng: random.Random, free: list[int], steps: int) -> tuple[int, ...]:
+    p = [rng.choice(free)]
+    for _ in range(steps):
+        p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
+    return tuple(p)
+
+
+def random_cons(g: Graph, rng: random.Random, free: list[int], goal: int) -> AgentConstraints:
+    """Vertex and edge constraints (the kinds the focal search takes), some on the goal."""
+    c = AgentConstraints.root(g.n, goal)
+    for _ in range(rng.randint(0, 10)):
+        v = goal if rng.random() < 0.2 else rng.choice(free)
+        t = rng.randint(1, 12)
+        if rng.random() < 0.6:
+            c = c.add((NEG_V, 0, v, -1, t), n=g.n, goal=goal)
+        else:
+            c = c.add((NEG_E, 0, v, rng.choice([*g.adj[v], v]), t), n=g.n, goal=goal)
+    return c
+
+
+def both(*args, **kw):
+    """``focal_path`` under each low level: ``[(result, expansions)] * 2``, or the
+    exception type each raised."""
+    out = []
+    for mode in ("python", "jit"):
+        jit.set_low_level(mode)
+        stats: dict[str, int] = {}
+        try:
+            got = focal.focal_path(*args, stats=stats, **kw)
+            out.append((got, stats.get("low_level_expanded")))
+        except SearchTimeout:
+            out.append(("timeout", stats.get("low_level_expanded")))
+    jit.set_low_level(None)
+    return out
+
+
+@pytest.fixture(autouse=True)
+def _restore_mode():
+    yield
+    jit.set_low_level(None)
+
+
+def test_kernel_constants_agree():
+    jit.load()
+    fk = jit._focal
+    assert fk is not None
+    assert (fk.TIE, fk.PARTNER_WEIGHT) == (focal._TIE, focal.PARTNER_WEIGHT)
+
+
+@pytest.mark.parametrize("seed", range(80))
+def test_random_calls_identical(seed):
+    # Random constraints, reservations (tie-breaking, swaps, parked agents), partner,
+    # avoid, budget (the fallback order), limit, max_t and w: same path, same lb, same
+    # expansion count; the table is patched between calls as ECBS does.
+    rng = random.Random(seed)
+    g, free = random_grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    n_agents = rng.randint(0, 7)
+    for a in range(n_agents):
+        if rng.random() < 0.85:
+            res.add(a, walk(g, rng, free, rng.randint(0, 16)))
+    checked = 0
+    for _ in range(10):
+        s, t = rng.sample(free, 2) if rng.random() < 0.9 else [rng.choice(free)] * 2
+        c = random_cons(g, rng, free, t)
+        kw = {
+            "w": rng.choice([1.0, 1.0, 1.1, 1.2, 1.5, 2.0]),
+            "budget": rng.choice([focal.DEFAULT_BUDGET, -1, 1, 3, 10, 40]),
+            "avoid": rng.random() < 0.25,
+            "limit": rng.choice([-1, -1, -1, 1, 5, 30]),
+            "partner": rng.choice([-1, -1, *range(n_agents + 1)]),
+            "max_t": rng.choice([None, None, 6, 12, 30]),
+        }
+        py, jt = both(g.adj, s, t, g.dist_list(t), c, res, **kw)
+        assert py == jt, (seed, s, t, kw)
+        checked += py[0] is not None
+        a = rng.randrange(n_agents + 1)
+        if a < len(res.paths):
+            res.remove(a)
+        if rng.random() < 0.7:
+            res.add(a, walk(g, rng, free, rng.randint(0, 18)))
+    assert checked or seed % 7 != 3  # most seeds find paths (one fixed seed must)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_inconsistent_heuristic_identical(seed):
+    # A heuristic that is not consistent (as the highway one, mode "heuristic"): f drops
+    # along paths, f_min is raised past live states below it; still identical.
+    rng = random.Random(900 + seed)
+    g, free = random_grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    for a in range(rng.randint(0, 5)):
+        res.add(a, walk(g, rng, free, rng.randint(0, 14)))
+    for _ in range(6):
+        s, t = rng.sample(free, 2)
+        d = g.dist_list(t)
+        h = [x if x >= UNREACHABLE else x * rng.choice([1, 1, 2, 3]) for x in d]
+        h[t] = 0
+        c = random_cons(g, rng, free, t)
+        kw = {"w": rng.choice([1.0, 1.3, 2.0]), "budget": rng.choice([-1, 5, 50])}
+        py, jt = both(g.adj, s, t, h, c, res, **kw)
+        assert py == jt, (seed, kw)
+
+
+def test_unreachable_heuristic_falls_back_to_python():
+    # A reachable vertex at an "unreachable" distance: the kernel declines the call (its
+    # f tables are dense) and the Python loop answers, so the results still agree.
+    g = Graph.grid(4, 1)
+    h = list(g.dist_list(3))
+    h[1] = UNREACHABLE
+    res = Reservations(g.n)
+    c = AgentConstraints.root(g.n, 3)
+    jit.load()
+    assert jit._focal is not None
+    direct = jit.run_focal(
+        jit._focal, g.adj, 0, 3, h, c, res, hold=0, max_t=6, partner=-1, w=1.0,
+        deadline=None, budget=-1, avoid=False, limit=-1,
+    )  # fmt: skip
+    assert direct is None
+    py, jt = both(g.adj, 0, 3, h, c, res, max_t=6)
+    assert py == jt and py[0] is not None
+
+
+def test_head_on_and_partner_tables_identical():
+    # Others walking the agent's own shortest path backwards (many swaps) and one of
+    # them the partner (its swaps, visits and parking weigh PARTNER_WEIGHT).
+    rng = random.Random(7)
+    for _ in range(40):
+        g, free = random_grid(rng)
+        if len(free) < 3:
+            continue
+        s, t = rng.sample(free, 2)
+        jit.set_low_level("python")
+        p = focal.focal_path(g.adj, s, t, g.dist_list(t), AgentConstraints(), Reservations(g.n))
+        if p is None:
+            continue
+        res = Reservations(g.n)
+        back = tuple(reversed(p[0]))
+        res.add(0, back[rng.randint(0, 1) :])
+        res.add(1, back + (back[-1],) * rng.randint(0, 3))
+        res.add(2, walk(g, rng, free, rng.randint(0, 12)))
+        for partner in (-1, 0, 1, 2):
+            py, jt = both(g.adj, s, t, g.dist_list(t), AgentConstraints(), res, partner=partner)
+            assert py == jt
+
+
+def test_deadline_raises_at_the_same_check():
+    # An expired deadline: a search longer than 1024 expansions (the check's
+    # granularity) raises SearchTimeout in both; one that ends sooner returns its result.
+    g = Graph.grid(12, 12)
+    res = Reservations(g.n)
+    res.add(0, (143,) * 3)  # parked on the goal: with avoid, no path to find
+    args = (g.adj, 0, 143, g.dist_list(143), AgentConstraints(), res)
+    py, jt = both(*args, deadline=Deadline(0), avoid=True, max_t=60)
+    assert py[0] == jt[0] == "timeout"
+    py, jt = both(*args, deadline=Deadline(0), max_t=60)
+    assert py == jt and py[0] is not None and py[0] != "timeout"
+    # ... and without a deadline the long call runs to its end (no path) in both
+    py, jt = both(*args, avoid=True, max_t=60)
+    assert py == jt and py[0] is None and py[1] > 1024
+
+
+def test_kernel_clock_is_perf_counter():
+    from time import perf_counter
+
+    jit.load()
+    assert jit._focal is not None
+    a = perf_counter()
+    b = jit._focal.monotonic()
+    c = perf_counter()
+    assert a <= b <= c
+
+
+def test_successors_layout_is_the_kernels():
+    # The kernel walks the CSR lists of jit._graph: the same order as successors().
+    g = Graph.grid(4, 3, obstacles=[(1, 1)])
+    csr = jit._graph(g.adj)
+    succ = successors(g.adj)
+    assert [tuple(csr.idx[csr.ptr[v] : csr.ptr[v + 1]].tolist()) for v in range(g.n)] == succ
