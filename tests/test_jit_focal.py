@@ -130,22 +130,24 @@ def test_inconsistent_heuristic_identical(seed):
         assert py == jt, (seed, kw)
 
 
-def test_unreachable_heuristic_falls_back_to_python():
-    # A reachable vertex at an "unreachable" distance: the kernel declines the call (its
-    # f tables are dense) and the Python loop answers, so the results still agree.
-    g = Graph.grid(4, 1)
+@pytest.mark.parametrize(("start", "far"), [(0, 4), (0, 0)])
+def test_unreachable_heuristic_falls_back_to_python(start, far):
+    # A reachable vertex at an "unreachable" distance (here a neighbour of the start, or
+    # the start itself): the kernel declines the call (its f tables are dense) and the
+    # Python loop answers, so the results still agree.
+    g = Graph.grid(4, 2)
     h = list(g.dist_list(3))
-    h[1] = UNREACHABLE
+    h[far] = UNREACHABLE
     res = Reservations(g.n)
     c = AgentConstraints.root(g.n, 3)
     jit.load()
     assert jit._focal is not None
     direct = jit.run_focal(
-        jit._focal, g.adj, 0, 3, h, c, res, hold=0, max_t=6, partner=-1, w=1.0,
+        jit._focal, g.adj, start, 3, h, c, res, hold=0, max_t=6, partner=-1, w=1.0,
         deadline=None, budget=-1, avoid=False, limit=-1,
     )  # fmt: skip
     assert direct is None
-    py, jt = both(g.adj, 0, 3, h, c, res, max_t=6)
+    py, jt = both(g.adj, start, 3, h, c, res, max_t=6)
     assert py == jt and py[0] is not None
 
 
@@ -205,3 +207,56 @@ def test_successors_layout_is_the_kernels():
     csr = jit._graph(g.adj)
     succ = successors(g.adj)
     assert [tuple(csr.idx[csr.ptr[v] : csr.ptr[v + 1]].tolist()) for v in range(g.n)] == succ
+
+
+ECBS_INSTANCES = [
+    "random-32-32-20-random-1:40",
+    "warehouse-10-20-10-2-1-even-1:40",
+    "room-32-32-4-even-1:20",
+]
+
+
+def test_ecbs_eecbs_identical_call_by_call(monkeypatch):
+    # ECBS and EECBS end to end under the kernel, every focal call re-run in the Python
+    # loop on the same table: the same results call by call (incl. the polish pass's
+    # avoid / limit calls and the partner weights), so the plans and node counts of the
+    # two low levels agree.
+    import hierplan_opt
+    from hierplan_opt.bench import scenario
+
+    seen = {"calls": 0, "partner": 0, "avoid": 0, "cons": 0}
+    run = jit.run_focal
+
+    def checked(fk, adj, start, goal, dist, cons, res, **kw):
+        got = run(fk, adj, start, goal, dist, cons, res, **kw)
+        partner = kw["partner"]
+        pp = res.paths[partner] if 0 <= partner < len(res.paths) else None
+        want = focal._focal_loop(
+            successors(adj), len(adj), start, goal, dist, cons.vertex, cons.edge, kw["hold"],
+            kw["max_t"], res.visits(goal), res.vt, res.et, res.park_t, partner,
+            pp[-1] if pp else -1, [t for t, x in enumerate(pp) if x == goal] if pp else [],
+            kw["w"], None, kw["budget"], kw["avoid"], kw["limit"],
+        )  # fmt: skip
+        assert got == want
+        seen["calls"] += 1
+        seen["partner"] += pp is not None
+        seen["avoid"] += kw["avoid"]
+        seen["cons"] += bool(cons.vertex or cons.edge)
+        return got
+
+    rows: dict[tuple[str, str], list[tuple[object, ...]]] = {}
+    for mode in ("python", "jit"):
+        jit.set_low_level(mode)
+        monkeypatch.setattr(jit, "run_focal", checked)
+        for spec in ECBS_INSTANCES:
+            inst = scenario(spec)[1]
+            for name in ("ecbs", "eecbs"):
+                r = hierplan_opt.solve(inst, name, time_limit=60, w=1.2)
+                keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
+                plan = r.plan.paths if r.plan is not None else None
+                rows.setdefault((spec, name), []).append(
+                    (r.cost, plan, *(r.stats[x] for x in keys))
+                )
+    for key, (py, jt) in rows.items():
+        assert py == jt, key
+    assert seen["calls"] > 200 and min(seen.values()) > 0, seen

@@ -54,6 +54,7 @@ from hierplan_opt.core.progress import tick
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
+from hierplan_opt.search import jit
 from hierplan_opt.search.cbs import _CBS, PAIR_NODE_LIMIT
 from hierplan_opt.search.conflicts import EDGE, TARGET, Conflict
 from hierplan_opt.search.constraints import NEG_E, NEG_V, AgentConstraints, Constraint
@@ -292,6 +293,7 @@ class _ECBS:
         # The low level (a strategy: plain focal search, or with highways).
         self.low = low if low is not None else FocalLowLevel()
         self.low.prepare(self)
+        jit.new_solve()  # the compiled low level is loaded only for a long solve
 
     # ------------------------------------------------------------------ low level
     def plan(self, a: int, cons: AgentConstraints, partner: int = -1) -> tuple[Path, int] | None:
