@@ -261,3 +261,37 @@ def test_ecbs_eecbs_identical_call_by_call(monkeypatch):
         assert py == jt, key
     # (the partner weights are rare on instances this small: the random calls cover them)
     assert seen["calls"] > 200 and seen["avoid"] > 0 and seen["cons"] > 0, seen
+
+
+def test_focal_python_time_counts_toward_the_switch(monkeypatch):
+    noted: list[float] = []
+    monkeypatch.setattr(jit, "note_python", noted.append)
+    jit.set_low_level("python")
+    g = Graph.grid(3, 1)
+    focal.focal_path(g.adj, 0, 2, g.dist_list(2), AgentConstraints(), Reservations(g.n))
+    assert len(noted) == 1 and noted[0] > 0
+
+
+def test_auto_switches_focal_calls_per_solve(monkeypatch):
+    # ``auto`` with the kernel loaded: a solve starts in Python (ECBS resets the count),
+    # and the calls go to the kernel once the Python low level has run JIT_WARM_S.
+    import hierplan_opt
+
+    jit.load()
+    used: list[int] = []
+    run = jit.run_focal
+
+    def counted(*args, **kw):
+        used.append(1)
+        return run(*args, **kw)
+
+    monkeypatch.setattr(jit, "run_focal", counted)
+    monkeypatch.setattr(jit, "python_seconds", 10.0)
+    jit.set_low_level("auto")
+    g = Graph.grid(4, 4)
+    inst = hierplan_opt.Instance.mapf(g, [(0, 0), (3, 0)], [(3, 0), (0, 0)])
+    r = hierplan_opt.solve(inst, "eecbs", w=1.2)
+    assert r.plan is not None and not used  # a short solve: Python only
+    jit.note_python(jit.JIT_WARM_S)
+    focal.focal_path(g.adj, 0, 3, g.dist_list(3), AgentConstraints(), Reservations(g.n))
+    assert used == [1]
