@@ -25,8 +25,9 @@ Data layout (``int64`` unless said otherwise), shared with :mod:`._astar_kernel`
 
 States (``key = t * n + v``, terminal ``-(key + 1)``) get ids in an open-addressing
 table; per id the fewest conflicts found, the parent id and whether it was expanded.
-``live[f]`` and the bucket lists ``bhead[f]`` (entries above the bound, linked by
-``enext``) are arrays indexed by ``f``, grown on demand.
+Entries: their two leading keys ``p0, p1`` (conflicts and tie, swapped by the
+fallback), ``f``, key, state id. ``live[f]`` and the bucket lists ``bhead[f]`` (entries
+above the bound, linked by ``enext``) are arrays indexed by ``f``, grown on demand.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from hierplan_opt.search._astar_kernel import _contains, _grow, _njit
+from hierplan_opt.search._astar_kernel import _grow, _njit
 
 #: As :data:`.focal._TIE` and :data:`.focal.PARTNER_WEIGHT` (tests check they agree).
 TIE = 1 << 20
@@ -83,19 +84,24 @@ def monotonic():
 
 
 # ---------------------------------------------------------------- the state table
+_HMUL = 0x5851F42D4C957F2D
+
+
 @_njit
 def _hslot(hkeys, enc):
+    """The slot of ``enc`` in the table ``hkeys`` (or the free slot where it goes)."""
     mask = hkeys.shape[0] - 1
-    i = ((enc * 0x5851F42D4C957F2D) >> 17) & mask
+    i = ((enc * _HMUL) >> 17) & mask
     while hkeys[i] != -1 and hkeys[i] != enc:
         i = (i + 1) & mask
     return i
 
 
 @_njit
-def _rehash(hkeys, hids):
-    nk = np.full(2 * hkeys.shape[0], -1, np.int64)
-    ni = np.empty(2 * hkeys.shape[0], np.int64)
+def _rehash_to(hkeys, hids, cap):
+    """The state table in ``cap`` slots."""
+    nk = np.full(cap, -1, np.int64)
+    ni = np.empty(cap, np.int64)
     for j in range(hkeys.shape[0]):
         if hkeys[j] != -1:
             m = _hslot(nk, hkeys[j])
@@ -104,109 +110,392 @@ def _rehash(hkeys, hids):
     return nk, ni
 
 
-# ---------------------------------------------------------------- FOCAL (a heap of entries)
 @_njit
-def _less(a, b, fb, ec, et, ef, ek):
-    """Entry ``a`` before ``b``: ``(c, tie, f, key)``, or ``(tie, c, f, key)`` if ``fb``."""
-    if fb:
-        if et[a] != et[b]:
-            return et[a] < et[b]
-        if ec[a] != ec[b]:
-            return ec[a] < ec[b]
-    else:
-        if ec[a] != ec[b]:
-            return ec[a] < ec[b]
-        if et[a] != et[b]:
-            return et[a] < et[b]
-    if ef[a] != ef[b]:
-        return ef[a] < ef[b]
-    return ek[a] < ek[b]
-
-
-@_njit
-def _push(heap, size, x, fb, ec, et, ef, ek):
-    """Put entry ``x`` in the heap of ``size`` entries (room checked by the caller)."""
-    i = size
-    while i > 0:
-        par = (i - 1) >> 1
-        if _less(x, heap[par], fb, ec, et, ef, ek):
-            heap[i] = heap[par]
-            i = par
-        else:
-            break
-    heap[i] = x
-
-
-@_njit
-def _down(heap, i, size, fb, ec, et, ef, ek):
-    """Move ``heap[i]`` down into place among the first ``size`` entries."""
-    x = heap[i]
-    while True:
-        c1 = 2 * i + 1
-        if c1 >= size:
-            break
-        m = c1
-        c2 = c1 + 1
-        if c2 < size and _less(heap[c2], heap[c1], fb, ec, et, ef, ek):
-            m = c2
-        if _less(heap[m], x, fb, ec, et, ef, ek):
-            heap[i] = heap[m]
-            i = m
-        else:
-            break
-    heap[i] = x
+def _lt(a0, a1, a2, a3, b0, b1, b2, b3):
+    """``(a0, a1, a2, a3) < (b0, b1, b2, b3)``: the order of two FOCAL entries."""
+    if a0 != b0:
+        return a0 < b0
+    if a1 != b1:
+        return a1 < b1
+    if a2 != b2:
+        return a2 < b2
+    return a3 < b3
 
 
 @_njit
 def _suffix(counts_at, length):
     """``out[t]`` = the sum of ``counts_at[s]`` for ``s > t`` (``t < length``)."""
     out = np.zeros(length + 1, np.int64)
-    for t in range(length - 1, -1, -1):
-        out[t] = out[t + 1] + counts_at[t + 1] if t + 1 < length else 0
+    for t in range(length - 2, -1, -1):
+        out[t] = out[t + 1] + counts_at[t + 1]
     return out
 
 
-# Complexity: the whole of focal._focal_loop (with _park and _raise_bound written out)
-# in one compiled body, step by step like the Python one, so that the tests can hold
-# them to identical results; splitting it would pass two dozen arrays around.
 @_njit
-def focal(
-    ptr,
-    idx,
-    h,
-    start,
-    goal,
-    vkeys,
-    ekeys,
-    hold,
-    max_t,
-    cat_vt,
-    cat_et,
-    cat_h,
-    park_t,
-    partner,
-    pp,
-    w,
-    end,
-    budget,
-    avoid,
-    limit,
-):
-    """The search of ``focal._focal_loop``: ``(status, expanded, f_min, path)``.
+def _grow_fill(a, cap, fill):
+    out = np.full(cap, fill, a.dtype)
+    out[: a.shape[0]] = a
+    return out
 
-    ``status`` is :data:`FOUND` (``path`` the result), :data:`NO_PATH`, :data:`TIMEOUT`
-    (``end``, a ``perf_counter`` time, passed at a check every 1024 expansions) or
-    :data:`DECLINED` (an ``f`` above :data:`F_CAP`).
+
+# The search's scalars between the calls of _loop (``regs[...]``).
+_N_S, _N_E, _SIZE, _FMIN, _BOUND, _FB, _EXP, _RAISE, _LO, _NLIVE, _NPEND = range(11)
+_TOP, _NEED_F, _NEED_D = 11, 12, 13
+_REGS = 14
+#: ``_loop`` ran out of room: the caller grows the arrays and calls it again.
+_GROW = 4
+
+
+# Complexity: focal._focal_loop (with _park and _raise_bound written out) in one compiled
+# body, step by step like the Python one, so the tests can hold them to identical
+# results. In numba every call of a function that takes arrays and loops costs atomic
+# reference counts (measured: about 2 us an expansion when the heap's sifts, the hash
+# probes and the comparisons were helpers), so those are written out here, the helpers
+# left take scalars, and no array is reassigned in the loop: when one is about to run
+# out, the loop hands back to ``focal``, which grows it and calls again.
+@_njit
+def _loop(
+    ptr, idx, h, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t, pp,
+    goal_after, p_after, span, w, end, budget, avoid, limit, hkeys, hids, s_key, s_best,
+    s_par, s_closed, p0, p1, ef, ek, es, enext, heap, live, bhead, pend, regs,
+):  # fmt: skip
+    """The main loop of ``focal._focal_loop`` from the state in ``regs`` and the arrays:
+    a status (:data:`FOUND`: the terminal's id in ``regs[_TOP]``; :data:`NO_PATH`,
+    :data:`TIMEOUT`, :data:`DECLINED`, or ``_GROW``: room needed, ``regs`` saved).
+
+    New FOCAL entries wait in ``pend`` until the expansion is done (one place pushes
+    them); so does the entry put back when the arrays must grow first.
     """
     n = ptr.shape[0] - 1
     nnz = idx.shape[0]
     pw = PARTNER_WEIGHT
     nv = vkeys.shape[0]
     ne = ekeys.shape[0]
-    empty = np.empty(0, np.int64)
-    # The later visits of the others to the goal, and of the partner (park conflicts).
     lp = pp.shape[0]
     partner_goal = pp[lp - 1] if lp > 0 else -1
+    scap = s_key.shape[0]
+    ecap = p0.shape[0]
+    hcap = hkeys.shape[0]
+    hmask = hcap - 1
+    fcap = live.shape[0]
+    n_s = regs[_N_S]
+    n_e = regs[_N_E]
+    size = regs[_SIZE]
+    fmin = regs[_FMIN]
+    bound = regs[_BOUND]
+    fb = regs[_FB] != 0
+    expanded = regs[_EXP]
+    raise_fmin = regs[_RAISE] != 0
+    lo = regs[_LO]
+    n_live = regs[_NLIVE]
+    n_pend = regs[_NPEND]
+    status = NO_PATH
+    while True:
+        while n_pend > 0:  # push the waiting entries (sift up)
+            n_pend -= 1
+            x = pend[n_pend]
+            i = size
+            size += 1
+            while i > 0:
+                par = (i - 1) >> 1
+                y = heap[par]
+                if _lt(p0[x], p1[x], ef[x], ek[x], p0[y], p1[y], ef[y], ek[y]):
+                    heap[i] = y
+                    i = par
+                else:
+                    break
+            heap[i] = x
+        if raise_fmin or size == 0:
+            raise_fmin = False
+            if n_live == 0:
+                if size == 0:
+                    break
+            else:  # focal._raise_bound
+                if live[fmin] == 0:
+                    while live[lo] == 0:
+                        lo += 1
+                    if lo > fmin:
+                        fmin = lo
+                new_bound = int(w * fmin + 1e-9)
+                top_f = new_bound if new_bound < fcap - 1 else fcap - 1
+                for fx in range(bound + 1, top_f + 1):
+                    x = bhead[fx]
+                    bhead[fx] = -1
+                    while x >= 0:  # push x (sift up)
+                        nx = enext[x]
+                        i = size
+                        size += 1
+                        while i > 0:
+                            par = (i - 1) >> 1
+                            y = heap[par]
+                            if _lt(p0[x], p1[x], ef[x], ek[x], p0[y], p1[y], ef[y], ek[y]):
+                                heap[i] = y
+                                i = par
+                            else:
+                                break
+                        heap[i] = x
+                        x = nx
+                if new_bound > bound:
+                    bound = new_bound
+                if size == 0:
+                    continue
+        top_e = heap[0]
+        size -= 1
+        if size > 0:  # the last entry down from the root (sift down)
+            x = heap[size]
+            i = 0
+            while True:
+                c1 = 2 * i + 1
+                if c1 >= size:
+                    break
+                m = heap[c1]
+                if c1 + 1 < size:
+                    y = heap[c1 + 1]
+                    if _lt(p0[y], p1[y], ef[y], ek[y], p0[m], p1[m], ef[m], ek[m]):
+                        m = y
+                        c1 += 1
+                if _lt(p0[m], p1[m], ef[m], ek[m], p0[x], p1[x], ef[x], ek[x]):
+                    heap[i] = m
+                    i = c1
+                else:
+                    break
+            heap[i] = x
+        c = p1[top_e] if fb else p0[top_e]
+        f = ef[top_e]
+        top = es[top_e]
+        if s_best[top] != c:
+            continue  # stale entry
+        key = ek[top_e]
+        if key < 0:  # terminal: the agent parks at its goal from time f on
+            regs[_TOP] = top
+            status = FOUND
+            break
+        t = key // n
+        v = key - t * n
+        nt = t + 1
+        if nt <= max_t:
+            # Room for this expansion's states and entries (each move a state and a
+            # terminal at most) and for their f; else back to the caller, entry put back.
+            deg = ptr[v + 1] - ptr[v]
+            mf = nt
+            for j in range(ptr[v], ptr[v + 1]):
+                hu = h[idx[j]]
+                x = nt + hu if nt + hu > hold else hold
+                if x > mf:
+                    mf = x
+            if mf > F_CAP:
+                status = DECLINED
+                break
+            if (
+                n_s + 2 * deg > scap
+                or n_e + 2 * deg > ecap
+                or 2 * (n_s + 2 * deg) > hcap
+                or mf >= fcap
+                or 2 * deg + 1 > pend.shape[0]
+            ):
+                pend[n_pend] = top_e
+                n_pend += 1
+                regs[_NEED_F] = mf
+                regs[_NEED_D] = 2 * deg + 1
+                status = _GROW
+                break
+        first = not s_closed[top]
+        if first:
+            s_closed[top] = True
+            live[f] -= 1
+            n_live -= 1
+        expanded += 1
+        if expanded == limit:
+            break
+        if expanded == budget:
+            # FOCAL by g + 2h first from now on: every entry's two leading keys swap,
+            # then the heap is made again (sift downs).
+            fb = True
+            for x in range(n_e):
+                y = p0[x]
+                p0[x] = p1[x]
+                p1[x] = y
+            for r in range((size >> 1) - 1, -1, -1):
+                x = heap[r]
+                i = r
+                while True:
+                    c1 = 2 * i + 1
+                    if c1 >= size:
+                        break
+                    m = heap[c1]
+                    if c1 + 1 < size:
+                        y = heap[c1 + 1]
+                        if _lt(p0[y], p1[y], ef[y], ek[y], p0[m], p1[m], ef[m], ek[m]):
+                            m = y
+                            c1 += 1
+                    if _lt(p0[m], p1[m], ef[m], ek[m], p0[x], p1[x], ef[x], ek[x]):
+                        heap[i] = m
+                        i = c1
+                    else:
+                        break
+                heap[i] = x
+        if (expanded & 1023) == 0 and _monotonic() >= end:
+            status = TIMEOUT
+            break
+        if nt > max_t:
+            if first and f == fmin and live[f] == 0:
+                raise_fmin = True
+            continue
+        base = nt * n
+        for j in range(ptr[v], ptr[v + 1]):
+            u = idx[j]
+            nk = base + u
+            if nv > 0:  # a vertex constraint (binary search)
+                a = 0
+                b = nv
+                while a < b:
+                    mid = (a + b) >> 1
+                    if vkeys[mid] < nk:
+                        a = mid + 1
+                    else:
+                        b = mid
+                if a < nv and vkeys[a] == nk:
+                    continue
+            if ne > 0 and u != v:  # an edge constraint
+                ekey = (base + v) * n + u
+                a = 0
+                b = ne
+                while a < b:
+                    mid = (a + b) >> 1
+                    if ekeys[mid] < ekey:
+                        a = mid + 1
+                    else:
+                        b = mid
+                if a < ne and ekeys[a] == ekey:
+                    continue
+            nc = c
+            if nt < cat_h:
+                occ = cat_vt[nk]
+                if occ:
+                    nc += occ
+                    if nt < lp and pp[nt] == u:
+                        nc += pw
+            if nt > park_t[u]:
+                nc += 1
+                if u == partner_goal:  # the partner is the one parked at u
+                    nc += pw
+            if u != v and nt < cat_h:
+                occ = cat_et[nt * nnz + j]  # someone moves u -> v: a swap
+                if occ:
+                    nc += occ
+                    if nt < lp and pp[nt - 1] == u and pp[nt] == v:
+                        nc += pw
+            if avoid and nc:
+                continue
+            hu = h[u]
+            nf = nt + hu if nt + hu > hold else hold
+            enc = 2 * nk
+            slot = ((enc * _HMUL) >> 17) & hmask
+            while hkeys[slot] != -1 and hkeys[slot] != enc:
+                slot = (slot + 1) & hmask
+            sid = hids[slot] if hkeys[slot] == enc else -1
+            if sid < 0 or nc < s_best[sid]:
+                if sid < 0:
+                    sid = n_s
+                    n_s += 1
+                    s_key[sid] = nk
+                    s_closed[sid] = False
+                    hkeys[slot] = enc
+                    hids[slot] = sid
+                    live[nf] += 1
+                    n_live += 1
+                    if nf < lo:
+                        lo = nf
+                s_best[sid] = nc
+                s_par[sid] = top
+                e = n_e
+                n_e += 1
+                tie = (nf + hu) * TIE - nt
+                p0[e] = tie if fb else nc
+                p1[e] = nc if fb else tie
+                ef[e] = nf
+                ek[e] = nk
+                es[e] = sid
+                if nf <= bound:
+                    pend[n_pend] = e
+                    n_pend += 1
+                else:
+                    enext[e] = bhead[nf]
+                    bhead[nf] = e
+            if u == goal and nt >= hold:
+                ix = nt if nt < span else span
+                tc = nc + goal_after[ix] + pw * p_after[ix]
+                if avoid and tc:
+                    continue
+                # focal._park: the terminal node (parked at the goal from nt on)
+                enc = 2 * nk + 1
+                slot = ((enc * _HMUL) >> 17) & hmask
+                while hkeys[slot] != -1 and hkeys[slot] != enc:
+                    slot = (slot + 1) & hmask
+                sid = hids[slot] if hkeys[slot] == enc else -1
+                if sid >= 0 and tc >= s_best[sid]:
+                    continue
+                if sid < 0:
+                    sid = n_s
+                    n_s += 1
+                    s_key[sid] = -(nk + 1)
+                    s_closed[sid] = False
+                    hkeys[slot] = enc
+                    hids[slot] = sid
+                    live[nt] += 1
+                    n_live += 1
+                    if nt < lo:
+                        lo = nt
+                s_best[sid] = tc
+                s_par[sid] = top
+                e = n_e
+                n_e += 1
+                tie = nt * TIE - nt
+                p0[e] = tie if fb else tc
+                p1[e] = tc if fb else tie
+                ef[e] = nt
+                ek[e] = -(nk + 1)
+                es[e] = sid
+                if nt <= bound:
+                    pend[n_pend] = e
+                    n_pend += 1
+                else:
+                    enext[e] = bhead[nt]
+                    bhead[nt] = e
+        if first and f == fmin and live[f] == 0:
+            raise_fmin = True
+    regs[_N_S] = n_s
+    regs[_N_E] = n_e
+    regs[_SIZE] = size
+    regs[_FMIN] = fmin
+    regs[_BOUND] = bound
+    regs[_FB] = 1 if fb else 0
+    regs[_EXP] = expanded
+    regs[_RAISE] = 1 if raise_fmin else 0
+    regs[_LO] = lo
+    regs[_NLIVE] = n_live
+    regs[_NPEND] = n_pend
+    return status
+
+
+@_njit
+def focal(
+    ptr, idx, h, start, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t,
+    pp, w, end, budget, avoid, limit,
+):  # fmt: skip
+    """The search of ``focal._focal_loop``: ``(status, expanded, f_min, path)``.
+
+    ``status`` is :data:`FOUND` (``path`` the result), :data:`NO_PATH`, :data:`TIMEOUT`
+    (``end``, a ``perf_counter`` time, passed at a check every 1024 expansions) or
+    :data:`DECLINED` (an ``f`` above :data:`F_CAP`). ``pp``: the partner's path.
+    """
+    n = ptr.shape[0] - 1
+    empty = np.empty(0, np.int64)
+    f0 = h[start] if h[start] > hold else hold
+    if f0 > F_CAP:
+        return DECLINED, 0, 0, empty
+    # The later visits of the others to the goal, and of the partner (park conflicts).
+    lp = pp.shape[0]
     span = cat_h if cat_h > lp else lp
     at_goal = np.zeros(span + 1, np.int64)
     p_at_goal = np.zeros(span + 1, np.int64)
@@ -217,322 +506,127 @@ def focal(
             p_at_goal[t] = 1
     goal_after = _suffix(at_goal, span + 1)
     p_after = _suffix(p_at_goal, span + 1)
-    # states
-    hcap = 1024
-    hkeys = np.full(hcap, -1, np.int64)
-    hids = np.empty(hcap, np.int64)
-    scap = 512
-    s_key = np.empty(scap, np.int64)
-    s_best = np.empty(scap, np.int64)
-    s_par = np.empty(scap, np.int64)
-    s_closed = np.zeros(scap, np.bool_)
-    n_s = 0
-    # entries
-    ecap = 1024
-    ec = np.empty(ecap, np.int64)
-    et = np.empty(ecap, np.int64)
-    ef = np.empty(ecap, np.int64)
-    ek = np.empty(ecap, np.int64)
-    es = np.empty(ecap, np.int64)
-    enext = np.empty(ecap, np.int64)
-    n_e = 0
-    heap = np.empty(ecap, np.int64)
-    size = 0
-    # f tables
-    f0 = h[start] if h[start] > hold else hold
-    if f0 > F_CAP:
-        return DECLINED, 0, 0, empty
-    fcap = 2 * f0 + 64
-    live = np.zeros(fcap, np.int64)
-    bhead = np.full(fcap, -1, np.int64)
-    lo = f0  # no f below this has a live state
-    # the start
+    hkeys = np.full(1024, -1, np.int64)
+    hids = np.empty(1024, np.int64)
+    s_key = np.empty(256, np.int64)
+    s_best = np.empty(256, np.int64)
+    s_par = np.empty(256, np.int64)
+    s_closed = np.zeros(256, np.bool_)
+    p0 = np.empty(512, np.int64)
+    p1 = np.empty(512, np.int64)
+    ef = np.empty(512, np.int64)
+    ek = np.empty(512, np.int64)
+    es = np.empty(512, np.int64)
+    enext = np.empty(512, np.int64)
+    heap = np.empty(512, np.int64)
+    pend = np.empty(16, np.int64)
+    live = np.zeros(2 * f0 + 64, np.int64)
+    bhead = np.full(2 * f0 + 64, -1, np.int64)
+    regs = np.zeros(_REGS, np.int64)
+    # The start: state 0, entry 0, waiting in pend; parked at time 0 if it is the goal.
+    slot = _hslot(hkeys, 2 * start)
+    hkeys[slot] = 2 * start
+    hids[slot] = 0
     s_key[0] = start
     s_best[0] = 0
     s_par[0] = -1
-    n_s = 1
-    hkeys[_hslot(hkeys, 2 * start)] = 2 * start
-    hids[_hslot(hkeys, 2 * start)] = 0
     live[f0] = 1
-    n_live = 1
-    ec[0] = 0
-    et[0] = (f0 + h[start]) * TIE
+    p0[0] = 0
+    p1[0] = (f0 + h[start]) * TIE
     ef[0] = f0
     ek[0] = start
     es[0] = 0
-    n_e = 1
-    heap[0] = 0
-    size = 1
-    fmin = f0
-    bound = int(w * fmin + 1e-9)
-    fb = False
-    expanded = 0
-    raise_fmin = False
-    # The park at time 0 (start == goal), then the loop; each generated state or
-    # terminal goes through the same code (``gen``), written once below.
-    first_park = start == goal and hold == 0 and not (avoid and goal_after[0] != 0)
-    top = 0
-    top_key = start
-    c = 0
-    f = f0
-    first = False
-    nt = 0
-    v = start
-    j = ptr[v]
-    jend = j
-    phase = 0  # 0: the initial park; 1: popping; 2: moving through successors
-    if first_park:
-        jend = j + 1  # one pass of the generation code, for the terminal only
-    else:
-        phase = 1
+    pend[0] = 0
+    n_s = 1
+    n_live = 1
+    c = goal_after[0]
+    if start == goal and hold == 0 and not (avoid and c):
+        slot = _hslot(hkeys, 2 * start + 1)
+        hkeys[slot] = 2 * start + 1
+        hids[slot] = 1
+        s_key[1] = -(start + 1)
+        s_best[1] = c
+        s_par[1] = 0
+        live[0] += 1
+        p0[1] = c
+        p1[1] = 0
+        ef[1] = 0
+        ek[1] = -(start + 1)
+        es[1] = 1
+        pend[1] = 1  # f = 0 <= the bound
+        n_s = 2
+        n_live = 2
+    regs[_N_S] = n_s
+    regs[_N_E] = n_s
+    regs[_NPEND] = n_s
+    regs[_NLIVE] = n_live
+    regs[_FMIN] = f0
+    regs[_BOUND] = int(w * f0 + 1e-9)
+    regs[_LO] = f0 if n_s == 1 else 0
     while True:
-        if phase == 1:
-            if raise_fmin or size == 0:
-                raise_fmin = False
-                if n_live == 0:
-                    if size == 0:
-                        break
-                else:
-                    if live[fmin] == 0:
-                        while live[lo] == 0:
-                            lo += 1
-                        if lo > fmin:
-                            fmin = lo
-                    new_bound = int(w * fmin + 1e-9)
-                    top_f = new_bound if new_bound < fcap - 1 else fcap - 1
-                    for fx in range(bound + 1, top_f + 1):
-                        e = bhead[fx]
-                        bhead[fx] = -1
-                        while e >= 0:
-                            nx = enext[e]
-                            _push(heap, size, e, fb, ec, et, ef, ek)
-                            size += 1
-                            e = nx
-                    if new_bound > bound:
-                        bound = new_bound
-                    if size == 0:
-                        continue
-            top_e = heap[0]
-            size -= 1
-            if size > 0:
-                heap[0] = heap[size]
-                _down(heap, 0, size, fb, ec, et, ef, ek)
-            c = ec[top_e]
-            f = ef[top_e]
-            top = es[top_e]
-            if s_best[top] != c:
-                continue  # stale entry
-            top_key = ek[top_e]
-            if top_key < 0:  # terminal: the agent parks at its goal from time f on
-                length = 1
-                x = s_par[top]
-                while x >= 0:
-                    length += 1
-                    x = s_par[x]
-                path = np.empty(length, np.int64)
-                path[length - 1] = goal
-                x = s_par[top]
-                i = length - 2
-                while x >= 0:
-                    path[i] = s_key[x] % n
-                    i -= 1
-                    x = s_par[x]
-                while length > 1 and path[length - 2] == goal:
-                    length -= 1
-                return FOUND, expanded, fmin, path[:length].copy()
-            first = not s_closed[top]
-            if first:
-                s_closed[top] = True
-                live[f] -= 1
-                n_live -= 1
-            expanded += 1
-            if expanded == limit:
-                break
-            if expanded == budget:
-                fb = True  # FOCAL by g + 2h first from now on: re-heapify
-                for i in range((size >> 1) - 1, -1, -1):
-                    _down(heap, i, size, fb, ec, et, ef, ek)
-            if (expanded & 1023) == 0 and _monotonic() >= end:
-                return TIMEOUT, expanded, fmin, empty
-            t = top_key // n
-            v = top_key - t * n
-            nt = t + 1
-            if nt > max_t:
-                if first and f == fmin and live[f] == 0:
-                    raise_fmin = True
-                continue
-            j = ptr[v]
-            jend = ptr[v + 1]
-            phase = 2
-        # ---- the moves out of v arriving at nt (phase 2), or the initial park (phase 0)
-        while j < jend:
-            if phase == 0:
-                u = goal
-                nc = 0
-                tc = goal_after[0]
-            else:
-                u = idx[j]
-                base = nt * n
-                nk = base + u
-                if nv > 0 and _contains(vkeys, nk):
-                    j += 1
-                    continue
-                if ne > 0 and u != v and _contains(ekeys, (base + v) * n + u):
-                    j += 1
-                    continue
-                nc = c
-                if nt < cat_h:
-                    occ = cat_vt[nk]
-                    if occ:
-                        nc += occ
-                        if nt < lp and pp[nt] == u:
-                            nc += pw
-                if nt > park_t[u]:
-                    nc += 1
-                    if u == partner_goal:  # the partner is the one parked at u
-                        nc += pw
-                if u != v and nt < cat_h:
-                    occ = cat_et[nt * nnz + j]  # someone moves u -> v: a swap
-                    if occ:
-                        nc += occ
-                        if nt < lp and pp[nt - 1] == u and pp[nt] == v:
-                            nc += pw
-                if avoid and nc:
-                    j += 1
-                    continue
-                hu = h[u]
-                nf = nt + hu if nt + hu > hold else hold
-                enc = 2 * nk
-                slot = _hslot(hkeys, enc)
-                sid = -1
-                if hkeys[slot] == enc:
-                    sid = hids[slot]
-                if sid < 0 or nc < s_best[sid]:
-                    if sid < 0:
-                        if nf > F_CAP:
-                            return DECLINED, expanded, fmin, empty
-                        if n_s >= scap:
-                            scap *= 2
-                            s_key = _grow(s_key, scap)
-                            s_best = _grow(s_best, scap)
-                            s_par = _grow(s_par, scap)
-                            s_closed = _grow(s_closed, scap)
-                        sid = n_s
-                        n_s += 1
-                        s_key[sid] = nk
-                        s_closed[sid] = False
-                        hkeys[slot] = enc
-                        hids[slot] = sid
-                        if 2 * n_s > hkeys.shape[0]:
-                            hkeys, hids = _rehash(hkeys, hids)
-                        if nf >= fcap:
-                            nfc = 2 * fcap if 2 * fcap > nf + 1 else nf + 1
-                            live = _grow_zero(live, nfc, 0)
-                            bhead = _grow_zero(bhead, nfc, -1)
-                            fcap = nfc
-                        live[nf] += 1
-                        n_live += 1
-                        if nf < lo:
-                            lo = nf
-                    s_best[sid] = nc
-                    s_par[sid] = top
-                    if n_e >= ecap:
-                        ecap *= 2
-                        ec = _grow(ec, ecap)
-                        et = _grow(et, ecap)
-                        ef = _grow(ef, ecap)
-                        ek = _grow(ek, ecap)
-                        es = _grow(es, ecap)
-                        enext = _grow(enext, ecap)
-                        heap = _grow(heap, ecap)
-                    e = n_e
-                    n_e += 1
-                    ec[e] = nc
-                    et[e] = (nf + hu) * TIE - nt
-                    ef[e] = nf
-                    ek[e] = nk
-                    es[e] = sid
-                    if nf <= bound:
-                        _push(heap, size, e, fb, ec, et, ef, ek)
-                        size += 1
-                    else:
-                        enext[e] = bhead[nf]
-                        bhead[nf] = e
-                if not (u == goal and nt >= hold):
-                    j += 1
-                    continue
-                tc = nc + goal_after[nt if nt < span else span]
-                tc += pw * p_after[nt if nt < span else span]
-            # ---- the terminal node (parked at the goal from nt on): focal._park
-            j += 1
-            if avoid and tc:
-                continue
-            tk = -(nt * n + goal + 1)
-            enc = 2 * (nt * n + goal) + 1
-            slot = _hslot(hkeys, enc)
-            sid = -1
-            if hkeys[slot] == enc:
-                sid = hids[slot]
-                if tc >= s_best[sid]:
-                    continue
-            else:
-                if nt > F_CAP:
-                    return DECLINED, expanded, fmin, empty
-                if n_s >= scap:
-                    scap *= 2
-                    s_key = _grow(s_key, scap)
-                    s_best = _grow(s_best, scap)
-                    s_par = _grow(s_par, scap)
-                    s_closed = _grow(s_closed, scap)
-                sid = n_s
-                n_s += 1
-                s_key[sid] = tk
-                s_closed[sid] = False
-                hkeys[slot] = enc
-                hids[slot] = sid
-                if 2 * n_s > hkeys.shape[0]:
-                    hkeys, hids = _rehash(hkeys, hids)
-                if nt >= fcap:
-                    nfc = 2 * fcap if 2 * fcap > nt + 1 else nt + 1
-                    live = _grow_zero(live, nfc, 0)
-                    bhead = _grow_zero(bhead, nfc, -1)
-                    fcap = nfc
-                live[nt] += 1
-                n_live += 1
-                if nt < lo:
-                    lo = nt
-            s_best[sid] = tc
-            s_par[sid] = top
-            if n_e >= ecap:
-                ecap *= 2
-                ec = _grow(ec, ecap)
-                et = _grow(et, ecap)
-                ef = _grow(ef, ecap)
-                ek = _grow(ek, ecap)
-                es = _grow(es, ecap)
-                enext = _grow(enext, ecap)
-                heap = _grow(heap, ecap)
-            e = n_e
-            n_e += 1
-            ec[e] = tc
-            et[e] = nt * TIE - nt
-            ef[e] = nt
-            ek[e] = tk
-            es[e] = sid
-            if nt <= bound:
-                _push(heap, size, e, fb, ec, et, ef, ek)
-                size += 1
-            else:
-                enext[e] = bhead[nt]
-                bhead[nt] = e
-        if phase == 2 and first and f == fmin and live[f] == 0:
-            raise_fmin = True
-        phase = 1
-    return NO_PATH, expanded, fmin, empty
-
-
-@_njit
-def _grow_zero(a, cap, fill):
-    out = np.full(cap, fill, a.dtype)
-    out[: a.shape[0]] = a
-    return out
+        status = _loop(
+            ptr, idx, h, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t, pp,
+            goal_after, p_after, span, w, end, budget, avoid, limit, hkeys, hids, s_key,
+            s_best, s_par, s_closed, p0, p1, ef, ek, es, enext, heap, live, bhead, pend, regs,
+        )  # fmt: skip
+        if status != _GROW:
+            break
+        n_s = regs[_N_S]
+        n_e = regs[_N_E]
+        d = regs[_NEED_D]
+        cap = s_key.shape[0]
+        while n_s + d > cap:
+            cap *= 2
+        if cap > s_key.shape[0]:
+            s_key = _grow(s_key, cap)
+            s_best = _grow(s_best, cap)
+            s_par = _grow(s_par, cap)
+            s_closed = _grow(s_closed, cap)
+        cap = hkeys.shape[0]
+        while 2 * (n_s + d) > cap:
+            cap *= 2
+        if cap > hkeys.shape[0]:
+            hkeys, hids = _rehash_to(hkeys, hids, cap)
+        cap = p0.shape[0]
+        while n_e + d > cap:
+            cap *= 2
+        if cap > p0.shape[0]:
+            p0 = _grow(p0, cap)
+            p1 = _grow(p1, cap)
+            ef = _grow(ef, cap)
+            ek = _grow(ek, cap)
+            es = _grow(es, cap)
+            enext = _grow(enext, cap)
+            heap = _grow(heap, cap)
+        cap = pend.shape[0]
+        while d > cap:
+            cap *= 2
+        if cap > pend.shape[0]:
+            pend = _grow(pend, cap)
+        cap = live.shape[0]
+        while regs[_NEED_F] >= cap:
+            cap *= 2
+        if cap > live.shape[0]:
+            live = _grow_fill(live, cap, 0)
+            bhead = _grow_fill(bhead, cap, -1)
+    expanded = regs[_EXP]
+    fmin = regs[_FMIN]
+    if status != FOUND:
+        return status, expanded, fmin, empty
+    top = regs[_TOP]
+    length = 1
+    x = s_par[top]
+    while x >= 0:
+        length += 1
+        x = s_par[x]
+    path = np.empty(length, np.int64)
+    path[length - 1] = goal
+    x = s_par[top]
+    i = length - 2
+    while x >= 0:
+        path[i] = s_key[x] % n
+        i -= 1
+        x = s_par[x]
+    while length > 1 and path[length - 2] == goal:
+        length -= 1  # (focal._focal_loop's trailing waits at the goal)
+    return FOUND, expanded, fmin, path[:length].copy()

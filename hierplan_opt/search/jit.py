@@ -743,8 +743,8 @@ def run_focal(
     end = math.inf if deadline is None else perf_counter() + deadline.remaining()
     status, expanded, fmin, path = fk.focal(
         g.ptr, g.idx, _array(dist), start, goal, vkeys, ekeys, hold, max_t, m.vt, m.et, m.h,
-        m.park_t, partner, _NO_KEYS if pp is None else np.array(pp, np.int64), float(w), end,
-        budget, bool(avoid), limit,
+        m.park_t, _NO_KEYS if pp is None else np.array(pp, np.int64), float(w), end, budget,
+        bool(avoid), limit,
     )  # fmt: skip
     if status == fk.DECLINED:
         return None
