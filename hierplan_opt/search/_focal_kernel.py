@@ -32,6 +32,8 @@ above the bound, linked by ``enext``) are arrays indexed by ``f``, grown on dema
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from llvmlite import ir
 from numba import types
@@ -53,8 +55,7 @@ F_CAP = 1 << 22
 DECLINED = 3
 
 
-@intrinsic
-def _monotonic(typingctx):
+def _clock(typingctx):
     """``time.perf_counter()`` inside the kernel: ``clock_gettime(CLOCK_MONOTONIC)``
     (what CPython's perf_counter reads on Linux), called by its symbol name so the
     kernel stays cacheable."""
@@ -75,6 +76,9 @@ def _monotonic(typingctx):
         return builder.fadd(builder.sitofp(sec, dbl), frac)
 
     return sig, codegen
+
+
+_monotonic: Any = intrinsic(_clock)
 
 
 @_njit
