@@ -295,3 +295,22 @@ def test_auto_switches_focal_calls_per_solve(monkeypatch):
     jit.note_python(jit.JIT_WARM_S)
     focal.focal_path(g.adj, 0, 3, g.dist_list(3), AgentConstraints(), Reservations(g.n))
     assert used == [1]
+
+
+def test_highway_heuristic_identical():
+    # ECBS with the highway heuristic (not consistent: f drops along paths) as the
+    # focal search's distances: the same plans and node counts under both low levels.
+    import hierplan_opt
+    from hierplan_opt.bench import scenario
+
+    inst = scenario("random-32-32-20-random-1:20")[1]
+    out = []
+    for mode in ("python", "jit"):
+        jit.set_low_level(mode)
+        r = hierplan_opt.solve(
+            inst, "ecbs", time_limit=60, w=1.2, highways="crisscross", w_hwy=2.0,
+            hwy_mode="heuristic",
+        )  # fmt: skip
+        keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
+        out.append((r.cost, r.plan.paths if r.plan else None, *(r.stats[k] for k in keys)))
+    assert out[0] == out[1] and out[0][1] is not None
