@@ -155,7 +155,15 @@ def kernel() -> ModuleType | None:
 
 def focal_kernel() -> ModuleType | None:
     """The loaded focal kernel module if the compiled low level should run now, else None
-    (the policy of :func:`kernel`)."""
+    (the policy of :func:`kernel`).
+
+    Example
+    -------
+    >>> set_low_level("python")
+    >>> focal_kernel() is None
+    True
+    >>> set_low_level(None)
+    """
     return _focal if kernel() is not None else None
 
 
