@@ -24,8 +24,8 @@ Data layout (``int64`` unless said otherwise), shared with :mod:`._astar_kernel`
 - ``pp``: the partner's path (empty if none).
 
 States (``key = t * n + v``, terminal ``-(key + 1)``) get ids in an open-addressing
-table; per id the fewest conflicts found, the parent id and whether it was expanded.
-Entries: their two leading keys ``p0, p1`` (conflicts and tie, swapped by the
+table; per id its vertex, the fewest conflicts found, the parent id and whether it was
+expanded. Entries: their two leading keys ``p0, p1`` (conflicts and tie, swapped by the
 fallback), ``f``, key, state id. ``live[f]`` and the bucket lists ``bhead[f]`` (entries
 above the bound, linked by ``enext``) are arrays indexed by ``f``, grown on demand.
 """
@@ -40,7 +40,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from hierplan_opt.search._astar_kernel import _grow, _njit
+from hierplan_opt.search._astar_kernel import _grow, _njit, _path_of
 
 #: As :data:`.focal._TIE` and :data:`.focal.PARTNER_WEIGHT` (tests check they agree).
 TIE = 1 << 20
@@ -160,7 +160,7 @@ _GROW = 4
 @_njit
 def _loop(
     ptr, idx, h, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t, pp,
-    goal_after, p_after, span, w, end, budget, avoid, limit, hkeys, hids, s_key, s_best,
+    goal_after, p_after, span, w, end, budget, avoid, limit, hkeys, hids, s_v, s_best,
     s_par, s_closed, p0, p1, ef, ek, es, enext, heap, live, bhead, pend, regs,
 ):  # fmt: skip
     """The main loop of ``focal._focal_loop`` from the state in ``regs`` and the arrays:
@@ -177,7 +177,7 @@ def _loop(
     ne = ekeys.shape[0]
     lp = pp.shape[0]
     partner_goal = pp[lp - 1] if lp > 0 else -1
-    scap = s_key.shape[0]
+    scap = s_v.shape[0]
     ecap = p0.shape[0]
     hcap = hkeys.shape[0]
     hmask = hcap - 1
@@ -402,7 +402,7 @@ def _loop(
                 if sid < 0:
                     sid = n_s
                     n_s += 1
-                    s_key[sid] = nk
+                    s_v[sid] = u
                     s_closed[sid] = False
                     hkeys[slot] = enc
                     hids[slot] = sid
@@ -442,7 +442,7 @@ def _loop(
                 if sid < 0:
                     sid = n_s
                     n_s += 1
-                    s_key[sid] = -(nk + 1)
+                    s_v[sid] = goal
                     s_closed[sid] = False
                     hkeys[slot] = enc
                     hids[slot] = sid
@@ -512,7 +512,7 @@ def focal(
     p_after = _suffix(p_at_goal, span + 1)
     hkeys = np.full(1024, -1, np.int64)
     hids = np.empty(1024, np.int64)
-    s_key = np.empty(256, np.int64)
+    s_v = np.empty(256, np.int64)
     s_best = np.empty(256, np.int64)
     s_par = np.empty(256, np.int64)
     s_closed = np.zeros(256, np.bool_)
@@ -531,7 +531,7 @@ def focal(
     slot = _hslot(hkeys, 2 * start)
     hkeys[slot] = 2 * start
     hids[slot] = 0
-    s_key[0] = start
+    s_v[0] = start
     s_best[0] = 0
     s_par[0] = -1
     live[f0] = 1
@@ -548,7 +548,7 @@ def focal(
         slot = _hslot(hkeys, 2 * start + 1)
         hkeys[slot] = 2 * start + 1
         hids[slot] = 1
-        s_key[1] = -(start + 1)
+        s_v[1] = goal
         s_best[1] = c
         s_par[1] = 0
         live[0] += 1
@@ -570,7 +570,7 @@ def focal(
     while True:
         status = _loop(
             ptr, idx, h, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t, pp,
-            goal_after, p_after, span, w, end, budget, avoid, limit, hkeys, hids, s_key,
+            goal_after, p_after, span, w, end, budget, avoid, limit, hkeys, hids, s_v,
             s_best, s_par, s_closed, p0, p1, ef, ek, es, enext, heap, live, bhead, pend, regs,
         )  # fmt: skip
         if status != _GROW:
@@ -578,11 +578,11 @@ def focal(
         n_s = regs[_N_S]
         n_e = regs[_N_E]
         d = regs[_NEED_D]
-        cap = s_key.shape[0]
+        cap = s_v.shape[0]
         while n_s + d > cap:
             cap *= 2
-        if cap > s_key.shape[0]:
-            s_key = _grow(s_key, cap)
+        if cap > s_v.shape[0]:
+            s_v = _grow(s_v, cap)
             s_best = _grow(s_best, cap)
             s_par = _grow(s_par, cap)
             s_closed = _grow(s_closed, cap)
@@ -617,20 +617,8 @@ def focal(
     fmin = regs[_FMIN]
     if status != FOUND:
         return status, expanded, fmin, empty
-    top = regs[_TOP]
-    length = 1
-    x = s_par[top]
-    while x >= 0:
-        length += 1
-        x = s_par[x]
-    path = np.empty(length, np.int64)
-    path[length - 1] = goal
-    x = s_par[top]
-    i = length - 2
-    while x >= 0:
-        path[i] = s_key[x] % n
-        i -= 1
-        x = s_par[x]
+    path = _path_of(s_v, s_par, regs[_TOP])
+    length = path.shape[0]
     while length > 1 and path[length - 2] == goal:
         length -= 1  # (focal._focal_loop's trailing waits at the goal)
     return FOUND, expanded, fmin, path[:length].copy()
