@@ -286,6 +286,9 @@ def test_auto_switches_focal_calls_per_solve(monkeypatch):
         return run(*args, **kw)
 
     monkeypatch.setattr(jit, "run_focal", counted)
+    # An earlier solve's 10 s would switch at once (over JIT_WARM_S, here 5 s so that a
+    # slow machine does not reach it within this solve)
+    monkeypatch.setattr(jit, "JIT_WARM_S", 5.0)
     monkeypatch.setattr(jit, "python_seconds", 10.0)
     jit.set_low_level("auto")
     g = Graph.grid(4, 4)
