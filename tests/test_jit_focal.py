@@ -48,6 +48,7 @@ def both(*args, **kw):
     out = []
     for mode in ("python", "jit"):
         jit.set_low_level(mode)
+        assert (jit.focal_kernel() is not None) == (mode == "jit")
         stats: dict[str, int] = {}
         try:
             got = focal.focal_path(*args, stats=stats, **kw)
@@ -317,3 +318,20 @@ def test_highway_heuristic_identical():
         keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
         out.append((r.cost, r.plan.paths if r.plan else None, *(r.stats[k] for k in keys)))
     assert out[0] == out[1] and out[0][1] is not None
+
+
+def test_tables_grow_mid_search_identical():
+    # A search far longer and deeper than the kernel's first tables (states, entries,
+    # hash slots and the f tables, which start at 2 f0 + 64 for f0 = 1 here): the kernel
+    # hands back to grow them several times and still ends as the Python loop does.
+    g = Graph.grid(12, 12)
+    res = Reservations(g.n)
+    res.add(0, (143,) * 3)  # parked on the goal: with avoid, no path to find
+    args = (g.adj, 142, 143, g.dist_list(143), AgentConstraints(), res)
+    for kw in ({"avoid": True, "max_t": 120}, {"avoid": True, "max_t": 120, "w": 1.5}):
+        py, jt = both(*args, **kw)
+        assert py == jt and py[0] is None and py[1] > 10_000
+    res.remove(0)
+    res.add(0, (143,) * 90 + (131,))  # leaves the goal at t = 90: a path, found late
+    py, jt = both(*args, avoid=True, max_t=120)
+    assert py == jt and py[0] is not None and len(py[0][0]) == 91
