@@ -10,11 +10,11 @@ both. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
 ``auto`` (default)
     Python first. Once the Python low level (A* and focal calls together) has spent
     :data:`JIT_AFTER_S` seconds in one solve (:func:`new_solve` starts the count), a
-    helper process compiles the kernels into numba's on-disk cache (about 6 s the first
-    time on a fresh checkout, about 1 s once cached; on the other core, so it does not
-    slow the search, which a compiling thread would through the GIL); when it is done,
-    the next call loads the kernels from the cache (a pause of about 0.6 s) and runs
-    them. A small solve never imports numba;
+    helper process compiles the kernels into numba's on-disk cache (about 15 s of CPU
+    the first time on a fresh checkout, the A* and the focal kernel; about 1 s once
+    cached; on the other core, so it does not slow the search, which a compiling thread
+    would through the GIL); when it is done, the next call loads the kernels from the
+    cache (a pause of about 0.6 s) and runs them. A small solve never imports numba;
     a long one is never blocked by the compiler. Should the helper outlive its parent,
     it finishes writing the cache. In a process where an earlier solve loaded the
     kernel, a solve switches after :data:`JIT_WARM_S` seconds of Python low level
