@@ -330,6 +330,25 @@ def test_bounded_solvers_return_lacam_plan_when_their_limit_runs_out(solver: str
 
 
 @pytest.mark.parametrize("solver", ["ecbs", "eecbs"])
+def test_bounded_solvers_defer_the_fallback_plan(solver: str, monkeypatch):
+    from hierplan_opt.search import ecbs
+
+    # A search that ends before FALLBACK_AFTER_S never computes LaCAM's plan.
+    inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 20)
+    quick = hp.solve(inst, solver, time_limit=30)
+    assert quick.stats["plan_from"] == "search" and "lacam_status" not in quick.stats
+    # Due at once: computed before the first low-level call, the search's plan returned.
+    monkeypatch.setattr(ecbs, "FALLBACK_AFTER_S", 0.0)
+    due = hp.solve(inst, solver, time_limit=30)
+    assert due.stats["plan_from"] == "search" and due.stats["lacam_status"] == "FEASIBLE"
+    assert due.cost == quick.cost and due.stats["lacam_cost"] >= due.cost / 1.5
+    # LaCAM's proof that no plan exists ends the search when the fallback comes due.
+    fn = hp.registry.get(solver).load().fn
+    bad = fn(one_way_ring(), time_limit=5)
+    assert bad.status == hp.Status.INFEASIBLE and "lacam" in bad.stats["reason"]
+
+
+@pytest.mark.parametrize("solver", ["ecbs", "eecbs"])
 def test_bounded_solvers_start_from_lacam_plan(solver: str):
     inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 40)
     plain = hp.solve(inst, solver, time_limit=30, w=1.5, lacam="off")
