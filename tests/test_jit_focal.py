@@ -335,3 +335,26 @@ def test_tables_grow_mid_search_identical():
     res.add(0, (143,) * 90 + (131,))  # leaves the goal at t = 90: a path, found late
     py, jt = both(*args, avoid=True, max_t=120)
     assert py == jt and py[0] is not None and len(py[0][0]) == 91
+
+
+def test_python_focal_admits_a_far_f_jump_from_its_buckets(monkeypatch: pytest.MonkeyPatch):
+    """A state at an "unreachable" distance (f about 2^30) once raised the bound through
+    every integer up to it (minutes); now the waiting buckets themselves are admitted.
+    The kernel declines such calls, so this is the Python loop's path."""
+    import signal
+
+    def hang(*_: object) -> None:
+        raise AssertionError("the bound was raised one integer at a time")
+
+    monkeypatch.setattr(jit, "focal_kernel", lambda: None)
+    old = signal.signal(signal.SIGALRM, hang)
+    signal.alarm(20)
+    try:
+        g = Graph.grid(3, 1)
+        out = focal.focal_path(
+            g.adj, 0, 2, [2, UNREACHABLE, 0], AgentConstraints(), Reservations(3), max_t=6
+        )
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+    assert out == ((0, 1, 2), UNREACHABLE + 1)

@@ -29,7 +29,7 @@ will be parked there). Terminal nodes compete in FOCAL like any other node.
 from __future__ import annotations
 
 from bisect import bisect_right
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from heapq import heapify, heappop, heappush
 from time import perf_counter
 from typing import Any, Protocol
@@ -251,7 +251,11 @@ def _raise_bound(
         # <= w_hwy * C*).
         fmin = max(fmin, min(f for f, k in live.items() if k))
     new_bound = int(w * fmin + 1e-9)
-    for f in range(bound + 1, new_bound + 1):
+    if new_bound - bound <= len(buckets):
+        admit: Iterable[int] = range(bound + 1, new_bound + 1)
+    else:  # a far jump (f_min at an "unreachable" distance): the buckets, not the range
+        admit = sorted(f for f in buckets if bound < f <= new_bound)
+    for f in admit:
         b = buckets.pop(f, None)
         if b:
             for e in b:
