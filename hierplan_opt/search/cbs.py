@@ -80,6 +80,7 @@ from hierplan_opt.search.symmetry import (
     Rectangles,
     corridor_split,
     corridor_target_split,
+    generalized_rectangle_split,
     pseudo_corridor_split,
     rectangle_split,
     travel_time,
@@ -164,6 +165,7 @@ class _CBS:
         disjoint: bool,
         symmetry: bool,
         rectangle: bool = False,
+        gr: bool = False,
         corridor_target: bool = False,
         greedy: bool = False,
         node_limit: int | None = None,
@@ -212,6 +214,7 @@ class _CBS:
                 "corridor_splits": 0,
                 "corridor_target_splits": 0,
                 "rectangle_splits": 0,
+                "gr_splits": 0,
             }
         )
         self.corridors = (corridors or Corridors(g)) if symmetry else None
@@ -219,6 +222,8 @@ class _CBS:
         # constraints in ``child``): built on first use, a few numpy passes over the graph
         # that most small searches never need.
         self._want_rect = symmetry and rectangle
+        #: Generalised rectangles too (:func:`.symmetry.generalized_rectangle_split`).
+        self.gr = gr
         self._rect = rectangles
         self.init_paths = init_paths
         # One table of the node's paths, patched per child: the low level's
@@ -463,9 +468,19 @@ class _CBS:
                 key = "corridor_target_splits" if res[0][1][0][0] == LEN_GT else "corridor_splits"
                 self.stats[key] += 1
                 return res
-        rects = self.rectangles() if kind == VERTEX and rank <= 1 else None
+        rects = self.rectangles() if kind == VERTEX else None
         if rects is not None:
-            res = rectangle_split(rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t)
+            res = None
+            if rank <= 1:
+                res = rectangle_split(
+                    rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t
+                )
+            if res is None and self.gr:
+                res = generalized_rectangle_split(
+                    rects, self.starts, node.cons, node.paths, a, b, v, t
+                )
+                if res is not None:
+                    self.stats["gr_splits"] = self.stats.get("gr_splits", 0) + 1
             if res is not None:
                 self.stats["rectangle_splits"] = self.stats.get("rectangle_splits", 0) + 1
                 return res
@@ -702,6 +717,7 @@ class _CBS:
             disjoint=False,
             symmetry=self.symmetry,
             rectangle=self.rectangles() is not None,
+            gr=self.gr,
             corridor_target=self.corridor_target,
             node_limit=PAIR_NODE_LIMIT,
             sub=True,
@@ -844,6 +860,11 @@ class _CBS:
     Option("disjoint_splitting", "bool", "positive/negative constraint children"),
     Option("symmetry", "bool", "target, corridor and rectangle reasoning"),
     Option("rectangle", "bool", "rectangle reasoning (4-connected 2D grids)"),
+    Option(
+        "generalized_rectangle",
+        "bool",
+        "also rectangles the agents enter anywhere, proved by a joint search (needs rectangle)",
+    ),
     Option("corridor_target", "bool", "corridor-target reasoning (goals inside corridors)"),
     Option("node_limit", "int", "stop after this many high-level expansions", low=1, optional=True),
     *HIGHWAY_OPTIONS,
@@ -860,6 +881,7 @@ def solve(
     disjoint_splitting: bool = True,
     symmetry: bool = True,
     rectangle: bool = True,
+    generalized_rectangle: bool = True,
     corridor_target: bool = False,
     node_limit: int | None = None,
     highways: str | None = None,
@@ -920,6 +942,7 @@ def solve(
         disjoint=disjoint_splitting,
         symmetry=symmetry,
         rectangle=rectangle,
+        gr=generalized_rectangle,
         corridor_target=corridor_target,
         node_limit=node_limit,
     )
