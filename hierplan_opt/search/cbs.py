@@ -111,6 +111,7 @@ class _Node:
         "pairw",
         "ranks",
         "corr",
+        "grs",
     )
 
     def __init__(
@@ -146,6 +147,9 @@ class _Node:
         # like ``ranks``: the range bounds come from constraints that a descendant only
         # extends, so they stay valid, and the paths they were checked on are unchanged.
         self.corr: dict[Conflict, list[tuple[int, list[Constraint]]] | None] = {}
+        # Generalised rectangle splits found for conflicts, inherited like ``corr`` (the
+        # proof uses the entries and constraints, which a descendant only extends).
+        self.grs: dict[Conflict, list[tuple[int, list[Constraint]]] | None] = {}
 
 
 class _CBS:
@@ -404,6 +408,9 @@ class _CBS:
                     break
         assert best is not None and best_key is not None
         r = best_key[0]
+        gr = self._best_gr(node, r) if r > 0 and best[1] != TARGET else None
+        if gr is not None and gr[1] < r:
+            return gr
         if self.corridors is not None and best[1] != TARGET and not self.sub:
             # Among the conflicts of the best class, a corridor conflict first (its
             # split resolves the whole corridor at once), then the earliest.
@@ -411,7 +418,42 @@ class _CBS:
             for c in cands:
                 if self.corridor(node, c, r) is not None:
                     return c, r
-        return best, r
+        return gr if gr is not None else (best, r)
+
+    def _best_gr(self, node: _Node, r: int) -> tuple[Conflict, int] | None:
+        """The vertex conflict with a generalised rectangle split of the best class
+        ``<= r`` (earliest first), or None. As in CBSH2-RTC, a rectangle's class comes
+        from its barriers: cardinal if each child leaves its agent no path of the
+        current cost, semi-cardinal if one does; among equals it goes before a plain
+        conflict (after target and corridor conflicts)."""
+        if not self.gr or self.sub or self.rectangles() is None:
+            return None
+        out = None
+        for c in sorted((c for c in node.conflicts if c[1] == VERTEX), key=lambda c: c[0]):
+            res = self.gr_split(node, c)
+            if res is None:
+                continue
+            k = 2 - sum(restrict(self.mdd(node, x), cs, []) is None for x, cs in res)
+            if k <= r and (out is None or k < out[1]):
+                out = (c, k)
+                if k == 0:
+                    break
+        return out
+
+    def gr_split(self, node: _Node, c: Conflict) -> list[tuple[int, list[Constraint]]] | None:
+        """The generalised rectangle split of vertex conflict ``c`` or None, cached."""
+        cache = node.grs
+        if c in cache:
+            return cache[c]
+        rects = self.rectangles()
+        res = None
+        if rects is not None:
+            t, _, a, b, _, v = c
+            res = generalized_rectangle_split(
+                rects, self.starts, node.cons, node.paths, a, b, v, t
+            )
+        cache[c] = res
+        return res
 
     def corridor(
         self, node: _Node, c: Conflict, rank: int
@@ -470,15 +512,15 @@ class _CBS:
                 return res
         rects = self.rectangles() if kind == VERTEX else None
         if rects is not None:
-            res = None
-            if rank <= 1:
+            res = node.grs.get(c) if self.gr else None
+            if res is None and rank <= 1:
                 res = rectangle_split(
                     rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t
                 )
+            elif res is not None:
+                self.stats["gr_splits"] = self.stats.get("gr_splits", 0) + 1
             if res is None and self.gr:
-                res = generalized_rectangle_split(
-                    rects, self.starts, node.cons, node.paths, a, b, v, t
-                )
+                res = self.gr_split(node, c)
                 if res is not None:
                     self.stats["gr_splits"] = self.stats.get("gr_splits", 0) + 1
             if res is not None:
@@ -610,6 +652,7 @@ class _CBS:
             confs = [c for c in node.conflicts if c[2] not in gone and c[3] not in gone]
             ranks = {c: r for c, r in node.ranks.items() if c[2] not in gone and c[3] not in gone}
             corr = {c: r for c, r in node.corr.items() if c[2] not in gone and c[3] not in gone}
+            grs = {c: r for c, r in node.grs.items() if c[2] not in gone and c[3] not in gone}
             occ = self._occ
             occ.sync(paths)
             done: set[int] = set()
@@ -620,10 +663,12 @@ class _CBS:
             confs = list(node.conflicts)
             ranks = dict(node.ranks)
             corr = dict(node.corr)
+            grs = dict(node.grs)
         ch = _Node(paths, costs, cons, g, confs, node.depth + 1)
         if not self.sub:  # measured: in the short WDG sub-searches stale classes cost time
             ch.ranks = ranks
             ch.corr = corr
+            ch.grs = grs
         ch.f = max(g, node.f) if not self.greedy else g
         ch.pairw = node.pairw
         return ch
@@ -838,6 +883,7 @@ class _CBS:
                     node.conflicts = ch.conflicts
                     node.ranks = ch.ranks
                     node.corr = ch.corr
+                    node.grs = ch.grs
                     st["bypasses"] += 1
                     adopted = True
                     break

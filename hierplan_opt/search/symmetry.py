@@ -662,7 +662,7 @@ def _reach_sets(
         return tau <= s
 
     if not ok(ve, te):
-        return [set()]
+        return [set() for _ in range(te, last + 1)]  # no barrier vertex-time in reach
     vc, ec, ff = cons.vertex, cons.edge, cons.forbid_from
     out = [{ve}]
     size = 1
