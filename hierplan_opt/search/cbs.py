@@ -433,12 +433,17 @@ class _CBS:
             res = self.gr_split(node, c)
             if res is None:
                 continue
-            k = 2 - sum(restrict(self.mdd(node, x), cs, []) is None for x, cs in res)
+            k = self._gr_rank(node, res)
             if k <= r and (out is None or k < out[1]):
                 out = (c, k)
                 if k == 0:
                     break
         return out
+
+    def _gr_rank(self, node: _Node, res: list[tuple[int, list[Constraint]]]) -> int:
+        """A barrier split's class: 0 if each child leaves its agent no path of the current
+        cost (both children cost more), 1 if one does, else 2."""
+        return 2 - sum(restrict(self.mdd(node, x), cs, []) is None for x, cs in res)
 
     def gr_split(self, node: _Node, c: Conflict) -> list[tuple[int, list[Constraint]]] | None:
         """The generalised rectangle split of vertex conflict ``c`` or None, cached."""
@@ -449,9 +454,7 @@ class _CBS:
         res = None
         if rects is not None:
             t, _, a, b, _, v = c
-            res = generalized_rectangle_split(
-                rects, self.starts, node.cons, node.paths, a, b, v, t
-            )
+            res = generalized_rectangle_split(rects, self.starts, node.cons, node.paths, a, b, v, t)
         cache[c] = res
         return res
 
@@ -512,15 +515,17 @@ class _CBS:
                 return res
         rects = self.rectangles() if kind == VERTEX else None
         if rects is not None:
-            res = node.grs.get(c) if self.gr else None
-            if res is None and rank <= 1:
+            res = None
+            if rank <= 1:
                 res = rectangle_split(
                     rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t
                 )
-            elif res is not None:
-                self.stats["gr_splits"] = self.stats.get("gr_splits", 0) + 1
             if res is None and self.gr:
                 res = self.gr_split(node, c)
+                # Only where it is not weaker than the conflict's own split (as in
+                # CBSH2-RTC, which looks for rectangles on non-cardinal conflicts only).
+                if res is not None and self._gr_rank(node, res) > rank:
+                    res = None
                 if res is not None:
                     self.stats["gr_splits"] = self.stats.get("gr_splits", 0) + 1
             if res is not None:

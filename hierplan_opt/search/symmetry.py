@@ -765,7 +765,9 @@ def barriers_force_conflict(
     return True
 
 
-def _run(path: tuple[int, ...], t: int, xs: list[int], ys: list[int], sx: int, sy: int) -> tuple[int, int]:
+def _run(
+    path: tuple[int, ...], t: int, xs: list[int], ys: list[int], sx: int, sy: int
+) -> tuple[int, int]:
     """``(first, last)`` times of the staircase of ``path`` around ``t`` in frame ``(sx, sy)``:
     every step in ``[first, last]`` moves one cell in +x or +y of the frame (no waits)."""
 
