@@ -95,6 +95,8 @@ PAIR_NODE_LIMIT = 16
 MDD_CACHE_SIZE = 50_000
 #: How far up the constraint sets' ancestry an MDD to restrict is looked for.
 MDD_ANCESTORS = 16
+#: Worst class (0 cardinal, 1 semi, 2 non-cardinal) of a generalised rectangle split used.
+GR_MAX_CLASS = 2
 
 
 class _Node:
@@ -434,7 +436,7 @@ class _CBS:
             if res is None:
                 continue
             k = self._gr_rank(node, res)
-            if k <= r and (out is None or k < out[1]):
+            if k <= min(r, GR_MAX_CLASS) and (out is None or k < out[1]):
                 out = (c, k)
                 if k == 0:
                     break
@@ -454,7 +456,10 @@ class _CBS:
         res = None
         if rects is not None:
             t, _, a, b, _, v = c
-            res = generalized_rectangle_split(rects, self.starts, node.cons, node.paths, a, b, v, t)
+            res = generalized_rectangle_split(
+                rects, self.starts, node.cons, node.paths, a, b, v, t,
+                key=lambda r: self._gr_rank(node, r),
+            )  # fmt: skip
         cache[c] = res
         return res
 
@@ -524,7 +529,7 @@ class _CBS:
                 res = self.gr_split(node, c)
                 # Only where it is not weaker than the conflict's own split (as in
                 # CBSH2-RTC, which looks for rectangles on non-cardinal conflicts only).
-                if res is not None and self._gr_rank(node, res) > rank:
+                if res is not None and self._gr_rank(node, res) > min(rank, GR_MAX_CLASS):
                     res = None
                 if res is not None:
                     self.stats["gr_splits"] = self.stats.get("gr_splits", 0) + 1

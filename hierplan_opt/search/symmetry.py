@@ -832,9 +832,11 @@ def gr_candidates(
             while j < t and sx * xs[p2[j]] < sx * xs[p1[i]]:
                 j += 1
             ea, eb = ((p1[i], i), (p2[j], j)) if a_first else ((p2[j], j), (p1[i], i))
-            for cand in rectangle_barriers(rect, ea, eb, pa[la], pb[lb], v):
-                if cand not in out:
-                    out.append(cand)
+            # Exits: where the staircases end, or (a larger rectangle) the goals.
+            for xa, xb in ((pa[la], pb[lb]), (pa[-1], pb[-1])):
+                for cand in rectangle_barriers(rect, ea, eb, xa, xb, v):
+                    if cand not in out:
+                        out.append(cand)
     return out
 
 
@@ -847,6 +849,7 @@ def generalized_rectangle_split(
     b: int,
     v: int,
     t: int,
+    key: Callable[[list[tuple[int, list[Constraint]]]], int] | None = None,
 ) -> list[tuple[int, list[Constraint]]] | None:
     """Barrier children for a vertex conflict in a rectangle the agents enter anywhere.
 
@@ -857,25 +860,27 @@ def generalized_rectangle_split(
     only a shortest path from the agent's real entry reaches are kept, and the pair is
     used only if :func:`barriers_force_conflict` proves that two such prefixes always
     collide -- so the two children exclude no conflict-free solution (optimality kept)
-    -- and both current paths break their barrier (both children replan).
+    -- and both current paths break their barrier (both children replan). Without
+    ``key`` the first such split is returned; with it, the one of smallest ``key``
+    (e.g. the split's class: 0 when both children must cost more), the first 0 at once.
 
     Example
     -------
-    >>> g = Graph.grid(7, 7, obstacles=[(x, 1) for x in range(7) if x != 1] +
-    ...                [(1, y) for y in range(2, 7) if y != 3])  # walls with two doors
-    >>> v = g.vertex
-    >>> pa = tuple(v(c) for c in [(0, 0), (0, 1), (0, 2), (0, 3), (1, 3), (2, 3), (3, 3),
-    ...                           (4, 3), (5, 3)])
-    >>> pb = tuple(v(c) for c in [(0, 0), (1, 0), (1, 1), (1, 2), (2, 2), (3, 2), (3, 3),
-    ...                           (3, 4), (3, 5)])
-    >>> res = generalized_rectangle_split(Rectangles(g), [pa[0], pb[0]],
-    ...     [AgentConstraints(), AgentConstraints()], [pa, pb], 0, 1, v((3, 3)), 6)
-    >>> res is None
+    >>> g = Graph.grid(6, 6, obstacles=[(1, 4), (2, 4)])  # a wall north of row 3
+    >>> v, free = g.vertex, AgentConstraints()
+    >>> pa = tuple(v(c) for c in [(0, 4), (0, 3), (1, 3), (2, 3), (3, 3), (4, 3), (5, 3)])
+    >>> pb = tuple(v(c) for c in [(2, 0), (3, 0), (3, 1), (3, 2), (3, 3), (3, 4), (3, 5)])
+    >>> args = ([pa[0], pb[0]], [free, free], [pa, pb], 0, 1, v((3, 3)), 4)
+    >>> rectangle_split(Rectangles(g), args[0], [pa[-1], pb[-1]], *args[1:]) is None  # starts
     True
+    >>> res = generalized_rectangle_split(Rectangles(g), *args)
+    >>> [(x, [(g.location(c[2]), c[4]) for c in cs]) for x, cs in res]
+    [(0, [((3, 3), 4)]), (1, [((2, 3), 3), ((3, 3), 4)])]
     """
     if not rect.enabled or t < 1:
         return None
     pa, pb = paths[a], paths[b]
+    best: tuple[int, list[tuple[int, list[Constraint]]]] | None = None
     for a_first, b1, b2 in gr_candidates(rect, paths, a, b, v, t):
         if any(tt <= 0 for _, tt in b1) or any(tt <= 0 for _, tt in b2):
             continue  # time 0 is never constrained by the low level
@@ -889,8 +894,13 @@ def generalized_rectangle_split(
         e2 = _latest_entry(starts[i2], cons[i2], min(tt for _, tt in b2))
         if not barriers_force_conflict(rect.graph, e1, cons[i1], b1, e2, cons[i2], b2):
             continue
-        return [
+        res = [
             (i1, [(NEG_V, i1, u, -1, tt) for u, tt in b1]),
             (i2, [(NEG_V, i2, u, -1, tt) for u, tt in b2]),
         ]
-    return None
+        k = key(res) if key is not None else 0
+        if best is None or k < best[0]:
+            best = (k, res)
+        if k == 0:
+            break
+    return best[1] if best is not None else None
