@@ -75,6 +75,28 @@ finishing by ``l1`` and ``o`` away from ``X`` at all times in ``[1, l2]`` for an
 ``l2 < B_o(X)``: the two children of :func:`corridor_target_split` (the second also
 keeps every other agent off ``g`` from ``l1`` on, as in target reasoning) exclude no
 conflict-free solution.
+
+Generalised rectangles (after Li et al., AIJ 2021; proved here in this form). The
+rectangle rule (:func:`rectangle_split`) needs *entries* -- vertex-times every path of
+the CT subtree passes (the start, landmarks of positive constraints) -- on one
+anti-diagonal. :func:`generalized_rectangle_split` draws the rectangle instead where
+both current paths run as staircases through the conflict (e.g. from a room's doors)
+and takes the lemma's barriers ``B_1``, ``B_2`` of that rectangle as candidates. They
+are used only if :func:`barriers_force_conflict` proves, from the agents' real entries
+``(v_i, t_i)``, that no two paths -- each obeying its agent's constraints at the node
+(waits allowed; landmarks and finish bounds dropped, which only adds paths) -- reach
+``B_1`` and ``B_2`` without a vertex or swap conflict: a joint search over both agents'
+positions from ``max(t_1, t_2)`` on, in which a state with an agent on its barrier is
+an escape. Claim: then every conflict-free pair of paths of any descendant node avoids
+``B_1`` with agent 1 or ``B_2`` with agent 2. Proof: a descendant's paths pass the
+same entries and obey a superset of the constraints, so they are among the searched
+paths. If both broke their barriers, take the first time either is on its barrier
+vertex-time (no earlier than ``max(t_1, t_2)``, else the search reports an escape); the
+pair's positions up to then are a run of the joint search without a conflict that ends
+in an escape state -- but the search found none. So the two barrier children exclude
+no conflict-free solution and CBS stays optimal. Pruning positions that cannot reach a
+barrier vertex-time in time (graph distance) removes only states from which no escape
+follows; a search over its budget answers "not proved" (no split), which is always safe.
 """
 
 from __future__ import annotations
