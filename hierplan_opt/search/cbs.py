@@ -417,7 +417,7 @@ class _CBS:
                     break
         assert best is not None and best_key is not None
         r = best_key[0]
-        gr = self._best_gr(node, r) if r > 0 and best[1] != TARGET else None
+        gr = self._best_gr(node, r) if best[1] != TARGET else None
         if gr is not None and gr[1] < r:
             return gr
         if self.corridors is not None and best[1] != TARGET and not self.sub:
