@@ -102,8 +102,15 @@ PAIR_NODE_LIMIT = 16
 MDD_CACHE_SIZE = 50_000
 #: How far up the constraint sets' ancestry an MDD to restrict is looked for.
 MDD_ANCESTORS = 16
-#: Worst class (0 cardinal, 1 semi, 2 non-cardinal) of a generalised rectangle split used.
+# Generalised rectangles (option ``generalized_rectangle``), the variants measured in
+# docs/cbs.md: a split is used where its class (0 cardinal: each child leaves its agent
+# no path of the current cost; 1 semi; 2 non) is at most GR_MAX_CLASS and not worse than
+# the conflict's own class. GR_ON_CARDINAL: also on cardinal vertex conflicts (CBSH2-RTC
+# looks on semi- and non-cardinal ones only). GR_PROMOTE: choose the conflict by its
+# rectangle's class (as CBSH2-RTC; it cost nodes here on random-32-32-20, see the docs).
 GR_MAX_CLASS = 2
+GR_ON_CARDINAL = True
+GR_PROMOTE = False
 
 
 class _Node:
@@ -435,10 +442,13 @@ class _CBS:
         from its barriers: cardinal if each child leaves its agent no path of the
         current cost, semi-cardinal if one does; among equals it goes before a plain
         conflict (after target and corridor conflicts)."""
-        if not self.gr or self.sub or self.rectangles() is None:
+        if not self.gr or not GR_PROMOTE or self.sub or self.rectangles() is None:
             return None
         out = None
+        ranks = node.ranks
         for c in sorted((c for c in node.conflicts if c[1] == VERTEX), key=lambda c: c[0]):
+            if not GR_ON_CARDINAL and ranks.get(c, 2) == 0:
+                continue
             res = self.gr_split(node, c)
             if res is None:
                 continue
@@ -532,7 +542,7 @@ class _CBS:
                 res = rectangle_split(
                     rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t
                 )
-            if res is None and self.gr:
+            if res is None and self.gr and (GR_ON_CARDINAL or node.ranks.get(c, rank) > 0):
                 res = self.gr_split(node, c)
                 # Only where it is not weaker than the conflict's own split (as in
                 # CBSH2-RTC, which looks for rectangles on non-cardinal conflicts only).
