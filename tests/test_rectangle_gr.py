@@ -93,6 +93,7 @@ def test_barriers_force_conflict_is_sound_against_joint_search():
 
 
 def _check(inst: Instance, **options):
+    options = {"generalized_rectangle": True, **options}
     r = hierplan_opt.solve(inst, "cbs", time_limit=30, **options)
     assert r.status == Status.OPTIMAL
     return r

@@ -30,13 +30,13 @@ Options (all on by default, each switchable off; none changes the optimal cost):
   and, with ``rectangle`` (also on by default, 4-connected 2D grids only), rectangle
   reasoning -- a cardinal or semi-cardinal vertex conflict of two agents crossing a
   rectangle is split with two barrier constraints (Li et al., AAAI 2019); with
-  ``generalized_rectangle`` (on by default, needs ``rectangle``) also rectangles the
+  ``generalized_rectangle`` (off by default, needs ``rectangle``) also rectangles the
   agents enter anywhere (through a room's doors, say), drawn on the current paths and
   kept only when a joint search proves the barrier pair sound
   (:func:`.symmetry.generalized_rectangle_split`; after the generalised rectangle
-  reasoning of Li et al., AIJ 2021). Such a conflict is classified by its barriers, as
+  reasoning of Li et al., AIJ 2021), used where its class (by its barriers, as
   CBSH2-RTC does: cardinal when each child leaves its agent no path of the current
-  cost.
+  cost) is not worse than the conflict's own.
 
 ``objective="makespan"`` iterates a makespan bound ``M`` upwards from the instance's
 lower bound; for each ``M`` the same CBS runs with every path bounded by ``M`` until it
@@ -954,7 +954,7 @@ def solve(
     disjoint_splitting: bool = True,
     symmetry: bool = True,
     rectangle: bool = True,
-    generalized_rectangle: bool = True,
+    generalized_rectangle: bool = False,
     corridor_target: bool = False,
     node_limit: int | None = None,
     highways: str | None = None,
@@ -979,8 +979,10 @@ def solve(
         symmetry reasoning (target, corridor, rectangle); ``rectangle=False`` only the
         rectangle part (which also needs ``prioritize_conflicts``).
     generalized_rectangle
-        Generalised rectangle reasoning (part of ``rectangle``; see the module docstring
-        and ``docs/cbs.md``).
+        Generalised rectangle reasoning (part of ``rectangle``; see the module docstring).
+        Off by default: sound and tested, but on the reference instances it cut few CT
+        nodes (room-32-32-4-even-1 k30: 19,482 against 20,027) and cost time there
+        (about 8 % CPU); see ``docs/cbs.md``.
     corridor_target
         Corridor-target reasoning (a goal inside a corridor; part of ``symmetry``). Off
         by default: sound and tested, but on the MovingAI reference instances it changed
