@@ -544,8 +544,9 @@ class _CBS:
                 )
             if res is None and self.gr and (GR_ON_CARDINAL or node.ranks.get(c, rank) > 0):
                 res = self.gr_split(node, c)
-                # Only where it is not weaker than the conflict's own split (as in
-                # CBSH2-RTC, which looks for rectangles on non-cardinal conflicts only).
+                # Only where its class is not worse than the conflict's own (CBSH2-RTC
+                # looks for rectangles on semi- and non-cardinal conflicts only; see
+                # GR_ON_CARDINAL).
                 if res is not None and self._gr_rank(node, res) > min(rank, GR_MAX_CLASS):
                     res = None
                 if res is not None:
@@ -982,7 +983,7 @@ def solve(
         Generalised rectangle reasoning (part of ``rectangle``; see the module docstring).
         Off by default: sound and tested, but on the reference instances it cut few CT
         nodes (room-32-32-4-even-1 k30: 19,482 against 20,027) and cost time there
-        (about 8 % CPU); see ``docs/cbs.md``.
+        (about 9 % CPU); see ``docs/cbs.md``.
     corridor_target
         Corridor-target reasoning (a goal inside a corridor; part of ``symmetry``). Off
         by default: sound and tested, but on the MovingAI reference instances it changed
