@@ -982,8 +982,8 @@ def solve(
     generalized_rectangle
         Generalised rectangle reasoning (part of ``rectangle``; see the module docstring).
         Off by default: sound and tested, but on the reference instances it cut few CT
-        nodes (room-32-32-4-even-1 k30: 19,482 against 20,027) and cost time there
-        (about 9 % CPU); see ``docs/cbs.md``.
+        nodes (room-32-32-4-even-1 k30: 19,482 against 20,027) and no time (median
+        CPU about 6 % more there); see ``docs/cbs.md``.
     corridor_target
         Corridor-target reasoning (a goal inside a corridor; part of ``symmetry``). Off
         by default: sound and tested, but on the MovingAI reference instances it changed
