@@ -70,6 +70,8 @@ def solve(
           reasoning
         - rectangle: true/false (default true) -- rectangle reasoning (4-connected 2D
           grids)
+        - generalized_rectangle: true/false (default false) -- also rectangles the agents
+          enter anywhere, proved by a joint search (needs rectangle)
         - corridor_target: true/false (default false) -- corridor-target reasoning
           (goals inside corridors)
         - node_limit: integer >= 1 or none (default none) -- stop after this many

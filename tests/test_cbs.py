@@ -34,6 +34,7 @@ OPTION_SETS = [
     {"disjoint_splitting": False},
     {"symmetry": False},
     {"rectangle": False},
+    {"generalized_rectangle": True},
     {
         "prioritize_conflicts": False,
         "bypass": False,

@@ -14,7 +14,8 @@ reasoning per instance (column ``rect``: rectangle splits).
 with known optima of issue 22 (``reference_optimal_soc.json`` beside the maps), each
 checked against its optimum, beside CBSH2-RTC: its times as recorded in that file, or,
 with ``--anchor`` (a CBSH2-RTC binary), run here instance by instance right after ours
-(interleaved), with its high-level and low-level node counts. The summary gives the
+(interleaved), with its high-level and low-level node counts (column ``rect``: our
+rectangle splits / the C++'s rectangle conflicts). The summary gives the
 solved counts and the geometric mean of our time over the C++'s on the instances both
 solve. Times compared are CPU seconds, as CBSH2-RTC measures them (``clock()``), so a
 loaded machine does not skew the ratio: ours is the solving process's CPU time for
@@ -142,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = per_process(names, "cbs", tl, args.anchor, known=known)
         return 1 if any(r["wrong"] for r in rows) else 0
     if args.reference or args.anchor:
-        return reference(args.instance, args.quick, args.time_limit, args.anchor)
+        opts = registry.get("cbs").load().options.parse(parse_pairs(args.option, "--option"), "cbs")
+        return reference(args.instance, args.quick, args.time_limit, args.anchor, opts)
 
     specs = args.instance or [f"{s}:{k}" for s, k in (QUICK if args.quick else TARGETS)]
     tl = time_limit(args.time_limit, args.quick)
@@ -207,7 +209,14 @@ def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
         try:
             subprocess.run(cmd, capture_output=True, timeout=2 * time_limit + 60, check=False)
         except subprocess.TimeoutExpired:  # its limit is on search time: a loaded machine
-            return {"solved": False, "time": math.inf, "cost": -1, "hl": "-", "ll": "-"}
+            return {
+                "solved": False,
+                "time": math.inf,
+                "cost": -1,
+                "hl": "-",
+                "ll": "-",
+                "rect": "-",
+            }
         except OSError as exc:
             raise InputError(f"--anchor {binary}: {exc}") from None
         if not out.is_file():
@@ -223,6 +232,7 @@ def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
         "cost": cost,
         "hl": f"{hl_exp}/{hl_gen}",
         "ll": int(float(row["#low-level expanded"])),
+        "rect": int(float(row.get("rectangle conflicts") or 0)),
     }
 
 
@@ -490,7 +500,11 @@ def geomean(xs: list[float]) -> float:
 
 
 def reference(
-    specs: list[str] | None, quick: bool, tl_given: float | None, anchor: str | None
+    specs: list[str] | None,
+    quick: bool,
+    tl_given: float | None,
+    anchor: str | None,
+    options: dict[str, Any] | None = None,
 ) -> int:
     """The reference table (see the module doc); 1 if any optimum differs from the known one."""
 
@@ -504,7 +518,8 @@ def reference(
     solve(scenario("empty-8-8-even-1:2")[1], "cbs")
     head = (
         f"{'instance':36} {'opt':>6} {'status':9} {'ours_s':>7} {'C++_s':>7} {'ratio':>6} "
-        f"{'runs':>5} {'HL ours':>11} {'HL C++':>11} {'LL ours':>9} {'LL C++':>9}"
+        f"{'runs':>5} {'HL ours':>11} {'HL C++':>11} {'LL ours':>9} {'LL C++':>9} "
+        f"{'rect':>11}"
     )
     print(head)
     print("-" * len(head))
@@ -525,7 +540,7 @@ def reference(
             if more_ours:
                 _, inst = scenario(name)  # fresh: no distance table cached from a run before
                 c0 = time.process_time()
-                r = registry.run("cbs", inst, time_limit=tl)
+                r = registry.run("cbs", inst, time_limit=tl, **(options or {}))
                 ours.append(time.process_time() - c0)
             if more_cpp and anchor is not None:
                 cpps.append(run_anchor(anchor, name, tl))
@@ -545,7 +560,7 @@ def reference(
             cpp["solved"] = all(c["solved"] for c in cpps)
         else:
             t = ref[name]["cbsh2_rtc_runtime_s"]
-            cpp = {"solved": t < tl, "time": t, "hl": "-", "ll": "-"}
+            cpp = {"solved": t < tl, "time": t, "hl": "-", "ll": "-", "rect": "-"}
         cpp_solved += cpp["solved"]
         ratio = "-"
         if ok and cpp["solved"]:
@@ -555,11 +570,13 @@ def reference(
         st = r.stats
         hl = f"{st.get('high_level_expanded', 0)}/{st.get('high_level_generated', 0)}"
         runs = f"{len(ours)}/{len(cpps) if anchor else '-'}"
+        # Rectangle splits, ours / the C++'s rectangle conflicts (its GR by default).
+        rect = f"{st.get('rectangle_splits', 0)}/{cpp.get('rect', '-')}"
         print(
             f"{name:36} {known if known is not None else '-':>6} {status:9} "
             f"{secs(cpu):>7} {secs(cpp['time'] if cpp['solved'] else math.inf):>7} {ratio:>6} "
             f"{runs:>5} {hl:>11} {cpp['hl']:>11} {st.get('low_level_expanded', 0):>9} "
-            f"{cpp['ll']:>9}",
+            f"{cpp['ll']:>9} {rect:>11}",
             flush=True,
         )
     worst = max(ratios, default=(math.nan, "-"))

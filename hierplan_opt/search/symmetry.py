@@ -75,6 +75,28 @@ finishing by ``l1`` and ``o`` away from ``X`` at all times in ``[1, l2]`` for an
 ``l2 < B_o(X)``: the two children of :func:`corridor_target_split` (the second also
 keeps every other agent off ``g`` from ``l1`` on, as in target reasoning) exclude no
 conflict-free solution.
+
+Generalised rectangles (after Li et al., AIJ 2021; proved here in this form). The
+rectangle rule (:func:`rectangle_split`) needs *entries* -- vertex-times every path of
+the CT subtree passes (the start, landmarks of positive constraints) -- on one
+anti-diagonal. :func:`generalized_rectangle_split` draws the rectangle instead where
+both current paths run as staircases through the conflict (e.g. from a room's doors)
+and takes the lemma's barriers ``B_1``, ``B_2`` of that rectangle as candidates. They
+are used only if :func:`barriers_force_conflict` proves, from the agents' real entries
+``(v_i, t_i)``, that no two paths -- each obeying its agent's constraints at the node
+(waits allowed; landmarks and finish bounds dropped, which only adds paths) -- reach
+``B_1`` and ``B_2`` without a vertex or swap conflict: a joint search over both agents'
+positions from ``max(t_1, t_2)`` on, in which a state with an agent on its barrier is
+an escape. Claim: then every conflict-free pair of paths of any descendant node avoids
+``B_1`` with agent 1 or ``B_2`` with agent 2. Proof: a descendant's paths pass the
+same entries and obey a superset of the constraints, so they are among the searched
+paths. If both broke their barriers, take the first time either is on its barrier
+vertex-time (no earlier than ``max(t_1, t_2)``, else the search reports an escape); the
+pair's positions up to then are a run of the joint search without a conflict that ends
+in an escape state -- but the search found none. So the two barrier children exclude
+no conflict-free solution and CBS stays optimal. Pruning positions that cannot reach a
+barrier vertex-time in time (graph distance) removes only states from which no escape
+follows; a search over its budget answers "not proved" (no split), which is always safe.
 """
 
 from __future__ import annotations
@@ -626,3 +648,281 @@ def rectangle_split(
                     (i2, [(NEG_V, i2, u, -1, tt) for u, tt in b2]),
                 ]
     return None
+
+
+# ---------------------------------------------------------------- generalised rectangles
+#: Joint states a generalised-rectangle check may visit before it gives up (no split).
+GR_BUDGET = 4000
+
+
+def _reach_sets(
+    adj: Sequence[Sequence[int]],
+    n: int,
+    entry: tuple[int, int],
+    cons: AgentConstraints,
+    bar: Barrier,
+    dist_of: Callable[[int], Sequence[int]],
+    cap: int,
+) -> list[set[int]] | None:
+    """Where a path under ``cons`` through ``entry`` can be, per time, on its way to ``bar``.
+
+    ``out[tau - t_e]`` holds every vertex some path (waits allowed, vertex, edge and
+    forbidden-from constraints obeyed; landmarks and finish bounds ignored, so a
+    superset) can occupy at time ``tau`` and still reach a barrier vertex-time
+    ``(u, T_u)`` with ``tau + dist(., u) <= T_u``, up to the last barrier time. None when
+    more than ``cap`` vertex-times are involved.
+    """
+    ve, te = entry
+    last = max(tt for _, tt in bar)
+    tables = [(dist_of(u), tt) for u, tt in bar]
+    slack: dict[int, int] = {}
+
+    def ok(c: int, tau: int) -> bool:
+        s = slack.get(c)
+        if s is None:
+            s = slack[c] = max(tt - d[c] for d, tt in tables)
+        return tau <= s
+
+    if not ok(ve, te):
+        return [set() for _ in range(te, last + 1)]  # no barrier vertex-time in reach
+    vc, ec, ff = cons.vertex, cons.edge, cons.forbid_from
+    out = [{ve}]
+    size = 1
+    for tau in range(te + 1, last + 1):
+        cur: set[int] = set()
+        base = tau * n
+        for p in out[-1]:
+            for c in (p, *adj[p]):
+                if c in cur or base + c in vc or not ok(c, tau):
+                    continue
+                if c != p and ec and (base + p) * n + c in ec:
+                    continue
+                if ff and c in ff and tau >= ff[c]:
+                    continue
+                cur.add(c)
+        size += len(cur)
+        if size > cap:
+            return None
+        out.append(cur)
+    return out
+
+
+def barriers_force_conflict(
+    graph: Graph,
+    entry_a: tuple[int, int],
+    cons_a: AgentConstraints,
+    bar_a: Barrier,
+    entry_b: tuple[int, int],
+    cons_b: AgentConstraints,
+    bar_b: Barrier,
+    budget: int = GR_BUDGET,
+) -> bool:
+    """Whether agents through ``entry_a`` and ``entry_b`` can never both break their barriers.
+
+    ``entry = (vertex, time)`` is a vertex-time every path of the agent in the CT subtree
+    passes (its start, or a landmark); ``cons_*`` the agents' constraints at the node (a
+    descendant only adds to them, so its paths are among the ones searched here). A
+    barrier is a list of ``(vertex, time)``. True when every pair of such paths (waits
+    allowed) has a vertex or swap conflict, from the later entry on, before either is
+    on a barrier vertex-time: a joint search over both agents' positions, pruned to
+    positions that can still reach a barrier vertex-time (:func:`_reach_sets`). Then
+    every conflict-free pair of paths avoids ``bar_a`` with a or ``bar_b`` with b, so
+    the two barrier children exclude no conflict-free solution. False when some pair
+    escapes or the search would exceed ``budget`` states (always safe: no split).
+
+    Example
+    -------
+    >>> g = Graph.grid(3, 3)
+    >>> v, free = g.vertex, AgentConstraints()
+    >>> ea, eb = (v((0, 1)), 0), (v((1, 0)), 0)  # a enters west, b south
+    >>> ba = [(v((2, 1)), 2), (v((2, 2)), 3)]  # a's east border, b's north border
+    >>> bb = [(v((1, 2)), 2), (v((2, 2)), 3)]
+    >>> barriers_force_conflict(g, ea, free, ba, eb, free, bb)
+    True
+    >>> barriers_force_conflict(g, ea, free, [(v((0, 2)), 1)], eb, free, bb)
+    False
+    """
+    (_, ta), (_, tb) = entry_a, entry_b
+    if not bar_a or not bar_b:
+        return False
+    t0 = max(ta, tb)
+    if min(t for _, t in bar_a) < t0 or min(t for _, t in bar_b) < t0:
+        return False  # one agent may be on its barrier before the other's entry
+    adj, n = graph.adj, graph.n
+    reach_a = _reach_sets(adj, n, entry_a, cons_a, bar_a, graph.dist_list, budget)
+    reach_b = _reach_sets(adj, n, entry_b, cons_b, bar_b, graph.dist_list, budget)
+    if reach_a is None or reach_b is None:
+        return False
+    hit_a: dict[int, set[int]] = {}
+    hit_b: dict[int, set[int]] = {}
+    for u, tt in bar_a:
+        hit_a.setdefault(tt, set()).add(u)
+    for u, tt in bar_b:
+        hit_b.setdefault(tt, set()).add(u)
+    end = min(ta + len(reach_a), tb + len(reach_b))  # first time past one agent's sets
+    pairs = {(x, y) for x in reach_a[t0 - ta] for y in reach_b[t0 - tb] if x != y}
+    seen = len(pairs)
+    tau = t0
+    while pairs:
+        ha, hb = hit_a.get(tau, ()), hit_b.get(tau, ())
+        if any(x in ha or y in hb for x, y in pairs):
+            return False  # this pair is on a barrier without a conflict so far
+        tau += 1
+        if tau >= end:
+            return False  # pragma: no cover - the last barrier time is in the sets
+        ra, rb = reach_a[tau - ta], reach_b[tau - tb]
+        nxt: set[tuple[int, int]] = set()
+        for x, y in pairs:
+            xs = [c for c in (x, *adj[x]) if c in ra]
+            for y2 in (y, *adj[y]):
+                if y2 not in rb:
+                    continue
+                for x2 in xs:
+                    if x2 != y2 and not (x2 == y and y2 == x):
+                        nxt.add((x2, y2))
+        seen += len(nxt)
+        if seen > budget:
+            return False
+        pairs = nxt
+    return True
+
+
+def _run(
+    path: tuple[int, ...], t: int, xs: list[int], ys: list[int], sx: int, sy: int
+) -> tuple[int, int]:
+    """``(first, last)`` times of the staircase of ``path`` around ``t`` in frame ``(sx, sy)``:
+    every step in ``[first, last]`` moves one cell in +x or +y of the frame (no waits)."""
+
+    def fwd(p: int, q: int) -> bool:
+        return sx * (xs[q] - xs[p]) + sy * (ys[q] - ys[p]) == 1 and p != q
+
+    first = t
+    while first > 0 and fwd(path[first - 1], path[first]):
+        first -= 1
+    last = t
+    while last + 1 < len(path) and fwd(path[last], path[last + 1]):
+        last += 1
+    return first, last
+
+
+def _latest_entry(start: int, cons: AgentConstraints, t: int) -> tuple[int, int]:
+    """The latest vertex-time at or before ``t`` every path under ``cons`` passes."""
+    return _entries(start, cons, t)[0]
+
+
+def gr_candidates(
+    rect: Rectangles,
+    paths: list[tuple[int, ...]],
+    a: int,
+    b: int,
+    v: int,
+    t: int,
+) -> list[tuple[bool, Barrier, Barrier]]:
+    """Rectangle barriers of the lemma drawn on the agents' current paths (unverified).
+
+    In each mirrored frame, the *virtual entry* of an agent is where its current path
+    starts the staircase through the conflict ``(v, t)`` and its *virtual exit* where
+    the staircase ends; :func:`rectangle_barriers` of those. Such entries are not
+    certain for other paths of the subtree: :func:`generalized_rectangle_split` keeps a
+    candidate only after :func:`barriers_force_conflict` proved it from real entries.
+
+    Example
+    -------
+    >>> g = Graph.grid(5, 5)
+    >>> v = g.vertex
+    >>> pa = tuple(v((x, 2)) for x in range(5))  # west -> east
+    >>> pb = tuple(v((2, y)) for y in range(5))  # south -> north
+    >>> [(f, b1, b2) for f, b1, b2 in gr_candidates(Rectangles(g), [pa, pb], 0, 1, v((2, 2)), 2)]
+    [(True, [(12, 2)], [(12, 2)])]
+    """
+    out: list[tuple[bool, Barrier, Barrier]] = []
+    xs, ys = rect.xs, rect.ys
+    pa, pb = paths[a], paths[b]
+    if t >= len(pa) or t >= len(pb):
+        return out
+    for sx, sy in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        fa, la = _run(pa, t, xs, ys, sx, sy)
+        fb, lb = _run(pb, t, xs, ys, sx, sy)
+        if fa == t or fb == t or la == t or lb == t:
+            continue  # a staircase must pass through the conflict
+        for i, j, a_first in ((fa, fb, True), (fb, fa, False)):
+            # The first agent must enter west-north of the second (frame coordinates):
+            # move the entries forward along the staircases until it does.
+            p1, p2 = (pa, pb) if a_first else (pb, pa)
+            while i < t and sy * ys[p1[i]] < sy * ys[p2[j]]:
+                i += 1
+            while j < t and sx * xs[p2[j]] < sx * xs[p1[i]]:
+                j += 1
+            ea, eb = ((p1[i], i), (p2[j], j)) if a_first else ((p2[j], j), (p1[i], i))
+            # Exits: where the staircases end, or (a larger rectangle) the goals.
+            for xa, xb in ((pa[la], pb[lb]), (pa[-1], pb[-1])):
+                for cand in rectangle_barriers(rect, ea, eb, xa, xb, v):
+                    if cand not in out:
+                        out.append(cand)
+    return out
+
+
+def generalized_rectangle_split(
+    rect: Rectangles,
+    starts: list[int],
+    cons: list[AgentConstraints],
+    paths: list[tuple[int, ...]],
+    a: int,
+    b: int,
+    v: int,
+    t: int,
+    key: Callable[[list[tuple[int, list[Constraint]]]], int] | None = None,
+) -> list[tuple[int, list[Constraint]]] | None:
+    """Barrier children for a vertex conflict in a rectangle the agents enter anywhere.
+
+    The plain rule (:func:`rectangle_split`) needs entries every path of the subtree
+    passes (starts, landmarks) on the rectangle's anti-diagonal. Here the rectangle is
+    drawn where the current paths run as staircases through the conflict
+    (:func:`gr_candidates`), e.g. from a room's doors; its barrier vertex-times that
+    only a shortest path from the agent's real entry reaches are kept, and the pair is
+    used only if :func:`barriers_force_conflict` proves that two such prefixes always
+    collide -- so the two children exclude no conflict-free solution (optimality kept)
+    -- and both current paths break their barrier (both children replan). Without
+    ``key`` the first such split is returned; with it, the one of smallest ``key``
+    (e.g. the split's class: 0 when both children must cost more), the first 0 at once.
+
+    Example
+    -------
+    >>> g = Graph.grid(6, 6, obstacles=[(1, 4), (2, 4)])  # a wall north of row 3
+    >>> v, free = g.vertex, AgentConstraints()
+    >>> pa = tuple(v(c) for c in [(0, 4), (0, 3), (1, 3), (2, 3), (3, 3), (4, 3), (5, 3)])
+    >>> pb = tuple(v(c) for c in [(2, 0), (3, 0), (3, 1), (3, 2), (3, 3), (3, 4), (3, 5)])
+    >>> args = ([pa[0], pb[0]], [free, free], [pa, pb], 0, 1, v((3, 3)), 4)
+    >>> rectangle_split(Rectangles(g), args[0], [pa[-1], pb[-1]], *args[1:]) is None  # starts
+    True
+    >>> res = generalized_rectangle_split(Rectangles(g), *args)
+    >>> [(x, [(g.location(c[2]), c[4]) for c in cs]) for x, cs in res]
+    [(0, [((3, 3), 4)]), (1, [((2, 3), 3), ((3, 3), 4)])]
+    """
+    if not rect.enabled or t < 1:
+        return None
+    pa, pb = paths[a], paths[b]
+    best: tuple[int, list[tuple[int, list[Constraint]]]] | None = None
+    for a_first, b1, b2 in gr_candidates(rect, paths, a, b, v, t):
+        if any(tt <= 0 for _, tt in b1) or any(tt <= 0 for _, tt in b2):
+            continue  # time 0 is never constrained by the low level
+        i1, i2 = (a, b) if a_first else (b, a)
+        p1, p2 = (pa, pb) if a_first else (pb, pa)
+        if not any(_at(p1, tt) == u for u, tt in b1):
+            continue
+        if not any(_at(p2, tt) == u for u, tt in b2):
+            continue
+        e1 = _latest_entry(starts[i1], cons[i1], min(tt for _, tt in b1))
+        e2 = _latest_entry(starts[i2], cons[i2], min(tt for _, tt in b2))
+        if not barriers_force_conflict(rect.graph, e1, cons[i1], b1, e2, cons[i2], b2):
+            continue
+        res = [
+            (i1, [(NEG_V, i1, u, -1, tt) for u, tt in b1]),
+            (i2, [(NEG_V, i2, u, -1, tt) for u, tt in b2]),
+        ]
+        k = key(res) if key is not None else 0
+        if best is None or k < best[0]:
+            best = (k, res)
+        if k == 0:
+            break
+    return best[1] if best is not None else None
