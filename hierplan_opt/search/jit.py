@@ -164,7 +164,12 @@ def focal_kernel() -> ModuleType | None:
     True
     >>> set_low_level(None)
     """
+    if not _LINUX:  # the kernel reads the clock by Linux's id of CLOCK_MONOTONIC
+        return None
     return _focal if kernel() is not None else None
+
+
+_LINUX = sys.platform.startswith("linux")
 
 
 def load() -> ModuleType:
