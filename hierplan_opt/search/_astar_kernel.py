@@ -30,7 +30,6 @@ import numpy as np
 NEVER = 1 << 60
 #: Third heap key of a final arrival (see astar.TERMINAL).
 TERMINAL = -(1 << 50)
-_CLOSED = -1
 
 
 def _njit(f):
@@ -86,53 +85,6 @@ def _move_h(
 
 
 @_njit
-def _less(pf, pc, pn, a, b):
-    # Heap order (f, conflicts, -t or TERMINAL, seq); seq is the pool index.
-    if pf[a] != pf[b]:
-        return pf[a] < pf[b]
-    if pc[a] != pc[b]:
-        return pc[a] < pc[b]
-    if pn[a] != pn[b]:
-        return pn[a] < pn[b]
-    return a < b
-
-
-@_njit
-def _sift_down(heap, size, pf, pc, pn):
-    """After a pop: move ``heap[size]`` (the last entry) down from the root."""
-    if size > 0:
-        last = heap[size]
-        i = 0
-        while True:
-            c1 = 2 * i + 1
-            if c1 >= size:
-                break
-            c2 = c1 + 1
-            m = c1
-            if c2 < size and _less(pf, pc, pn, heap[c2], heap[c1]):
-                m = c2
-            if _less(pf, pc, pn, heap[m], last):
-                heap[i] = heap[m]
-                i = m
-            else:
-                break
-        heap[i] = last
-
-
-@_njit
-def _sift_up(heap, i, x, pf, pc, pn):
-    """Push entry ``x`` at position ``i`` (the heap's size) and move it up."""
-    while i > 0:
-        par = (i - 1) >> 1
-        if _less(pf, pc, pn, x, heap[par]):
-            heap[i] = heap[par]
-            i = par
-        else:
-            break
-    heap[i] = x
-
-
-@_njit
 def _path_of(pv, pp, top):
     """The vertices from the root entry to ``top`` along the parent links ``pp``."""
     length = 0
@@ -148,6 +100,254 @@ def _path_of(pv, pp, top):
         k -= 1
         e = pp[e]
     return path
+
+
+# The search's scalars between the calls of _astar_loop (``regs[...]``).
+_SIZE, _CNT, _BSIZE, _EXP, _TOP, _NEED = range(6)
+_AREGS = 6
+#: Status codes of :func:`_astar_loop`: a path (its last entry ``regs[_TOP]``), none
+#: (or the node limit hit), or room needed (the caller grows the arrays, calls again).
+_A_FOUND = 0
+_A_NONE = 1
+_A_GROW = 2
+#: A ``best`` value meaning "expanded" (below every conflict count); absent: no key.
+_CLOSED = -1
+_HMUL = 0x5851F42D4C957F2D
+
+
+# Complexity: the loop of space_time_astar with the heap's sifts, the hash probes, the
+# constraint look-ups and _move_h written out. In numba every call of a function that
+# takes arrays, and every array reassigned in the loop, costs atomic reference counts
+# (the focal kernel's author measured 2.4 us an expansion with helpers, 0.15-0.25 us
+# without); so no array is passed to a call or reassigned here: when one is about to run
+# out, the loop hands back to ``astar``, which grows it and calls again.
+@_njit
+def _astar_loop(
+    ptr, idx, dist, goal, vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, minf,
+    maxf, tcap, last_off_goal_lm, use_cat, cat_vt, cat_et, cat_h, park_t, node_limit,
+    unreachable, pf, pc, pn, pv, pt, pp, heap, bkeys, bvals, regs,
+):  # fmt: skip
+    """The loop of ``space_time_astar`` from the state in ``regs`` and the arrays: a
+    status (:data:`_A_FOUND`, :data:`_A_NONE` or :data:`_A_GROW`, ``regs`` saved)."""
+    n = ptr.shape[0] - 1
+    nnz = idx.shape[0]
+    n_lm = lm_need.shape[0]
+    nv = vkeys.shape[0]
+    ne = ekeys.shape[0]
+    cap = pf.shape[0]
+    bcap = bkeys.shape[0]
+    bmask = bcap - 1
+    size = regs[_SIZE]
+    cnt = regs[_CNT]
+    bsize = regs[_BSIZE]
+    expanded = regs[_EXP]
+    status = _A_NONE
+    while size > 0:
+        top = heap[0]
+        v = pv[top]
+        deg = ptr[v + 1] - ptr[v]
+        # Room for this expansion: two entries and one state per move, and its own state.
+        if cnt + 2 * deg >= cap or 2 * (bsize + deg + 1) > bcap:
+            regs[_NEED] = deg
+            status = _A_GROW
+            break
+        size -= 1
+        if size > 0:  # the last entry down from the root (sift down)
+            x = heap[size]
+            xf = pf[x]
+            xc = pc[x]
+            xn = pn[x]
+            i = 0
+            while True:
+                c1 = 2 * i + 1
+                if c1 >= size:
+                    break
+                m = heap[c1]
+                if c1 + 1 < size:
+                    y = heap[c1 + 1]
+                    if pf[y] != pf[m]:
+                        yl = pf[y] < pf[m]
+                    elif pc[y] != pc[m]:
+                        yl = pc[y] < pc[m]
+                    elif pn[y] != pn[m]:
+                        yl = pn[y] < pn[m]
+                    else:
+                        yl = y < m
+                    if yl:
+                        m = y
+                        c1 += 1
+                if pf[m] != xf:
+                    ml = pf[m] < xf
+                elif pc[m] != xc:
+                    ml = pc[m] < xc
+                elif pn[m] != xn:
+                    ml = pn[m] < xn
+                else:
+                    ml = m < x
+                if ml:
+                    heap[i] = m
+                    i = c1
+                else:
+                    break
+            heap[i] = x
+        t = pt[top]
+        conf = pc[top]
+        if pn[top] == TERMINAL:
+            regs[_TOP] = top
+            status = _A_FOUND
+            break
+        key = (t if t < tcap else tcap) * n + v
+        slot = ((key * _HMUL) >> 17) & bmask
+        while bkeys[slot] != -1 and bkeys[slot] != key:
+            slot = (slot + 1) & bmask
+        if bkeys[slot] == key:
+            if bvals[slot] == _CLOSED:
+                continue
+        else:
+            bkeys[slot] = key
+            bsize += 1
+        bvals[slot] = _CLOSED
+        expanded += 1
+        if expanded == node_limit:
+            break
+        t1 = t + 1
+        if t1 > maxf:
+            continue
+        base = t1 * n
+        keyt1 = (t1 if t1 < tcap else tcap) * n
+        need = -1
+        nl = t1 < n_lm
+        if nl:
+            need = lm_need[t1]
+            lrow = nxt_row[t1]
+            ltl = nxt_tl[t1] - t1
+            lhb = nxt_hb[t1] - t1
+        else:
+            lrow = 0
+            ltl = 0
+            lhb = 0
+        in_cat = use_cat and t1 < cat_h
+        for j in range(ptr[v], ptr[v + 1]):
+            u = idx[j]
+            # _move_h: h of the move v -> u arriving at t1, or not allowed.
+            if need >= 0 and u != need:
+                continue
+            if nv > 0:  # a vertex constraint (binary search)
+                nk = base + u
+                a = 0
+                b = nv
+                while a < b:
+                    mid = (a + b) >> 1
+                    if vkeys[mid] < nk:
+                        a = mid + 1
+                    else:
+                        b = mid
+                if a < nv and vkeys[a] == nk:
+                    continue
+            if ne > 0 and u != v:  # an edge constraint
+                ekey = (base + v) * n + u
+                a = 0
+                b = ne
+                while a < b:
+                    mid = (a + b) >> 1
+                    if ekeys[mid] < ekey:
+                        a = mid + 1
+                    else:
+                        b = mid
+                if a < ne and ekeys[a] == ekey:
+                    continue
+            if t1 >= ff[u]:
+                continue
+            hu = dist[u]
+            if hu >= unreachable:
+                continue
+            if nl:
+                if lmd[lrow, u] > ltl:
+                    continue
+                if lhb > hu:
+                    hu = lhb
+            if minf - t1 > hu:
+                hu = minf - t1
+            fu = t1 + hu
+            if fu > maxf:
+                continue
+            c = conf
+            if use_cat:
+                if in_cat:
+                    c += cat_vt[base + u]
+                    if u != v and cat_et[t1 * nnz + j] > 0:  # a swap: someone moves u -> v
+                        c += 1
+                if t1 > park_t[u]:
+                    c += 1
+            for final in range(2):
+                if final == 0:
+                    # A move into the goal (not a wait there) may be the final arrival.
+                    if not (u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm):
+                        continue
+                    f_new = t1
+                    n_new = TERMINAL
+                else:
+                    ku = keyt1 + u
+                    slot = ((ku * _HMUL) >> 17) & bmask
+                    while bkeys[slot] != -1 and bkeys[slot] != ku:
+                        slot = (slot + 1) & bmask
+                    if bkeys[slot] == ku:
+                        if bvals[slot] <= c:  # (_CLOSED included)
+                            continue
+                    else:
+                        bkeys[slot] = ku
+                        bsize += 1
+                    bvals[slot] = c
+                    f_new = fu
+                    n_new = -t1
+                cnt += 1
+                pf[cnt] = f_new
+                pc[cnt] = c
+                pn[cnt] = n_new
+                pv[cnt] = u
+                pt[cnt] = t1
+                pp[cnt] = top
+                i = size  # push (sift up)
+                while i > 0:
+                    par = (i - 1) >> 1
+                    y = heap[par]
+                    if f_new != pf[y]:
+                        xl = f_new < pf[y]
+                    elif c != pc[y]:
+                        xl = c < pc[y]
+                    elif n_new != pn[y]:
+                        xl = n_new < pn[y]
+                    else:
+                        xl = cnt < y
+                    if xl:
+                        heap[i] = y
+                        i = par
+                    else:
+                        break
+                heap[i] = cnt
+                size += 1
+    regs[_SIZE] = size
+    regs[_CNT] = cnt
+    regs[_BSIZE] = bsize
+    regs[_EXP] = expanded
+    return status
+
+
+@_njit
+def _rehash(bkeys, bvals, cap):
+    """The ``best`` table in ``cap`` slots."""
+    nk = np.full(cap, -1, np.int64)
+    nv = np.empty(cap, np.int64)
+    mask = cap - 1
+    for j in range(bkeys.shape[0]):
+        k = bkeys[j]
+        if k != -1:
+            m = ((k * _HMUL) >> 17) & mask
+            while nk[m] != -1:
+                m = (m + 1) & mask
+            nk[m] = k
+            nv[m] = bvals[j]
+    return nk, nv
 
 
 @_njit
@@ -180,11 +380,12 @@ def astar(
 ):
     """The loop of ``space_time_astar`` after its early exits: ``(expanded, path)``.
 
-    ``path`` is empty when no path exists (or ``node_limit`` was hit).
+    ``path`` is empty when no path exists (or ``node_limit`` was hit). Entries live in
+    a pool of arrays (``f``, conflicts, ``-t`` or :data:`TERMINAL`, vertex, ``t``,
+    parent; the pool index is the last heap key), ``heap`` holds pool indices; ``best``
+    (state key -> fewest conflicts seen, :data:`_CLOSED` once expanded) is an
+    open-addressing table (a dense one over every ``(t, v)`` touches too many pages).
     """
-    n = ptr.shape[0] - 1
-    nnz = idx.shape[0]
-    n_lm = lm_need.shape[0]
     cap = 1024
     pf = np.empty(cap, np.int64)
     pc = np.empty(cap, np.int64)
@@ -193,8 +394,6 @@ def astar(
     pt = np.empty(cap, np.int64)
     pp = np.empty(cap, np.int64)
     heap = np.empty(cap, np.int64)
-    size = 0
-    cnt = 0
     pf[0] = h0
     pc[0] = 0
     pn[0] = 0
@@ -202,134 +401,44 @@ def astar(
     pt[0] = 0
     pp[0] = -1
     heap[0] = 0
-    size = 1
-    # ``best``: state key -> fewest conflicts seen (_CLOSED once expanded), an
-    # open-addressing table (a dense one over every (t, v) touches too many pages).
-    bcap = 1024
-    bkeys = np.full(bcap, -1, np.int64)
-    bvals = np.empty(bcap, np.int64)
-    bsize = 0
-    bsize, bkeys, bvals = _put(bkeys, bvals, bsize, start, 0)
-    expanded = 0
-    empty = np.empty(0, np.int64)
-    while size > 0:
-        top = heap[0]
-        size -= 1
-        _sift_down(heap, size, pf, pc, pn)
-        v = pv[top]
-        t = pt[top]
-        conf = pc[top]
-        if pn[top] == TERMINAL:
-            return expanded, _path_of(pv, pp, top)
-        key = (t if t < tcap else tcap) * n + v
-        if _get(bkeys, bvals, key) == _CLOSED:
-            continue
-        bsize, bkeys, bvals = _put(bkeys, bvals, bsize, key, _CLOSED)
-        expanded += 1
-        if expanded == node_limit:
-            return expanded, empty
-        t1 = t + 1
-        if t1 > maxf:
-            continue
-        base = t1 * n
-        keyt1 = (t1 if t1 < tcap else tcap) * n
-        need = -1
-        nl = t1 < n_lm
-        if nl:
-            need = lm_need[t1]
-        in_cat = use_cat and t1 < cat_h
-        for j in range(ptr[v], ptr[v + 1]):
-            u = idx[j]
-            hu = _move_h(
-                u, v, t1, n, need, vkeys, ekeys, ff, dist, nl, lmd, nxt_row, nxt_tl, nxt_hb,
-                minf, unreachable,
-            )  # fmt: skip
-            if hu < 0:
-                continue
-            fu = t1 + hu
-            if fu > maxf:
-                continue
-            c = conf
-            if use_cat:
-                if in_cat:
-                    c += cat_vt[base + u]
-                    if u != v and cat_et[t1 * nnz + j] > 0:  # a swap: someone moves u -> v
-                        c += 1
-                if t1 > park_t[u]:
-                    c += 1
-            for final in range(2):
-                if final == 0:
-                    # A move into the goal (not a wait there) may be the final arrival.
-                    if not (u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm):
-                        continue
-                    f_new = t1
-                    n_new = TERMINAL
-                else:
-                    ku = keyt1 + u
-                    if _get(bkeys, bvals, ku) <= c:
-                        continue
-                    bsize, bkeys, bvals = _put(bkeys, bvals, bsize, ku, c)
-                    f_new = fu
-                    n_new = -t1
-                cnt += 1
-                if cnt >= cap:
-                    cap *= 2
-                    pf = _grow(pf, cap)
-                    pc = _grow(pc, cap)
-                    pn = _grow(pn, cap)
-                    pv = _grow(pv, cap)
-                    pt = _grow(pt, cap)
-                    pp = _grow(pp, cap)
-                    heap = _grow(heap, cap)
-                pf[cnt] = f_new
-                pc[cnt] = c
-                pn[cnt] = n_new
-                pv[cnt] = u
-                pt[cnt] = t1
-                pp[cnt] = top
-                _sift_up(heap, size, cnt, pf, pc, pn)
-                size += 1
-    return expanded, empty
-
-
-#: ``_get`` of an absent key: above every conflict count.
-_ABSENT = 1 << 62
-
-
-@_njit
-def _slot(bkeys, key):
-    mask = bkeys.shape[0] - 1
-    i = ((key * 0x5851F42D4C957F2D) >> 17) & mask
-    while bkeys[i] != -1 and bkeys[i] != key:
-        i = (i + 1) & mask
-    return i
-
-
-@_njit
-def _get(bkeys, bvals, key):
-    i = _slot(bkeys, key)
-    return bvals[i] if bkeys[i] == key else _ABSENT
-
-
-@_njit
-def _put(bkeys, bvals, bsize, key, val):
-    i = _slot(bkeys, key)
-    if bkeys[i] == key:
-        bvals[i] = val
-        return bsize, bkeys, bvals
-    bkeys[i] = key
-    bvals[i] = val
-    bsize += 1
-    if 2 * bsize > bkeys.shape[0]:  # rehash into twice the room
-        nk = np.full(2 * bkeys.shape[0], -1, np.int64)
-        nv = np.empty(2 * bkeys.shape[0], np.int64)
-        for j in range(bkeys.shape[0]):
-            if bkeys[j] != -1:
-                m = _slot(nk, bkeys[j])
-                nk[m] = bkeys[j]
-                nv[m] = bvals[j]
-        return bsize, nk, nv
-    return bsize, bkeys, bvals
+    bkeys = np.full(1024, -1, np.int64)
+    bvals = np.empty(1024, np.int64)
+    slot = ((start * _HMUL) >> 17) & 1023
+    bkeys[slot] = start
+    bvals[slot] = 0
+    regs = np.zeros(_AREGS, np.int64)
+    regs[_SIZE] = 1
+    regs[_BSIZE] = 1
+    while True:
+        status = _astar_loop(
+            ptr, idx, dist, goal, vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd,
+            minf, maxf, tcap, last_off_goal_lm, use_cat, cat_vt, cat_et, cat_h, park_t,
+            node_limit, unreachable, pf, pc, pn, pv, pt, pp, heap, bkeys, bvals, regs,
+        )  # fmt: skip
+        if status != _A_GROW:
+            break
+        d = regs[_NEED]
+        cnt = regs[_CNT]
+        cap = pf.shape[0]
+        while cnt + 2 * d >= cap:
+            cap *= 2
+        if cap > pf.shape[0]:
+            pf = _grow(pf, cap)
+            pc = _grow(pc, cap)
+            pn = _grow(pn, cap)
+            pv = _grow(pv, cap)
+            pt = _grow(pt, cap)
+            pp = _grow(pp, cap)
+            heap = _grow(heap, cap)
+        cap = bkeys.shape[0]
+        while 2 * (regs[_BSIZE] + d + 1) > cap:
+            cap *= 2
+        if cap > bkeys.shape[0]:
+            bkeys, bvals = _rehash(bkeys, bvals, cap)
+    expanded = regs[_EXP]
+    if status == _A_FOUND:
+        return expanded, _path_of(pv, pp, regs[_TOP])
+    return expanded, np.empty(0, np.int64)
 
 
 @_njit
