@@ -16,6 +16,9 @@ import importlib
 import logging
 from typing import TYPE_CHECKING, Any
 
+from hierplan_opt.core import blas as _blas  # noqa: F401  (before numpy: the command's BLAS)
+
+# isort: split
 from hierplan_opt.api import solve
 from hierplan_opt.core.errors import HierplanError, InputError, OptionError, UnknownSolverError
 from hierplan_opt.core.graph import Graph

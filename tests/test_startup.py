@@ -135,3 +135,25 @@ def test_warehouse_ten_agent_solve_imports_no_scipy() -> None:
         "assert hierplan_opt.solve(inst, 'cbs').cost == 869\n"
     )
     assert _heavy_after(code) == []
+
+
+def test_the_command_runs_one_openblas_thread_and_the_library_keeps_its_own() -> None:
+    # numpy's OpenBLAS worker spins after start-up; the `hierplan` command (its console
+    # script's argv[0]) starts with one thread, a program importing the library decides.
+    probe = (
+        "import sys, os; sys.argv[0] = {argv!r}; os.environ.pop('OPENBLAS_NUM_THREADS', None)"
+        "{extra}; import hierplan_opt, numpy, threading;"
+        "print(os.environ.get('OPENBLAS_NUM_THREADS'), len(os.listdir('/proc/self/task')))"
+    )
+
+    def run(argv: str, extra: str = "") -> list[str]:
+        code = probe.format(argv=argv, extra=extra)
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        assert out.returncode == 0, out.stderr
+        return out.stdout.split()
+
+    command = run("/venv/bin/hierplan")
+    assert command == ["1", "1"]  # one thread in the process: no BLAS worker
+    library = run("notebook.py")
+    assert library[0] == "None"
+    assert run("/venv/bin/hierplan", "; os.environ['OPENBLAS_NUM_THREADS'] = '2'")[0] == "2"
