@@ -332,7 +332,7 @@ class _ECBS:
         if r is None:
             return
         if r.status == Status.INFEASIBLE:
-            self.infeasible_reason = f"lacam: {r.stats.get('reason', 'no plan exists')}"
+            self.infeasible_reason = _lacam_infeasible(r)
             raise SearchTimeout  # ends the search; search() reports the proof
         self.inc_plan = r.plan
         self.inc_cost = int(r.cost or 0)
@@ -701,6 +701,11 @@ def _lacam_plan(
     return r
 
 
+def _lacam_infeasible(r: Result) -> str:
+    """The reason of an INFEASIBLE answer that LaCAM's exhausted search proved."""
+    return f"lacam: {r.stats.get('reason', 'no plan exists')}"
+
+
 def run_search(
     cls: type[_ECBS],
     instance: Instance,
@@ -719,7 +724,7 @@ def run_search(
     if lacam != "fallback":  # "start" needs the plan from the start (see the module doc)
         incumbent = _lacam_plan(instance, lacam, time_limit, seed, extra)
     if incumbent is not None and incumbent.status == Status.INFEASIBLE:
-        extra["reason"] = f"lacam: {incumbent.stats.get('reason', 'no plan exists')}"
+        extra["reason"] = _lacam_infeasible(incumbent)
         extra["runtime"] = deadline.elapsed()
         return Result(Status.INFEASIBLE, None, stats=extra, objective="soc")
     fallback: Callable[[], Result | None] | None = None

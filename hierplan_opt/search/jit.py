@@ -75,6 +75,8 @@ JIT_AFTER_S = 0.5
 JIT_WARM_S = 0.02
 #: ``forbid_from`` / ``park_t`` value meaning "never" (as reservations.NEVER).
 NEVER = 1 << 60
+#: The focal kernel reads the clock by Linux's id of ``CLOCK_MONOTONIC``.
+_LINUX = sys.platform.startswith("linux")
 
 _mode: str | None = None
 _kernel: ModuleType | None = None
@@ -167,9 +169,6 @@ def focal_kernel() -> ModuleType | None:
     if not _LINUX:  # the kernel reads the clock by Linux's id of CLOCK_MONOTONIC
         return None
     return _focal if kernel() is not None else None
-
-
-_LINUX = sys.platform.startswith("linux")
 
 
 def load() -> ModuleType:
