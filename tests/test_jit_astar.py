@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from spacetime_cases import walk
 
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.search import astar, jit
@@ -46,13 +47,6 @@ def random_grid(rng: random.Random) -> tuple[Graph, list[int]]:
     obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
     g = Graph.grid(w, h, obstacles=obst)
     return g, [v for v in range(g.n) if g.passable[v]]
-
-
-def walk(g: Graph, rng: random.Random, free: list[int], steps: int) -> tuple[int, ...]:
-    p = [rng.choice(free)]
-    for _ in range(steps):
-        p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
-    return tuple(p)
 
 
 def random_cons(g: Graph, rng: random.Random, free: list[int], goal: int) -> AgentConstraints:

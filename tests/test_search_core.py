@@ -25,6 +25,7 @@ import random
 
 import numpy as np
 import pytest
+from spacetime_cases import walk
 
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.search import astar, jit
@@ -80,13 +81,6 @@ def constraints(
 
 ALL_KINDS = ("v", "v", "e", "range", "pos_v", "pos_e", "gt", "le")
 FOCAL_KINDS = ("v", "v", "e")  # the focal searches take vertex and edge constraints only
-
-
-def walk(g: Graph, rng: random.Random, free: list[int], steps: int) -> tuple[int, ...]:
-    p = [rng.choice(free)]
-    for _ in range(steps):
-        p.append(rng.choice([*g.adj[p[-1]], p[-1]]))
-    return tuple(p)
 
 
 @pytest.mark.parametrize("seed", range(25))
