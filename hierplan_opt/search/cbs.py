@@ -111,6 +111,15 @@ MDD_ANCESTORS = 16
 GR_MAX_CLASS = 2
 GR_ON_CARDINAL = True
 GR_PROMOTE = False
+#: A pair weight known at an ancestor is reused while both agents keep the *paths* it was
+#: computed on (as CBSH2-RTC copies its conflict graph for agents without a new path);
+#: False: while both keep their costs (the rule until issue 35, see docs/cbs.md).
+PAIRW_SAME_PATHS = True
+#: The target split's child order (the first child is the first bypass candidate and
+#: wins ties in OPEN): True "agent parked from t" first, as CBSH2-RTC; False "arrives later".
+TARGET_LE_FIRST = False
+#: Among conflicts of one class and kind: "earliest" (smallest t) or "latest".
+CONFLICT_ORDER = "earliest"
 
 
 class _Node:
@@ -148,10 +157,11 @@ class _Node:
         self.conflicts = conflicts
         self.depth = depth
         self.seq = 0
-        # Pair weights known at this node or an ancestor: (a, b) -> (w, cost_a, cost_b).
-        # A descendant has more constraints, so a weight stays a valid lower bound on
-        # the pair's extra cost while both costs are unchanged.
-        self.pairw: dict[tuple[int, int], tuple[int, int, int]] = {}
+        # Pair weights known at this node or an ancestor: (a, b) -> (w, path_a, path_b,
+        # cost_a, cost_b). A descendant has more constraints, so a weight stays a valid
+        # lower bound on the pair's extra cost while both costs are unchanged; it is
+        # reused while both paths are (PAIRW_SAME_PATHS) or both costs.
+        self.pairw: dict[tuple[int, int], tuple[int, tuple[int, ...], tuple[int, ...], int, int]] = {}
         # Classes (0 cardinal, 1 semi, 2 non) of conflicts classified here or inherited
         # from the parent for agents it did not replan: their paths and costs are the
         # same, their constraints can only have grown, so a conflict's MDD levels can
@@ -412,11 +422,12 @@ class _CBS:
         best = None
         best_key = None
         ranks = node.ranks
+        late = 1 if CONFLICT_ORDER == "earliest" else -1
         for c in confs:
             r = ranks.get(c)
             if r is None:
                 r = ranks[c] = self.classify(node, c)
-            key = (r, c[1] != TARGET, c[0])
+            key = (r, c[1] != TARGET, c[0] if late == 1 else -c[0])
             if best_key is None or key < best_key:
                 best_key = key
                 best = c
@@ -430,7 +441,7 @@ class _CBS:
         if self.corridors is not None and best[1] != TARGET and not self.sub:
             # Among the conflicts of the best class, a corridor conflict first (its
             # split resolves the whole corridor at once), then the earliest.
-            cands = sorted((c for c in confs if ranks[c] == r), key=lambda c: c[0])
+            cands = sorted((c for c in confs if ranks[c] == r), key=lambda c: late * c[0])
             for c in cands:
                 if self.corridor(node, c, r) is not None:
                     return c, r
@@ -528,6 +539,8 @@ class _CBS:
                 self.stats["corridor_target_splits"] += 1
                 return res
             self.stats["target_splits"] += 1
+            if TARGET_LE_FIRST:
+                return [(a, [(LEN_LE, a, -1, -1, t)]), (a, [(LEN_GT, a, -1, -1, t)])]
             return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
         if self.corridors is not None and kind != TARGET:
             res = self.corridor(node, c, rank)
@@ -740,11 +753,16 @@ class _CBS:
         known = node.pairw
         mine = dict(known)
         costs = node.costs
+        paths = node.paths
         for (a, b), cs in pairs.items():
             if self.deadline.expired():
                 break  # the edges weighed so far still give a lower bound
             old = known.get((a, b))
-            if old is not None and old[1] == costs[a] and old[2] == costs[b]:
+            if old is not None and (
+                (old[1] is paths[a] and old[2] is paths[b])
+                if PAIRW_SAME_PATHS
+                else (old[3] == costs[a] and old[4] == costs[b])
+            ):
                 w = old[0]
             else:
                 ca, cb = node.cons[a], node.cons[b]
@@ -763,7 +781,7 @@ class _CBS:
                     self.pair_cache[ck] = w
                 if w < 0:
                     return None
-                mine[(a, b)] = (w, costs[a], costs[b])
+                mine[(a, b)] = (w, paths[a], paths[b], costs[a], costs[b])
             weights[(a, b)] = w
         node.pairw = mine
         return min_vertex_cover(weights)
