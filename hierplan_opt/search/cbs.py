@@ -120,6 +120,9 @@ PAIRW_SAME_PATHS = True
 TARGET_LE_FIRST = False
 #: Among conflicts of one class and kind: "earliest" (smallest t) or "latest".
 CONFLICT_ORDER = "earliest"
+#: Put a node back into OPEN after its h is computed even when its f did not rise
+#: (CBSH2-RTC always does; it then loses ties to the nodes already there).
+REINSERT_AFTER_H = False
 
 
 class _Node:
@@ -422,12 +425,12 @@ class _CBS:
         best = None
         best_key = None
         ranks = node.ranks
-        late = 1 if CONFLICT_ORDER == "earliest" else -1
+        late = 1 if CONFLICT_ORDER == "earliest" else -1 if CONFLICT_ORDER == "latest" else 0
         for c in confs:
             r = ranks.get(c)
             if r is None:
                 r = ranks[c] = self.classify(node, c)
-            key = (r, c[1] != TARGET, c[0] if late == 1 else -c[0])
+            key = (r, c[1] != TARGET, c[0] if late == 1 else -c[0] if late == -1 else hash(c))
             if best_key is None or key < best_key:
                 best_key = key
                 best = c
@@ -441,7 +444,10 @@ class _CBS:
         if self.corridors is not None and best[1] != TARGET and not self.sub:
             # Among the conflicts of the best class, a corridor conflict first (its
             # split resolves the whole corridor at once), then the earliest.
-            cands = sorted((c for c in confs if ranks[c] == r), key=lambda c: late * c[0])
+            cands = sorted(
+                (c for c in confs if ranks[c] == r),
+                key=lambda c: late * c[0] if late else hash(c),
+            )
             for c in cands:
                 if self.corridor(node, c, r) is not None:
                     return c, r
@@ -869,8 +875,8 @@ class _CBS:
                     h = self.compute_h(node)
                     if h is None:
                         continue
-                    if node.g + h > node.f:
-                        node.f = node.g + h
+                    if node.g + h > node.f or REINSERT_AFTER_H:
+                        node.f = max(node.f, node.g + h)
                         self._push(openl, node)
                         continue
             if not node.conflicts:
@@ -939,6 +945,10 @@ class _CBS:
                     self._push(openl, node)
                     return
                 continue
+            if not self.sub:
+                # CBSH2-RTC's "generated": the children that enter OPEN (the children
+                # made and dropped in bypass attempts are in high_level_generated too).
+                st["high_level_pushed"] = st.get("high_level_pushed", 0) + len(children)
             for ch in children:
                 self._push(openl, ch)
             return
