@@ -1010,3 +1010,21 @@ def test_pair_search_low_level_counted_apart():
     assert 0 < st["pair_low_level_expanded"] < st["low_level_expanded"]
     r = hierplan_opt.solve(scenario("maze-32-32-2-even-1:10")[1], "cbs", heuristic="dg")
     assert r.stats.get("pair_low_level_expanded", 0) == 0 and r.cost == 465
+
+
+def test_pair_weight_recomputed_when_a_path_changed_at_equal_cost(monkeypatch) -> None:
+    # A weight known at an ancestor is reused only while both agents keep the paths it
+    # was computed on (as CBSH2-RTC copies its conflict graph for agents without a new
+    # path), not merely their costs: a stale weight 0 planted for other paths of the
+    # same costs is not used. Under the old rule (costs only) it was, and h dropped.
+    g = Graph.grid(3, 3)
+    inst = Instance.mapf(g, [(0, 1), (2, 1)], [(2, 1), (0, 1)])
+    search, root = _root_search(inst)
+    h = search.compute_h(root)
+    assert h == 2
+    for same_paths, want in ((True, 2), (False, 0)):
+        monkeypatch.setattr(cbs, "PAIRW_SAME_PATHS", same_paths)
+        search, root = _root_search(inst)
+        pa, pb = (tuple(list(p)) for p in root.paths)  # equal content, other objects
+        root.pairw = {(0, 1): (0, pa, pb, root.costs[0], root.costs[1])}
+        assert search.compute_h(root) == want
