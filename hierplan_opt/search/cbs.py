@@ -123,6 +123,15 @@ CONFLICT_ORDER = "earliest"
 #: Put a node back into OPEN after its h is computed even when its f did not rise
 #: (CBSH2-RTC always does; it then loses ties to the nodes already there).
 REINSERT_AFTER_H = False
+#: What OPEN's tie-break and the bypass test count: "conflicts" (every conflict) or
+#: "pairs" (conflicting agent pairs, CBSH2-RTC's tie_breaking).
+TIE_COUNT = "conflicts"
+
+
+def _count(confs: list[Conflict]) -> int:
+    if TIE_COUNT == "conflicts":
+        return len(confs)
+    return len({(c[2], c[3]) if c[2] < c[3] else (c[3], c[2]) for c in confs})
 
 
 class _Node:
@@ -843,7 +852,7 @@ class _CBS:
     def _key(self, node: _Node) -> tuple:
         if self.greedy:
             return (len(node.conflicts), node.g, node.seq)
-        return (node.f, len(node.conflicts), node.seq)
+        return (node.f, _count(node.conflicts), node.seq)
 
     def search(self) -> _Node | None:
         """Best-first CT search; the solution node, or None (see ``exhausted``)."""
@@ -927,7 +936,7 @@ class _CBS:
                     self.bypass
                     and rank != 0
                     and ch.g == node.g
-                    and len(ch.conflicts) < len(node.conflicts)
+                    and _count(ch.conflicts) < _count(node.conflicts)
                 ):
                     # Adopt the child's paths: they obey the node's constraints too.
                     node.paths = ch.paths
