@@ -126,6 +126,9 @@ REINSERT_AFTER_H = False
 #: What OPEN's tie-break and the bypass test count: "conflicts" (every conflict) or
 #: "pairs" (conflicting agent pairs, CBSH2-RTC's tie_breaking).
 TIE_COUNT = "conflicts"
+#: OPEN's last tie-break among equal f and count: "fifo" (first generated first),
+#: "lifo" (last generated first) or "deep" (deepest first, then first generated).
+OPEN_TIE = "fifo"
 
 
 def _count(confs: list[Conflict]) -> int:
@@ -852,7 +855,11 @@ class _CBS:
     def _key(self, node: _Node) -> tuple:
         if self.greedy:
             return (len(node.conflicts), node.g, node.seq)
-        return (node.f, _count(node.conflicts), node.seq)
+        if OPEN_TIE == "fifo":
+            return (node.f, _count(node.conflicts), node.seq)
+        if OPEN_TIE == "lifo":
+            return (node.f, _count(node.conflicts), -node.seq)
+        return (node.f, _count(node.conflicts), -node.depth, node.seq)
 
     def search(self) -> _Node | None:
         """Best-first CT search; the solution node, or None (see ``exhausted``)."""
