@@ -129,6 +129,8 @@ TIE_COUNT = "conflicts"
 #: OPEN's last tie-break among equal f and count: "fifo" (first generated first),
 #: "lifo" (last generated first) or "deep" (deepest first, then first generated).
 OPEN_TIE = "fifo"
+#: WDG pair searches start at the known lower bound (see ``_pair_weight``).
+PAIR_ROOT_LB = True
 
 
 def _count(confs: list[Conflict]) -> int:
@@ -220,6 +222,7 @@ class _CBS:
         corridors: Corridors | None = None,
         rectangles: Rectangles | None = None,
         init_paths: list[tuple[int, ...]] | None = None,
+        root_f: int = 0,
     ) -> None:
         g = instance_graph
         self.graph = g
@@ -271,6 +274,8 @@ class _CBS:
         self.gr = gr
         self._rect = rectangles
         self.init_paths = init_paths
+        # A known lower bound on the solution cost (WDG pair searches): the root's f.
+        self.root_f = root_f
         # One table of the node's paths, patched per child: the low level's
         # conflict-avoidance table (without the agent being replanned) and the index
         # the new paths' conflicts are found with (one table: each is patched once).
@@ -792,7 +797,10 @@ class _CBS:
                     content = (a, b, ca.content(), cb.content())
                     w = self.pair_memo.get(content)
                     if w is None:
-                        w = self._pair_weight(node, a, b, cs)
+                        # A weight known at an ancestor for the same costs is a lower
+                        # bound on this one (constraints only grow).
+                        lb = old[0] if old is not None and old[3:] == (costs[a], costs[b]) else 0
+                        w = self._pair_weight(node, a, b, cs, lb)
                         self.pair_memo[content] = w
                     else:
                         self.stats["pair_memo_hits"] = self.stats.get("pair_memo_hits", 0) + 1
@@ -804,10 +812,15 @@ class _CBS:
         node.pairw = mine
         return min_vertex_cover(weights)
 
-    def _pair_weight(self, node: _Node, a: int, b: int, cs: list[Conflict]) -> int:
+    def _pair_weight(
+        self, node: _Node, a: int, b: int, cs: list[Conflict], lb: int = 0
+    ) -> int:
+        """The pair's WDG weight (DG: 0 or 1); ``lb``: a known lower bound on it."""
         # A cardinal conflict already proves the pair dependent.
-        if not (self.prioritize and any(self.rank(node, c) == 0 for c in cs)) and not dependent(
-            self.mdd(node, a), self.mdd(node, b)
+        if (
+            lb <= 0
+            and not (self.prioritize and any(self.rank(node, c) == 0 for c in cs))
+            and not dependent(self.mdd(node, a), self.mdd(node, b))
         ):
             return 0
         if self.heuristic == "dg":
@@ -834,6 +847,10 @@ class _CBS:
             corridors=self.corridors,
             rectangles=self._rect,
             init_paths=[node.paths[a], node.paths[b]],
+            # The pair is dependent: its cost rises by at least max(lb, 1). Starting
+            # there (as CBSH2-RTC's lower bound does) makes the sub-search look for a
+            # pair of paths of that cost first instead of proving every level below.
+            root_f=node.costs[a] + node.costs[b] + (max(lb, 1) if PAIR_ROOT_LB else 0),
         )
         sub.cut_cache = self.cut_cache
         res = sub.search()
@@ -871,6 +888,7 @@ class _CBS:
         st = self.stats
         scanned = root.paths  # the root's conflicts come from a full scan of these paths
         openl: list[tuple] = []
+        root.f = max(root.f, self.root_f)
         self._push(openl, root)
         expanded = 0
         last_log = time.perf_counter()
