@@ -1028,3 +1028,23 @@ def test_pair_weight_recomputed_when_a_path_changed_at_equal_cost(monkeypatch) -
         pa, pb = (tuple(list(p)) for p in root.paths)  # equal content, other objects
         root.pairw = {(0, 1): (0, pa, pb, root.costs[0], root.costs[1])}
         assert search.compute_h(root) == want
+
+
+def test_pair_search_starts_at_the_known_lower_bound(monkeypatch) -> None:
+    # A WDG pair search given a lower bound on the weight (an ancestor's weight for the
+    # same costs) starts its root there: the same weight, without proving the levels
+    # below it (fewer low-level expansions). Without the rule the bound is not used.
+    g = Graph.grid(3, 3)
+    inst = Instance.mapf(g, [(0, 1), (2, 1)], [(2, 1), (0, 1)])
+    spent = {}
+    for use in (True, False):
+        monkeypatch.setattr(cbs, "PAIR_ROOT_LB", use)
+        out = []
+        for lb in (0, 2):
+            search, root = _root_search(inst)
+            before = search.stats.get("pair_low_level_expanded", 0)
+            assert search._pair_weight(root, 0, 1, root.conflicts, lb) == 2
+            out.append(search.stats["pair_low_level_expanded"] - before)
+        spent[use] = out
+    assert spent[True][1] < spent[True][0]
+    assert spent[False][1] == spent[False][0]

@@ -115,28 +115,10 @@ GR_PROMOTE = False
 #: computed on (as CBSH2-RTC copies its conflict graph for agents without a new path);
 #: False: while both keep their costs (the rule until issue 35, see docs/cbs.md).
 PAIRW_SAME_PATHS = True
-#: The target split's child order (the first child is the first bypass candidate and
-#: wins ties in OPEN): True "agent parked from t" first, as CBSH2-RTC; False "arrives later".
-TARGET_LE_FIRST = False
-#: Among conflicts of one class and kind: "earliest" (smallest t) or "latest".
-CONFLICT_ORDER = "earliest"
-#: Put a node back into OPEN after its h is computed even when its f did not rise
-#: (CBSH2-RTC always does; it then loses ties to the nodes already there).
-REINSERT_AFTER_H = False
-#: What OPEN's tie-break and the bypass test count: "conflicts" (every conflict) or
-#: "pairs" (conflicting agent pairs, CBSH2-RTC's tie_breaking).
-TIE_COUNT = "conflicts"
-#: OPEN's last tie-break among equal f and count: "fifo" (first generated first),
-#: "lifo" (last generated first) or "deep" (deepest first, then first generated).
-OPEN_TIE = "fifo"
 #: WDG pair searches start at the known lower bound (see ``_pair_weight``).
 PAIR_ROOT_LB = True
-
-
-def _count(confs: list[Conflict]) -> int:
-    if TIE_COUNT == "conflicts":
-        return len(confs)
-    return len({(c[2], c[3]) if c[2] < c[3] else (c[3], c[2]) for c in confs})
+#: A known pair weight: (w, path_a, path_b, cost_a, cost_b), see ``_Node.pairw``.
+_PairWeight = tuple[int, tuple[int, ...], tuple[int, ...], int, int]
 
 
 class _Node:
@@ -178,7 +160,7 @@ class _Node:
         # cost_a, cost_b). A descendant has more constraints, so a weight stays a valid
         # lower bound on the pair's extra cost while both costs are unchanged; it is
         # reused while both paths are (PAIRW_SAME_PATHS) or both costs.
-        self.pairw: dict[tuple[int, int], tuple[int, tuple[int, ...], tuple[int, ...], int, int]] = {}
+        self.pairw: dict[tuple[int, int], _PairWeight] = {}
         # Classes (0 cardinal, 1 semi, 2 non) of conflicts classified here or inherited
         # from the parent for agents it did not replan: their paths and costs are the
         # same, their constraints can only have grown, so a conflict's MDD levels can
@@ -442,12 +424,11 @@ class _CBS:
         best = None
         best_key = None
         ranks = node.ranks
-        late = 1 if CONFLICT_ORDER == "earliest" else -1 if CONFLICT_ORDER == "latest" else 0
         for c in confs:
             r = ranks.get(c)
             if r is None:
                 r = ranks[c] = self.classify(node, c)
-            key = (r, c[1] != TARGET, c[0] if late == 1 else -c[0] if late == -1 else hash(c))
+            key = (r, c[1] != TARGET, c[0])
             if best_key is None or key < best_key:
                 best_key = key
                 best = c
@@ -461,10 +442,7 @@ class _CBS:
         if self.corridors is not None and best[1] != TARGET and not self.sub:
             # Among the conflicts of the best class, a corridor conflict first (its
             # split resolves the whole corridor at once), then the earliest.
-            cands = sorted(
-                (c for c in confs if ranks[c] == r),
-                key=lambda c: late * c[0] if late else hash(c),
-            )
+            cands = sorted((c for c in confs if ranks[c] == r), key=lambda c: c[0])
             for c in cands:
                 if self.corridor(node, c, r) is not None:
                     return c, r
@@ -562,8 +540,6 @@ class _CBS:
                 self.stats["corridor_target_splits"] += 1
                 return res
             self.stats["target_splits"] += 1
-            if TARGET_LE_FIRST:
-                return [(a, [(LEN_LE, a, -1, -1, t)]), (a, [(LEN_GT, a, -1, -1, t)])]
             return [(a, [(LEN_GT, a, -1, -1, t)]), (a, [(LEN_LE, a, -1, -1, t)])]
         if self.corridors is not None and kind != TARGET:
             res = self.corridor(node, c, rank)
@@ -812,9 +788,7 @@ class _CBS:
         node.pairw = mine
         return min_vertex_cover(weights)
 
-    def _pair_weight(
-        self, node: _Node, a: int, b: int, cs: list[Conflict], lb: int = 0
-    ) -> int:
+    def _pair_weight(self, node: _Node, a: int, b: int, cs: list[Conflict], lb: int = 0) -> int:
         """The pair's WDG weight (DG: 0 or 1); ``lb``: a known lower bound on it."""
         # A cardinal conflict already proves the pair dependent.
         if (
@@ -872,11 +846,7 @@ class _CBS:
     def _key(self, node: _Node) -> tuple:
         if self.greedy:
             return (len(node.conflicts), node.g, node.seq)
-        if OPEN_TIE == "fifo":
-            return (node.f, _count(node.conflicts), node.seq)
-        if OPEN_TIE == "lifo":
-            return (node.f, _count(node.conflicts), -node.seq)
-        return (node.f, _count(node.conflicts), -node.depth, node.seq)
+        return (node.f, len(node.conflicts), node.seq)
 
     def search(self) -> _Node | None:
         """Best-first CT search; the solution node, or None (see ``exhausted``)."""
@@ -909,8 +879,8 @@ class _CBS:
                     h = self.compute_h(node)
                     if h is None:
                         continue
-                    if node.g + h > node.f or REINSERT_AFTER_H:
-                        node.f = max(node.f, node.g + h)
+                    if node.g + h > node.f:
+                        node.f = node.g + h
                         self._push(openl, node)
                         continue
             if not node.conflicts:
@@ -961,7 +931,7 @@ class _CBS:
                     self.bypass
                     and rank != 0
                     and ch.g == node.g
-                    and _count(ch.conflicts) < _count(node.conflicts)
+                    and len(ch.conflicts) < len(node.conflicts)
                 ):
                     # Adopt the child's paths: they obey the node's constraints too.
                     node.paths = ch.paths
