@@ -64,7 +64,7 @@ def solve(
         - bypass: true/false (default true) -- adopt a child's paths when it keeps the
           cost, fewer conflicts
         - heuristic: wdg|dg|cg|none (default wdg) -- admissible high-level heuristic
-        - disjoint_splitting: true/false (default true) -- positive/negative constraint
+        - disjoint_splitting: true/false (default false) -- positive/negative constraint
           children
         - symmetry: true/false (default true) -- target, corridor and rectangle
           reasoning

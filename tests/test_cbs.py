@@ -31,7 +31,7 @@ OPTION_SETS = [
     {"heuristic": "none"},
     {"heuristic": "cg"},
     {"heuristic": "dg"},
-    {"disjoint_splitting": False},
+    {"disjoint_splitting": True},
     {"symmetry": False},
     {"rectangle": False},
     {"generalized_rectangle": True},
@@ -1048,3 +1048,18 @@ def test_pair_search_starts_at_the_known_lower_bound(monkeypatch) -> None:
         spent[use] = out
     assert spent[True][1] < spent[True][0]
     assert spent[False][1] == spent[False][0]
+
+
+def test_default_split_is_not_disjoint() -> None:
+    # Since issue 35 the default is CBSH2-RTC's: a vertex or edge conflict gives each
+    # agent its negative constraint (measured faster, docs/cbs.md); disjoint splitting
+    # (positive/negative on one agent) stays an option and builds another tree here.
+    from hierplan_opt.bench import scenario
+
+    inst = scenario("maze-32-32-2-even-1:10")[1]
+    keys = ("high_level_expanded", "low_level_expanded")
+    runs = [hierplan_opt.solve(inst, "cbs", **o) for o in ({}, {"disjoint_splitting": False})]
+    runs.append(hierplan_opt.solve(inst, "cbs", disjoint_splitting=True))
+    assert all(r.status is Status.OPTIMAL and r.cost == 465 for r in runs)
+    stats = [tuple(r.stats[k] for k in keys) for r in runs]
+    assert stats[0] == stats[1] != stats[2]

@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
             ("-bypass", {"bypass": False}),
             ("h=dg", {"heuristic": "dg"}),
             ("h=none", {"heuristic": "none"}),
-            ("-disjoint", {"disjoint_splitting": False}),
+            ("+disjoint", {"disjoint_splitting": True}),
             ("-symmetry", {"symmetry": False}),
             ("-rect", {"rectangle": False}),
         ):

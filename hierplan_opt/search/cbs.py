@@ -5,7 +5,8 @@ path per agent, each optimal under that agent's constraints; a node without
 conflicts is a solution. A conflict is resolved by branching into children that each
 forbid one way of having it.
 
-Options (all on by default, each switchable off; none changes the optimal cost):
+Options (all on by default except ``disjoint_splitting``, each switchable; none changes
+the optimal cost):
 
 * ``prioritize_conflicts``: classify conflicts with MDDs as cardinal (both children
   cost more), semi-cardinal or non-cardinal, and split on the best class first
@@ -15,8 +16,9 @@ Options (all on by default, each switchable off; none changes the optimal cost):
 * ``heuristic``: admissible high-level heuristic ``"wdg"`` (default), ``"dg"``,
   ``"cg"`` or ``"none"`` (Felner et al. 2018; Li et al. 2019), computed lazily when a
   node is selected;
-* ``disjoint_splitting``: one child gets a positive constraint (the agent *must* be
-  there), the other the negative one, so children share no solution (Li et al. 2019);
+* ``disjoint_splitting`` (off by default, as in CBSH2-RTC; see docs/cbs.md): one child
+  gets a positive constraint (the agent *must* be there), the other the negative one,
+  so children share no solution (Li et al. 2019);
 * ``symmetry``: target reasoning -- when an agent crosses another agent's goal after
   that agent has finished, branch on the finished agent's arrival time (length
   constraints) instead of on a single vertex-time (Li et al. 2021); generalised
@@ -111,10 +113,11 @@ MDD_ANCESTORS = 16
 GR_MAX_CLASS = 2
 GR_ON_CARDINAL = True
 GR_PROMOTE = False
-#: A pair weight known at an ancestor is reused while both agents keep the *paths* it was
-#: computed on (as CBSH2-RTC copies its conflict graph for agents without a new path);
-#: False: while both keep their costs (the rule until issue 35, see docs/cbs.md).
-PAIRW_SAME_PATHS = True
+#: True: a pair weight known at an ancestor is reused only while both agents keep the
+#: *paths* it was computed on (as CBSH2-RTC copies its conflict graph for agents without
+#: a new path; fewer CT nodes, more pair searches); False: while both keep their costs.
+#: Measured in docs/cbs.md: no gain in CPU time over the reference set, so off.
+PAIRW_SAME_PATHS = False
 #: WDG pair searches start at the known lower bound (see ``_pair_weight``).
 PAIR_ROOT_LB = True
 #: A known pair weight: (w, path_a, path_b, cost_a, cost_b), see ``_Node.pairw``.
@@ -984,7 +987,7 @@ def solve(
     prioritize_conflicts: bool = True,
     bypass: bool = True,
     heuristic: str = "wdg",
-    disjoint_splitting: bool = True,
+    disjoint_splitting: bool = False,
     symmetry: bool = True,
     rectangle: bool = True,
     generalized_rectangle: bool = False,
