@@ -30,8 +30,9 @@ the optimal cost):
   other (tried before target reasoning); such conflicts are split first within their
   class (Li et al. 2021);
   and, with ``rectangle`` (also on by default, 4-connected 2D grids only), rectangle
-  reasoning -- a cardinal or semi-cardinal vertex conflict of two agents crossing a
-  rectangle is split with two barrier constraints (Li et al., AAAI 2019); with
+  reasoning -- a vertex conflict of two agents crossing a rectangle (of any class, as
+  CBSH2-RTC does it for semi- and non-cardinal ones) is split with two barrier
+  constraints (Li et al., AAAI 2019); with
   ``generalized_rectangle`` (off by default, needs ``rectangle``) also rectangles the
   agents enter anywhere (through a room's doors, say), drawn on the current paths and
   kept only when a joint search proves the barrier pair sound
@@ -120,6 +121,9 @@ GR_PROMOTE = False
 PAIRW_SAME_PATHS = False
 #: WDG pair searches start at the known lower bound (see ``_pair_weight``).
 PAIR_ROOT_LB = True
+#: Rectangle reasoning (the start-based rule) on conflicts of class <= this: 1 cardinal
+#: and semi-cardinal ones; 2 also non-cardinal ones (as CBSH2-RTC, see docs/cbs.md).
+RECT_MAX_CLASS = 2
 #: A known pair weight: (w, path_a, path_b, cost_a, cost_b), see ``_Node.pairw``.
 _PairWeight = tuple[int, tuple[int, ...], tuple[int, ...], int, int]
 
@@ -553,7 +557,7 @@ class _CBS:
         rects = self.rectangles() if kind == VERTEX else None
         if rects is not None:
             res = None
-            if rank <= 1:
+            if rank <= RECT_MAX_CLASS:
                 res = rectangle_split(
                     rects, self.starts, self.goals, node.cons, node.paths, a, b, v, t
                 )
