@@ -1058,8 +1058,11 @@ def test_default_split_is_not_disjoint() -> None:
 
     inst = scenario("maze-32-32-2-even-1:10")[1]
     keys = ("high_level_expanded", "low_level_expanded")
-    runs = [hierplan_opt.solve(inst, "cbs", **o) for o in ({}, {"disjoint_splitting": False})]
-    runs.append(hierplan_opt.solve(inst, "cbs", disjoint_splitting=True))
+    runs = [
+        hierplan_opt.solve(inst, "cbs"),
+        hierplan_opt.solve(inst, "cbs", disjoint_splitting=False),
+        hierplan_opt.solve(inst, "cbs", disjoint_splitting=True),
+    ]
     assert all(r.status is Status.OPTIMAL and r.cost == 465 for r in runs)
     stats = [tuple(r.stats[k] for k in keys) for r in runs]
     assert stats[0] == stats[1] != stats[2]
