@@ -394,7 +394,8 @@ INSTANCES = ["empty-8-8-even-1:16", "random-32-32-20-random-1:20", "room-32-32-4
 def test_cbs_identical_call_by_call(monkeypatch):
     # CBS end to end under the kernel, every low-level call re-run in Python: the same
     # results call by call (incl. the pair searches of WDG and the disjoint splits'
-    # landmarks / forbid_from), so the node counts agree too.
+    # landmarks / forbid_from), so the node counts agree too; with the default splits
+    # and with disjoint splitting.
     import hierplan_opt
     from hierplan_opt.bench import scenario
 
@@ -450,8 +451,12 @@ def test_cbs_identical_call_by_call(monkeypatch):
             monkeypatch.setattr(jit, "run", checked)
             monkeypatch.setattr(jit, "build_mdd", checked_mdd)
             monkeypatch.setattr(jit.DenseMirror, "conflicts_of", checked_conflicts)
-            for spec in INSTANCES:
-                r = hierplan_opt.solve(scenario(spec)[1], "cbs", time_limit=60)
+            for i, spec in enumerate(INSTANCES):
+                # Disjoint splitting (off by default) on one of them: its positive
+                # constraints are where the landmarks come from.
+                r = hierplan_opt.solve(
+                    scenario(spec)[1], "cbs", time_limit=60, disjoint_splitting=i == 2
+                )
                 keys = ("high_level_expanded", "high_level_generated", "low_level_expanded")
                 stats.setdefault(spec, []).append((r.cost, *(r.stats[x] for x in keys)))
     finally:
