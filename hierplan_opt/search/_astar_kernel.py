@@ -145,6 +145,24 @@ def _astar_loop(
     bsize = regs[_BSIZE]
     expanded = regs[_EXP]
     status = _A_NONE
+
+    # Inner functions: numba inlines them where called, and the arrays they read are the
+    # loop's own (not arguments), so they cost nothing at run time.
+    def before(a, b):  # entry a pops before entry b: by f, conflicts, -t, then number
+        if pf[a] != pf[b]:
+            return pf[a] < pf[b]
+        if pc[a] != pc[b]:
+            return pc[a] < pc[b]
+        if pn[a] != pn[b]:
+            return pn[a] < pn[b]
+        return a < b
+
+    def slot_of(key):  # the slot of a state key in the hash table: its own, or free
+        slot = ((key * _HMUL) >> 17) & bmask
+        while bkeys[slot] != -1 and bkeys[slot] != key:
+            slot = (slot + 1) & bmask
+        return slot
+
     while size > 0:
         top = heap[0]
         v = pv[top]
@@ -157,41 +175,19 @@ def _astar_loop(
         size -= 1
         if size > 0:  # the last entry down from the root (sift down)
             x = heap[size]
-            xf = pf[x]
-            xc = pc[x]
-            xn = pn[x]
             i = 0
             while True:
                 c1 = 2 * i + 1
                 if c1 >= size:
                     break
                 m = heap[c1]
-                if c1 + 1 < size:
-                    y = heap[c1 + 1]
-                    if pf[y] != pf[m]:
-                        yl = pf[y] < pf[m]
-                    elif pc[y] != pc[m]:
-                        yl = pc[y] < pc[m]
-                    elif pn[y] != pn[m]:
-                        yl = pn[y] < pn[m]
-                    else:
-                        yl = y < m
-                    if yl:
-                        m = y
-                        c1 += 1
-                if pf[m] != xf:
-                    ml = pf[m] < xf
-                elif pc[m] != xc:
-                    ml = pc[m] < xc
-                elif pn[m] != xn:
-                    ml = pn[m] < xn
-                else:
-                    ml = m < x
-                if ml:
-                    heap[i] = m
-                    i = c1
-                else:
+                if c1 + 1 < size and before(heap[c1 + 1], m):
+                    m = heap[c1 + 1]
+                    c1 += 1
+                if not before(m, x):
                     break
+                heap[i] = m
+                i = c1
             heap[i] = x
         t = pt[top]
         conf = pc[top]
@@ -200,9 +196,7 @@ def _astar_loop(
             status = _A_FOUND
             break
         key = (t if t < tcap else tcap) * n + v
-        slot = ((key * _HMUL) >> 17) & bmask
-        while bkeys[slot] != -1 and bkeys[slot] != key:
-            slot = (slot + 1) & bmask
+        slot = slot_of(key)
         if bkeys[slot] == key:
             if bvals[slot] == _CLOSED:
                 continue
@@ -291,9 +285,7 @@ def _astar_loop(
                     n_new = TERMINAL
                 else:
                     ku = keyt1 + u
-                    slot = ((ku * _HMUL) >> 17) & bmask
-                    while bkeys[slot] != -1 and bkeys[slot] != ku:
-                        slot = (slot + 1) & bmask
+                    slot = slot_of(ku)
                     if bkeys[slot] == ku:
                         if bvals[slot] <= c:  # (_CLOSED included)
                             continue
@@ -313,20 +305,10 @@ def _astar_loop(
                 i = size  # push (sift up)
                 while i > 0:
                     par = (i - 1) >> 1
-                    y = heap[par]
-                    if f_new != pf[y]:
-                        xl = f_new < pf[y]
-                    elif c != pc[y]:
-                        xl = c < pc[y]
-                    elif n_new != pn[y]:
-                        xl = n_new < pn[y]
-                    else:
-                        xl = cnt < y
-                    if xl:
-                        heap[i] = y
-                        i = par
-                    else:
+                    if not before(cnt, heap[par]):
                         break
+                    heap[i] = heap[par]
+                    i = par
                 heap[i] = cnt
                 size += 1
     regs[_SIZE] = size
