@@ -157,6 +157,17 @@ def _astar_loop(
             return pn[a] < pn[b]
         return a < b
 
+    def listed(keys, m, x):  # x in the sorted keys[:m] (binary search)
+        a = 0
+        b = m
+        while a < b:
+            mid = (a + b) >> 1
+            if keys[mid] < x:
+                a = mid + 1
+            else:
+                b = mid
+        return a < m and keys[a] == x
+
     def slot_of(key):  # the slot of a state key in the hash table: its own, or free
         slot = ((key * _HMUL) >> 17) & bmask
         while bkeys[slot] != -1 and bkeys[slot] != key:
@@ -229,30 +240,10 @@ def _astar_loop(
             # _move_h: h of the move v -> u arriving at t1, or not allowed.
             if need >= 0 and u != need:
                 continue
-            if nv > 0:  # a vertex constraint (binary search)
-                nk = base + u
-                a = 0
-                b = nv
-                while a < b:
-                    mid = (a + b) >> 1
-                    if vkeys[mid] < nk:
-                        a = mid + 1
-                    else:
-                        b = mid
-                if a < nv and vkeys[a] == nk:
-                    continue
-            if ne > 0 and u != v:  # an edge constraint
-                ekey = (base + v) * n + u
-                a = 0
-                b = ne
-                while a < b:
-                    mid = (a + b) >> 1
-                    if ekeys[mid] < ekey:
-                        a = mid + 1
-                    else:
-                        b = mid
-                if a < ne and ekeys[a] == ekey:
-                    continue
+            if nv > 0 and listed(vkeys, nv, base + u):  # a vertex constraint
+                continue
+            if ne > 0 and u != v and listed(ekeys, ne, (base + v) * n + u):  # an edge one
+                continue
             if t1 >= ff[u]:
                 continue
             hu = dist[u]
