@@ -168,11 +168,49 @@ def _astar_loop(
                 b = mid
         return a < m and keys[a] == x
 
-    def slot_of(key):  # the slot of a state key in the hash table: its own, or free
+    def lower(key, c):  # best[key] = c if c is below it (or absent): (done, new keys)
         slot = ((key * _HMUL) >> 17) & bmask
         while bkeys[slot] != -1 and bkeys[slot] != key:
             slot = (slot + 1) & bmask
-        return slot
+        added = 0
+        if bkeys[slot] == key:
+            if bvals[slot] <= c:  # (_CLOSED, below every count, included)
+                return False, 0
+        else:
+            bkeys[slot] = key
+            added = 1
+        bvals[slot] = c
+        return True, added
+
+    def sift_down(size):  # heap[size] into the heap of size entries, from the root
+        x = heap[size]
+        i = 0
+        while True:
+            c1 = 2 * i + 1
+            if c1 >= size:
+                break
+            m = heap[c1]
+            if c1 + 1 < size and before(heap[c1 + 1], m):
+                m = heap[c1 + 1]
+                c1 += 1
+            if not before(m, x):
+                break
+            heap[i] = m
+            i = c1
+        heap[i] = x
+
+    def push(e, size, f, c, nn, u, t, par):  # entry e (f, c, nn) onto the heap (sift up)
+        pf[e] = f
+        pc[e] = c
+        pn[e] = nn
+        pv[e] = u
+        pt[e] = t
+        pp[e] = par
+        i = size
+        while i > 0 and before(e, heap[(i - 1) >> 1]):
+            heap[i] = heap[(i - 1) >> 1]
+            i = (i - 1) >> 1
+        heap[i] = e
 
     while size > 0:
         top = heap[0]
@@ -184,37 +222,18 @@ def _astar_loop(
             status = _A_GROW
             break
         size -= 1
-        if size > 0:  # the last entry down from the root (sift down)
-            x = heap[size]
-            i = 0
-            while True:
-                c1 = 2 * i + 1
-                if c1 >= size:
-                    break
-                m = heap[c1]
-                if c1 + 1 < size and before(heap[c1 + 1], m):
-                    m = heap[c1 + 1]
-                    c1 += 1
-                if not before(m, x):
-                    break
-                heap[i] = m
-                i = c1
-            heap[i] = x
+        if size > 0:  # the last entry down from the root
+            sift_down(size)
         t = pt[top]
         conf = pc[top]
         if pn[top] == TERMINAL:
             regs[_TOP] = top
             status = _A_FOUND
             break
-        key = (t if t < tcap else tcap) * n + v
-        slot = slot_of(key)
-        if bkeys[slot] == key:
-            if bvals[slot] == _CLOSED:
-                continue
-        else:
-            bkeys[slot] = key
-            bsize += 1
-        bvals[slot] = _CLOSED
+        done, added = lower((t if t < tcap else tcap) * n + v, _CLOSED)
+        if not done:  # expanded before
+            continue
+        bsize += added
         expanded += 1
         if expanded == node_limit:
             break
@@ -223,17 +242,11 @@ def _astar_loop(
             continue
         base = t1 * n
         keyt1 = (t1 if t1 < tcap else tcap) * n
-        need = -1
-        nl = t1 < n_lm
-        if nl:
-            need = lm_need[t1]
-            lrow = nxt_row[t1]
-            ltl = nxt_tl[t1] - t1
-            lhb = nxt_hb[t1] - t1
-        else:
-            lrow = 0
-            ltl = 0
-            lhb = 0
+        nl = t1 < n_lm  # the next landmark's need, row of lmd, time left, bound on h
+        need = lm_need[t1] if nl else -1
+        lrow = nxt_row[t1] if nl else 0
+        ltl = nxt_tl[t1] - t1 if nl else 0
+        lhb = nxt_hb[t1] - t1 if nl else 0
         in_cat = use_cat and t1 < cat_h
         for j in range(ptr[v], ptr[v + 1]):
             u = idx[j]
@@ -267,40 +280,16 @@ def _astar_loop(
                         c += 1
                 if t1 > park_t[u]:
                     c += 1
-            for final in range(2):
-                if final == 0:
-                    # A move into the goal (not a wait there) may be the final arrival.
-                    if not (u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm):
-                        continue
-                    f_new = t1
-                    n_new = TERMINAL
-                else:
-                    ku = keyt1 + u
-                    slot = slot_of(ku)
-                    if bkeys[slot] == ku:
-                        if bvals[slot] <= c:  # (_CLOSED included)
-                            continue
-                    else:
-                        bkeys[slot] = ku
-                        bsize += 1
-                    bvals[slot] = c
-                    f_new = fu
-                    n_new = -t1
+            # A move into the goal (not a wait there) may be the final arrival.
+            if u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm:
                 cnt += 1
-                pf[cnt] = f_new
-                pc[cnt] = c
-                pn[cnt] = n_new
-                pv[cnt] = u
-                pt[cnt] = t1
-                pp[cnt] = top
-                i = size  # push (sift up)
-                while i > 0:
-                    par = (i - 1) >> 1
-                    if not before(cnt, heap[par]):
-                        break
-                    heap[i] = heap[par]
-                    i = par
-                heap[i] = cnt
+                push(cnt, size, t1, c, TERMINAL, u, t1, top)
+                size += 1
+            done, added = lower(keyt1 + u, c)
+            if done:
+                bsize += added
+                cnt += 1
+                push(cnt, size, fu, c, -t1, u, t1, top)
                 size += 1
     regs[_SIZE] = size
     regs[_CNT] = cnt
