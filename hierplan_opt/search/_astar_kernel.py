@@ -115,15 +115,18 @@ _CLOSED = -1
 _HMUL = 0x5851F42D4C957F2D
 
 
-# Complexity: the loop of space_time_astar with the heap's sifts, the hash probes, the
-# constraint look-ups and _move_h written out. In numba every call of a function that
-# takes arrays, and every array reassigned in the loop, costs atomic reference counts
-# (the focal kernel's author measured 2.4 us an expansion with helpers, 0.15-0.25 us
-# without); so no array is passed to a call or reassigned here: when one is about to run
-# out, the loop hands back to ``astar``, which grows it and calls again. numba's IR-level
-# inlining does not remove that cost: _move_h (and _contains) as ``njit(inline="always")``
-# called here instead of written out kept results identical but took 36.5 us instead of
-# 14 us per call of a 110-expansion search (den312d, 200 calls, medians of 7, CPU lock).
+# Complexity: the loop of space_time_astar in one compiled body. In numba every call of a
+# module-level function that takes arrays, and every array reassigned in the loop, costs
+# atomic reference counts (the focal kernel's author measured 2.4 us an expansion with
+# helpers, 0.15-0.25 us without), and numba's IR-level inlining does not remove that
+# cost: _move_h as ``njit(inline="always")`` here instead of written out kept results
+# identical but took 36.5 us instead of 14 us per call of a 110-expansion search
+# (den312d, 200 calls, medians of 7, CPU lock). Inner functions (closures over the loop's
+# arrays) are inlined free (same 0.25 us an expansion), so the heap order, the sifts, the
+# binary search and the best-table update are written once as those, and _move_h's rule
+# stays written out (tied to _move_h and spacetime.Moves by tests/test_jit_astar.py).
+# When an array is about to run out, the loop hands back to ``astar``, which grows it
+# and calls again. Over 150 lines for that reason (171, of which 55 the inner functions).
 @_njit
 def _astar_loop(
     ptr, idx, dist, goal, vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, minf,
