@@ -115,12 +115,18 @@ _CLOSED = -1
 _HMUL = 0x5851F42D4C957F2D
 
 
-# Complexity: the loop of space_time_astar with the heap's sifts, the hash probes, the
-# constraint look-ups and _move_h written out. In numba every call of a function that
-# takes arrays, and every array reassigned in the loop, costs atomic reference counts
-# (the focal kernel's author measured 2.4 us an expansion with helpers, 0.15-0.25 us
-# without); so no array is passed to a call or reassigned here: when one is about to run
-# out, the loop hands back to ``astar``, which grows it and calls again.
+# Complexity: the loop of space_time_astar in one compiled body. In numba every call of a
+# module-level function that takes arrays, and every array reassigned in the loop, costs
+# atomic reference counts (the focal kernel's author measured 2.4 us an expansion with
+# helpers, 0.15-0.25 us without), and numba's IR-level inlining does not remove that
+# cost: _move_h as ``njit(inline="always")`` here instead of written out kept results
+# identical but took 36.5 us instead of 14 us per call of a 110-expansion search
+# (den312d, 200 calls, medians of 7, CPU lock). Inner functions (closures over the loop's
+# arrays) are inlined free (same 0.25 us an expansion), so the heap order, the sifts, the
+# binary search and the best-table update are written once as those, and _move_h's rule
+# stays written out (tied to _move_h and spacetime.Moves by tests/test_jit_astar.py).
+# When an array is about to run out, the loop hands back to ``astar``, which grows it
+# and calls again. Over 150 lines for that reason (171, of which 55 the inner functions).
 @_njit
 def _astar_loop(
     ptr, idx, dist, goal, vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, minf,
@@ -142,6 +148,73 @@ def _astar_loop(
     bsize = regs[_BSIZE]
     expanded = regs[_EXP]
     status = _A_NONE
+
+    # Inner functions: numba inlines them where called, and the arrays they read are the
+    # loop's own (not arguments), so they cost nothing at run time.
+    def before(a, b):  # entry a pops before entry b: by f, conflicts, -t, then number
+        if pf[a] != pf[b]:
+            return pf[a] < pf[b]
+        if pc[a] != pc[b]:
+            return pc[a] < pc[b]
+        if pn[a] != pn[b]:
+            return pn[a] < pn[b]
+        return a < b
+
+    def listed(keys, m, x):  # x in the sorted keys[:m] (binary search)
+        a = 0
+        b = m
+        while a < b:
+            mid = (a + b) >> 1
+            if keys[mid] < x:
+                a = mid + 1
+            else:
+                b = mid
+        return a < m and keys[a] == x
+
+    def lower(key, c):  # best[key] = c if c is below it (or absent): (done, new keys)
+        slot = ((key * _HMUL) >> 17) & bmask
+        while bkeys[slot] != -1 and bkeys[slot] != key:
+            slot = (slot + 1) & bmask
+        added = 0
+        if bkeys[slot] == key:
+            if bvals[slot] <= c:  # (_CLOSED, below every count, included)
+                return False, 0
+        else:
+            bkeys[slot] = key
+            added = 1
+        bvals[slot] = c
+        return True, added
+
+    def sift_down(size):  # heap[size] into the heap of size entries, from the root
+        x = heap[size]
+        i = 0
+        while True:
+            c1 = 2 * i + 1
+            if c1 >= size:
+                break
+            m = heap[c1]
+            if c1 + 1 < size and before(heap[c1 + 1], m):
+                m = heap[c1 + 1]
+                c1 += 1
+            if not before(m, x):
+                break
+            heap[i] = m
+            i = c1
+        heap[i] = x
+
+    def push(e, size, f, c, nn, u, t, par):  # entry e (f, c, nn) onto the heap (sift up)
+        pf[e] = f
+        pc[e] = c
+        pn[e] = nn
+        pv[e] = u
+        pt[e] = t
+        pp[e] = par
+        i = size
+        while i > 0 and before(e, heap[(i - 1) >> 1]):
+            heap[i] = heap[(i - 1) >> 1]
+            i = (i - 1) >> 1
+        heap[i] = e
+
     while size > 0:
         top = heap[0]
         v = pv[top]
@@ -152,61 +225,18 @@ def _astar_loop(
             status = _A_GROW
             break
         size -= 1
-        if size > 0:  # the last entry down from the root (sift down)
-            x = heap[size]
-            xf = pf[x]
-            xc = pc[x]
-            xn = pn[x]
-            i = 0
-            while True:
-                c1 = 2 * i + 1
-                if c1 >= size:
-                    break
-                m = heap[c1]
-                if c1 + 1 < size:
-                    y = heap[c1 + 1]
-                    if pf[y] != pf[m]:
-                        yl = pf[y] < pf[m]
-                    elif pc[y] != pc[m]:
-                        yl = pc[y] < pc[m]
-                    elif pn[y] != pn[m]:
-                        yl = pn[y] < pn[m]
-                    else:
-                        yl = y < m
-                    if yl:
-                        m = y
-                        c1 += 1
-                if pf[m] != xf:
-                    ml = pf[m] < xf
-                elif pc[m] != xc:
-                    ml = pc[m] < xc
-                elif pn[m] != xn:
-                    ml = pn[m] < xn
-                else:
-                    ml = m < x
-                if ml:
-                    heap[i] = m
-                    i = c1
-                else:
-                    break
-            heap[i] = x
+        if size > 0:  # the last entry down from the root
+            sift_down(size)
         t = pt[top]
         conf = pc[top]
         if pn[top] == TERMINAL:
             regs[_TOP] = top
             status = _A_FOUND
             break
-        key = (t if t < tcap else tcap) * n + v
-        slot = ((key * _HMUL) >> 17) & bmask
-        while bkeys[slot] != -1 and bkeys[slot] != key:
-            slot = (slot + 1) & bmask
-        if bkeys[slot] == key:
-            if bvals[slot] == _CLOSED:
-                continue
-        else:
-            bkeys[slot] = key
-            bsize += 1
-        bvals[slot] = _CLOSED
+        done, added = lower((t if t < tcap else tcap) * n + v, _CLOSED)
+        if not done:  # expanded before
+            continue
+        bsize += added
         expanded += 1
         if expanded == node_limit:
             break
@@ -215,47 +245,21 @@ def _astar_loop(
             continue
         base = t1 * n
         keyt1 = (t1 if t1 < tcap else tcap) * n
-        need = -1
-        nl = t1 < n_lm
-        if nl:
-            need = lm_need[t1]
-            lrow = nxt_row[t1]
-            ltl = nxt_tl[t1] - t1
-            lhb = nxt_hb[t1] - t1
-        else:
-            lrow = 0
-            ltl = 0
-            lhb = 0
+        nl = t1 < n_lm  # the next landmark's need, row of lmd, time left, bound on h
+        need = lm_need[t1] if nl else -1
+        lrow = nxt_row[t1] if nl else 0
+        ltl = nxt_tl[t1] - t1 if nl else 0
+        lhb = nxt_hb[t1] - t1 if nl else 0
         in_cat = use_cat and t1 < cat_h
         for j in range(ptr[v], ptr[v + 1]):
             u = idx[j]
             # _move_h: h of the move v -> u arriving at t1, or not allowed.
             if need >= 0 and u != need:
                 continue
-            if nv > 0:  # a vertex constraint (binary search)
-                nk = base + u
-                a = 0
-                b = nv
-                while a < b:
-                    mid = (a + b) >> 1
-                    if vkeys[mid] < nk:
-                        a = mid + 1
-                    else:
-                        b = mid
-                if a < nv and vkeys[a] == nk:
-                    continue
-            if ne > 0 and u != v:  # an edge constraint
-                ekey = (base + v) * n + u
-                a = 0
-                b = ne
-                while a < b:
-                    mid = (a + b) >> 1
-                    if ekeys[mid] < ekey:
-                        a = mid + 1
-                    else:
-                        b = mid
-                if a < ne and ekeys[a] == ekey:
-                    continue
+            if nv > 0 and listed(vkeys, nv, base + u):  # a vertex constraint
+                continue
+            if ne > 0 and u != v and listed(ekeys, ne, (base + v) * n + u):  # an edge one
+                continue
             if t1 >= ff[u]:
                 continue
             hu = dist[u]
@@ -279,52 +283,16 @@ def _astar_loop(
                         c += 1
                 if t1 > park_t[u]:
                     c += 1
-            for final in range(2):
-                if final == 0:
-                    # A move into the goal (not a wait there) may be the final arrival.
-                    if not (u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm):
-                        continue
-                    f_new = t1
-                    n_new = TERMINAL
-                else:
-                    ku = keyt1 + u
-                    slot = ((ku * _HMUL) >> 17) & bmask
-                    while bkeys[slot] != -1 and bkeys[slot] != ku:
-                        slot = (slot + 1) & bmask
-                    if bkeys[slot] == ku:
-                        if bvals[slot] <= c:  # (_CLOSED included)
-                            continue
-                    else:
-                        bkeys[slot] = ku
-                        bsize += 1
-                    bvals[slot] = c
-                    f_new = fu
-                    n_new = -t1
+            # A move into the goal (not a wait there) may be the final arrival.
+            if u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm:
                 cnt += 1
-                pf[cnt] = f_new
-                pc[cnt] = c
-                pn[cnt] = n_new
-                pv[cnt] = u
-                pt[cnt] = t1
-                pp[cnt] = top
-                i = size  # push (sift up)
-                while i > 0:
-                    par = (i - 1) >> 1
-                    y = heap[par]
-                    if f_new != pf[y]:
-                        xl = f_new < pf[y]
-                    elif c != pc[y]:
-                        xl = c < pc[y]
-                    elif n_new != pn[y]:
-                        xl = n_new < pn[y]
-                    else:
-                        xl = cnt < y
-                    if xl:
-                        heap[i] = y
-                        i = par
-                    else:
-                        break
-                heap[i] = cnt
+                push(cnt, size, t1, c, TERMINAL, u, t1, top)
+                size += 1
+            done, added = lower(keyt1 + u, c)
+            if done:
+                bsize += added
+                cnt += 1
+                push(cnt, size, fu, c, -t1, u, t1, top)
                 size += 1
     regs[_SIZE] = size
     regs[_CNT] = cnt

@@ -150,13 +150,16 @@ _REGS = 14
 _GROW = 4
 
 
-# Complexity: focal._focal_loop (with _park and _raise_bound written out) in one compiled
-# body, step by step like the Python one, so the tests can hold them to identical
-# results. In numba every call of a function that takes arrays and loops costs atomic
-# reference counts (measured: about 2 us an expansion when the heap's sifts, the hash
-# probes and the comparisons were helpers), so those are written out here, the helpers
-# left take scalars, and no array is reassigned in the loop: when one is about to run
-# out, the loop hands back to ``focal``, which grows it and calls again.
+# Complexity: focal._focal_loop (with _park and _raise_bound) in one compiled body, step
+# by step like the Python one, so the tests can hold them to identical results. In numba
+# every call of a module-level function that takes arrays costs atomic reference counts
+# (measured: about 2 us an expansion when the heap's sifts, the hash probes and the
+# comparisons were such helpers, against 0.15-0.25 us now), and so does numba's
+# ``inline="always"`` (measured on the A* kernel); inner functions (closures over the
+# loop's arrays) are inlined free, so the sifts, the binary search and the state update
+# are written once as those. No array is reassigned in the loop: when one is about to run
+# out, the loop hands back to ``focal``, which grows it and calls again. Over 150 lines
+# for that reason (264, of which 90 the inner functions).
 @_njit
 def _loop(
     ptr, idx, h, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t, pp,
@@ -194,21 +197,88 @@ def _loop(
     n_live = regs[_NLIVE]
     n_pend = regs[_NPEND]
     status = NO_PATH
+
+    # Inner functions: numba inlines them where called, and the arrays they read are the
+    # loop's own, so they cost nothing at run time (helpers at module level did).
+    def before(a, b):  # entry a pops before entry b
+        return _lt(p0[a], p1[a], ef[a], ek[a], p0[b], p1[b], ef[b], ek[b])
+
+    def sift_up(x, i):  # entry x into the heap at free position i
+        while i > 0 and before(x, heap[(i - 1) >> 1]):
+            heap[i] = heap[(i - 1) >> 1]
+            i = (i - 1) >> 1
+        heap[i] = x
+
+    def sift_down(x, i, size):  # entry x into the heap of size entries at position i
+        while True:
+            c1 = 2 * i + 1
+            if c1 >= size:
+                break
+            m = heap[c1]
+            if c1 + 1 < size and before(heap[c1 + 1], m):
+                m = heap[c1 + 1]
+                c1 += 1
+            if not before(m, x):
+                break
+            heap[i] = m
+            i = c1
+        heap[i] = x
+
+    def listed(keys, m, x):  # x in the sorted keys[:m] (binary search)
+        a = 0
+        b = m
+        while a < b:
+            mid = (a + b) >> 1
+            if keys[mid] < x:
+                a = mid + 1
+            else:
+                b = mid
+        return a < m and keys[a] == x
+
+    def offer(enc, nc, vx, nf, tie, key, par, fb, bound, cnt):
+        # A state (enc: 2 key, + 1 a terminal) reached with nc conflicts, f = nf, from
+        # state par: kept and given a FOCAL entry if new or with fewer conflicts than
+        # before. cnt = (n_s, n_e, n_live, lo, n_pend), returned updated.
+        n_s, n_e, n_live, lo, n_pend = cnt
+        slot = ((enc * _HMUL) >> 17) & hmask
+        while hkeys[slot] != -1 and hkeys[slot] != enc:
+            slot = (slot + 1) & hmask
+        sid = hids[slot] if hkeys[slot] == enc else -1
+        if sid >= 0 and nc >= s_best[sid]:
+            return cnt
+        if sid < 0:
+            sid = n_s
+            n_s += 1
+            s_v[sid] = vx
+            s_closed[sid] = False
+            hkeys[slot] = enc
+            hids[slot] = sid
+            live[nf] += 1
+            n_live += 1
+            if nf < lo:
+                lo = nf
+        s_best[sid] = nc
+        s_par[sid] = par
+        e = n_e
+        n_e += 1
+        p0[e] = tie if fb else nc
+        p1[e] = nc if fb else tie
+        ef[e] = nf
+        ek[e] = key
+        es[e] = sid
+        if nf <= bound:
+            pend[n_pend] = e
+            n_pend += 1
+        else:
+            enext[e] = bhead[nf]
+            bhead[nf] = e
+        return n_s, n_e, n_live, lo, n_pend
+
     while True:
-        while n_pend > 0:  # push the waiting entries (sift up)
+        while n_pend > 0:  # push the waiting entries
             n_pend -= 1
-            x = pend[n_pend]
-            i = size
+            sift_up(pend[n_pend], size)
             size += 1
-            while i > 0:
-                par = (i - 1) >> 1
-                y = heap[par]
-                if _lt(p0[x], p1[x], ef[x], ek[x], p0[y], p1[y], ef[y], ek[y]):
-                    heap[i] = y
-                    i = par
-                else:
-                    break
-            heap[i] = x
         if raise_fmin or size == 0:
             raise_fmin = False
             if n_live == 0:
@@ -225,19 +295,10 @@ def _loop(
                 for fx in range(bound + 1, top_f + 1):
                     x = bhead[fx]
                     bhead[fx] = -1
-                    while x >= 0:  # push x (sift up)
+                    while x >= 0:
                         nx = enext[x]
-                        i = size
+                        sift_up(x, size)
                         size += 1
-                        while i > 0:
-                            par = (i - 1) >> 1
-                            y = heap[par]
-                            if _lt(p0[x], p1[x], ef[x], ek[x], p0[y], p1[y], ef[y], ek[y]):
-                                heap[i] = y
-                                i = par
-                            else:
-                                break
-                        heap[i] = x
                         x = nx
                 if new_bound > bound:
                     bound = new_bound
@@ -245,25 +306,8 @@ def _loop(
                     continue
         top_e = heap[0]
         size -= 1
-        if size > 0:  # the last entry down from the root (sift down)
-            x = heap[size]
-            i = 0
-            while True:
-                c1 = 2 * i + 1
-                if c1 >= size:
-                    break
-                m = heap[c1]
-                if c1 + 1 < size:
-                    y = heap[c1 + 1]
-                    if _lt(p0[y], p1[y], ef[y], ek[y], p0[m], p1[m], ef[m], ek[m]):
-                        m = y
-                        c1 += 1
-                if _lt(p0[m], p1[m], ef[m], ek[m], p0[x], p1[x], ef[x], ek[x]):
-                    heap[i] = m
-                    i = c1
-                else:
-                    break
-            heap[i] = x
+        if size > 0:  # the last entry down from the root
+            sift_down(heap[size], 0, size)
         c = p1[top_e] if fb else p0[top_e]
         f = ef[top_e]
         top = es[top_e]
@@ -320,24 +364,7 @@ def _loop(
                 p0[x] = p1[x]
                 p1[x] = y
             for r in range((size >> 1) - 1, -1, -1):
-                x = heap[r]
-                i = r
-                while True:
-                    c1 = 2 * i + 1
-                    if c1 >= size:
-                        break
-                    m = heap[c1]
-                    if c1 + 1 < size:
-                        y = heap[c1 + 1]
-                        if _lt(p0[y], p1[y], ef[y], ek[y], p0[m], p1[m], ef[m], ek[m]):
-                            m = y
-                            c1 += 1
-                    if _lt(p0[m], p1[m], ef[m], ek[m], p0[x], p1[x], ef[x], ek[x]):
-                        heap[i] = m
-                        i = c1
-                    else:
-                        break
-                heap[i] = x
+                sift_down(heap[r], r, size)
         if (expanded & 1023) == 0 and _monotonic() >= end:
             status = TIMEOUT
             break
@@ -346,32 +373,14 @@ def _loop(
                 raise_fmin = True
             continue
         base = nt * n
+        cnt = (n_s, n_e, n_live, lo, n_pend)
         for j in range(ptr[v], ptr[v + 1]):
             u = idx[j]
             nk = base + u
-            if nv > 0:  # a vertex constraint (binary search)
-                a = 0
-                b = nv
-                while a < b:
-                    mid = (a + b) >> 1
-                    if vkeys[mid] < nk:
-                        a = mid + 1
-                    else:
-                        b = mid
-                if a < nv and vkeys[a] == nk:
-                    continue
-            if ne > 0 and u != v:  # an edge constraint
-                ekey = (base + v) * n + u
-                a = 0
-                b = ne
-                while a < b:
-                    mid = (a + b) >> 1
-                    if ekeys[mid] < ekey:
-                        a = mid + 1
-                    else:
-                        b = mid
-                if a < ne and ekeys[a] == ekey:
-                    continue
+            if nv > 0 and listed(vkeys, nv, nk):  # a vertex constraint
+                continue
+            if ne > 0 and u != v and listed(ekeys, ne, (base + v) * n + u):  # an edge one
+                continue
             nc = c
             if nt < cat_h:
                 occ = cat_vt[nk]
@@ -393,79 +402,15 @@ def _loop(
                 continue
             hu = h[u]
             nf = nt + hu if nt + hu > hold else hold
-            enc = 2 * nk
-            slot = ((enc * _HMUL) >> 17) & hmask
-            while hkeys[slot] != -1 and hkeys[slot] != enc:
-                slot = (slot + 1) & hmask
-            sid = hids[slot] if hkeys[slot] == enc else -1
-            if sid < 0 or nc < s_best[sid]:
-                if sid < 0:
-                    sid = n_s
-                    n_s += 1
-                    s_v[sid] = u
-                    s_closed[sid] = False
-                    hkeys[slot] = enc
-                    hids[slot] = sid
-                    live[nf] += 1
-                    n_live += 1
-                    if nf < lo:
-                        lo = nf
-                s_best[sid] = nc
-                s_par[sid] = top
-                e = n_e
-                n_e += 1
-                tie = (nf + hu) * TIE - nt
-                p0[e] = tie if fb else nc
-                p1[e] = nc if fb else tie
-                ef[e] = nf
-                ek[e] = nk
-                es[e] = sid
-                if nf <= bound:
-                    pend[n_pend] = e
-                    n_pend += 1
-                else:
-                    enext[e] = bhead[nf]
-                    bhead[nf] = e
+            cnt = offer(2 * nk, nc, u, nf, (nf + hu) * TIE - nt, nk, top, fb, bound, cnt)
             if u == goal and nt >= hold:
                 ix = nt if nt < span else span
                 tc = nc + goal_after[ix] + pw * p_after[ix]
-                if avoid and tc:
-                    continue
-                # focal._park: the terminal node (parked at the goal from nt on)
-                enc = 2 * nk + 1
-                slot = ((enc * _HMUL) >> 17) & hmask
-                while hkeys[slot] != -1 and hkeys[slot] != enc:
-                    slot = (slot + 1) & hmask
-                sid = hids[slot] if hkeys[slot] == enc else -1
-                if sid >= 0 and tc >= s_best[sid]:
-                    continue
-                if sid < 0:
-                    sid = n_s
-                    n_s += 1
-                    s_v[sid] = goal
-                    s_closed[sid] = False
-                    hkeys[slot] = enc
-                    hids[slot] = sid
-                    live[nt] += 1
-                    n_live += 1
-                    if nt < lo:
-                        lo = nt
-                s_best[sid] = tc
-                s_par[sid] = top
-                e = n_e
-                n_e += 1
-                tie = nt * TIE - nt
-                p0[e] = tie if fb else tc
-                p1[e] = tc if fb else tie
-                ef[e] = nt
-                ek[e] = -(nk + 1)
-                es[e] = sid
-                if nt <= bound:
-                    pend[n_pend] = e
-                    n_pend += 1
-                else:
-                    enext[e] = bhead[nt]
-                    bhead[nt] = e
+                if not (avoid and tc):  # focal._park: parked at the goal from nt on
+                    cnt = offer(
+                        2 * nk + 1, tc, goal, nt, nt * TIE - nt, -(nk + 1), top, fb, bound, cnt
+                    )
+        n_s, n_e, n_live, lo, n_pend = cnt
         if first and f == fmin and live[f] == 0:
             raise_fmin = True
     regs[_N_S] = n_s
