@@ -75,6 +75,51 @@ def successors(adj: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
     return succ
 
 
+class Successors(dict[int, tuple[int, ...]]):
+    """:func:`successors` made on demand: ``succ[v]`` is ``(*adj[v], v)``, built on
+    first access (a short search touches a few hundred of a map's thousands of vertices).
+
+    Example
+    -------
+    >>> succ = lazy_successors([[1], [0]])
+    >>> succ[1], len(succ)
+    ((0, 1), 1)
+    """
+
+    __slots__ = ("adj",)
+
+    def __init__(self, adj: Sequence[Sequence[int]]) -> None:
+        super().__init__()
+        self.adj = adj
+
+    def __missing__(self, v: int) -> tuple[int, ...]:
+        s = self[v] = (*self.adj[v], v)
+        return s
+
+
+_LAZY: dict[int, tuple[Sequence[Sequence[int]], Successors]] = {}
+
+
+def lazy_successors(adj: Sequence[Sequence[int]]) -> Successors:
+    """The :class:`Successors` of ``adj``, one per ``adj`` (cached by identity like
+    :func:`successors`), so every search on a graph shares the entries made.
+
+    Example
+    -------
+    >>> adj = [[1], [0]]
+    >>> lazy_successors(adj) is lazy_successors(adj), lazy_successors(adj)[0]
+    (True, (1, 0))
+    """
+    hit = _LAZY.get(id(adj))
+    if hit is not None and hit[0] is adj:
+        return hit[1]
+    succ = Successors(adj)
+    if len(_LAZY) > 16:
+        _LAZY.clear()
+    _LAZY[id(adj)] = (adj, succ)
+    return succ
+
+
 class Moves:
     """The moves one agent may make under its constraints, each with an admissible h.
 
@@ -119,7 +164,7 @@ class Moves:
         cons: AgentConstraints,
         dist_of: Callable[[int], Sequence[int]] | None = None,
     ) -> None:
-        self.succ = successors(adj)
+        self.succ = lazy_successors(adj)
         self.goal = goal
         self.dist = dist
         self.cons = cons
