@@ -43,7 +43,7 @@ from hierplan_opt.search.focal import focal_path, park_conflicts, scored_moves
 from hierplan_opt.search.highways import inflated_focal_path
 from hierplan_opt.search.mdd import build_mdd
 from hierplan_opt.search.reservations import Reservations
-from hierplan_opt.search.spacetime import Moves, successors
+from hierplan_opt.search.spacetime import Moves, lazy_successors, successors
 
 
 def grid(rng: random.Random) -> tuple[Graph, list[int]]:
@@ -269,3 +269,55 @@ def test_focal_loop_counts_as_scored_moves(seed):
             assert path[t] in moves, (seed, t)
             c = moves[path[t]]
         assert park_conflicts(c, len(path) - 1, res.visits(goal)) == 0, seed
+
+
+def test_lazy_successors_equal_the_full_lists_and_are_keyed_by_the_adjacency():
+    """``Moves`` reads :func:`lazy_successors` (entries made on first access, a short
+    search touches few cells): every entry equals :func:`successors`' one (the order the
+    A* and the kernel's CSR lists try moves in), one table per adjacency object, and a
+    new graph with the same cells gets its own table, not the first one's entries."""
+    g = Graph.grid(5, 4, obstacles=[(1, 1), (3, 2)])
+    lazy = lazy_successors(g.adj)
+    assert len(lazy) == 0  # nothing made before a search asks
+    assert lazy_successors(g.adj) is lazy
+    full = successors(g.adj)
+    for v in range(g.n):
+        assert lazy[v] == full[v]
+    assert len(lazy) == g.n
+    other = Graph.grid(5, 4, obstacles=[(2, 2)])
+    assert other.adj is not g.adj
+    assert lazy_successors(other.adj) is not lazy
+    assert lazy_successors(other.adj)[7] == (*other.adj[7], 7) != lazy[7]
+    # A list equal to an adjacency but another object: not its table.
+    copy = [list(nb) for nb in g.adj]
+    assert lazy_successors(copy) is not lazy
+    assert Moves(g.adj, 0, g.dist_list(0), AgentConstraints.root(g.n, 0)).succ is lazy
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_astar_with_lazy_successors_equals_the_full_lists(seed):
+    """The Python A* loop on the lazy table finds the same path with the same expansion
+    count as on the full list of :func:`successors` (the rule before the change)."""
+    rng = random.Random(3100 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    for a in range(rng.randint(0, 3)):
+        res.add(a, walk(g, rng, free, rng.randint(0, 8)))
+    jit.set_low_level("python")
+    try:
+        for _ in range(4):
+            s, goal = rng.sample(free, 2)
+            cons = constraints(g, rng, free, goal, ALL_KINDS)
+            dist = g.dist_list(goal)
+            if cons.infeasible or dist[s] >= UNREACHABLE:
+                continue  # space_time_astar's early exits: the loop never runs
+            moves = Moves(g.adj, goal, dist, cons, g.dist_list)
+            args = (g.adj, s, goal, dist, cons, res, None)
+            tail = (moves.nxt, moves.horizon(), moves.h0(s))
+            lazy = astar._search(*args, lazy_successors(g.adj), *tail)  # type: ignore[arg-type]
+            full = astar._search(*args, successors(g.adj), *tail)  # type: ignore[arg-type]
+            assert lazy == full, (seed, s, goal)
+    finally:
+        jit.set_low_level(None)
