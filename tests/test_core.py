@@ -458,3 +458,11 @@ def test_many_target_bfs_only_on_small_degrees_and_stops_at_the_deadline(
     assert made == [0, 7]
     assert g.fill_distances([0, 7, 12, 29])
     assert all(g.dist_list(t) == graph_mod._bfs(g.adj, t) for t in (0, 7, 12, 29))
+    # The Python BFS of many tables (a maze's long corridors) checks it every 16 tables.
+    monkeypatch.setattr(graph_mod, "MANY_BFS_RATIO", 10**9)
+    g = Graph.grid(8, 5)
+    g._open_grid = False  # type: ignore[misc]  # (its tables would be Manhattan's)
+    late = Late(60)
+    late.checks = 0
+    assert not g.fill_distances(range(40), late)
+    assert sorted(g._dist_list_cache) == list(range(16))

@@ -30,11 +30,14 @@ from hierplan_opt.core.errors import InputError
 #: Timestep distance of a vertex that cannot reach the target. Large, so that any
 #: sum of a few of them still fits in a Python int comparison without special cases.
 UNREACHABLE = 1 << 30
-#: Free vertices times targets up to which a distance batch is a Python BFS while scipy
-#: is not loaded: importing ``scipy.sparse.csgraph`` costs 0.15-0.5 s of a fresh process,
-#: the Python BFS about 0.35 us a free vertex (2 ms a table on the 5,699 free cells of
-#: ``warehouse-10-20-10-2-1``), so up to about 250k vertex-tables the BFS is cheaper.
-SMALL_BFS_WORK = 250_000
+#: Free vertices times targets up to which a distance batch is made without scipy while
+#: scipy is not loaded: importing ``scipy.sparse.csgraph`` costs 0.15-0.5 s of a fresh
+#: process; without it a table costs about 90 ns a free vertex (Python BFS) or 35-65 ns
+#: (numpy, :func:`_bfs_many`) against scipy's 25 ns. Measured per process on
+#: ``warehouse-10-20-10-2-1`` k100 (570k): 0.84 s of CPU for the solve against 1.01 s
+#: with the import; up to 2M the import does not pay (the Python BFS of a maze-like map,
+#: about 0.2 s at 2M, is checked against the deadline every few tables).
+SMALL_BFS_WORK = 2_000_000
 #: The numpy BFS of many targets at once (:func:`_bfs_many`) pays about 10 us per level
 #: (its array calls) where the Python BFS pays about 90 ns per free vertex and table,
 #: itself about 35 ns: so it runs when the tables still to make times the free vertices
@@ -602,7 +605,9 @@ class Graph:
                 nbr = self._neighbour_table
                 if nbr is not None:
                     return self._fill_batches(rest, 1, lambda b: _bfs_many(nbr, b), deadline)
-            for t in rest:
+            for k, t in enumerate(rest, 1):
+                if k % 16 == 0 and deadline is not None and deadline.expired():
+                    return False
                 lists[t] = _bfs(self.adj, t)
             return True
         # Distances *to* a target are distances *from* it on the reversed graph.
@@ -676,7 +681,8 @@ class Graph:
         return table
 
     def _small_bfs(self, count: int) -> bool:
-        """Whether ``count`` BFS runs in Python beat scipy (its import, if not loaded yet)."""
+        """Whether ``count`` tables without scipy (Python and numpy BFS) beat scipy (its
+        import, if not loaded yet)."""
         if self.directed:
             return False
         if "scipy.sparse.csgraph" not in sys.modules:
