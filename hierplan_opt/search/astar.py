@@ -208,6 +208,8 @@ def _search(
         keyt1 = (t1 if t1 < tcap else tcap) * n
         negt1 = -t1
         cands = succ[v]
+        if cands is None:  # made on first expansion (spacetime.lazy_successors)
+            cands = succ[v] = (*adj[v], v)
         if lms:
             lm_need = lms.get(t1)
             if lm_need is not None:  # a landmark at t1: the only move is onto it
