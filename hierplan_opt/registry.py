@@ -29,7 +29,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
-from hierplan_opt.core.collector import relaxed_gc
 from hierplan_opt.core.errors import OptionError, UnknownSolverError
 from hierplan_opt.core.feasibility import quick_infeasibility
 from hierplan_opt.core.graph import UNREACHABLE
@@ -329,11 +328,9 @@ def run(
     values = info.check_options(options)
     deadline = Deadline(time_limit)
     # The distance tables (about a second for 2000 goals on 4096 cells) in batches
-    # between deadline checks; then the exact feasibility test (milliseconds). They make
-    # thousands of acyclic lists (adjacency, tables): no generation-0 scans meanwhile.
-    with relaxed_gc():
-        tables = instance.graph.fill_distances(_targets(instance), deadline)
-        reason = cheap_infeasibility(instance) if tables else None
+    # between deadline checks; then the exact feasibility test (milliseconds).
+    tables = instance.graph.fill_distances(_targets(instance), deadline)
+    reason = cheap_infeasibility(instance) if tables else None
     if reason is not None:
         return Result(
             Status.INFEASIBLE, None, solver=name, objective=objective, stats={"reason": reason}
