@@ -757,7 +757,7 @@ def _bfs_many(nbr: np.ndarray, targets: list[int]) -> np.ndarray:
     bases = np.arange(k, dtype=np.int64) * stride
     frontier = bases + np.asarray(targets, dtype=np.int64)
     dist[frontier] = 0
-    first = np.empty(k * stride, dtype=np.int64)  # where a state first occurs in a level
+    slot = np.empty(k * stride, dtype=np.int64)  # a state's place among a level's candidates
     level = 0
     while frontier.size:
         level += 1
@@ -765,8 +765,8 @@ def _bfs_many(nbr: np.ndarray, targets: list[int]) -> np.ndarray:
         cand = (nbr[v] + (row * stride)[:, None]).ravel()
         cand = cand[dist[cand] == UNREACHABLE]
         at = np.arange(len(cand), dtype=np.int64)
-        first[cand] = at  # the last write of a repeated state wins: keep that one only
-        cand = cand[first[cand] == at]
+        slot[cand] = at  # a repeated state keeps its last place: only that copy stays
+        cand = cand[slot[cand] == at]
         dist[cand] = level
         frontier = cand
     return dist.reshape(k, stride)[:, :n]
