@@ -271,12 +271,16 @@ def test_focal_loop_counts_as_scored_moves(seed):
         assert park_conflicts(c, len(path) - 1, res.visits(goal)) == 0, seed
 
 
-def test_lazy_successors_equal_the_full_lists_and_are_keyed_by_the_adjacency():
+def test_lazy_successors_equal_the_full_lists_and_are_keyed_by_the_adjacency(monkeypatch):
     """``Moves`` and the A* read :func:`lazy_successors` (an entry made when a search
     first expands its vertex: a short search touches few cells): every entry made equals
     :func:`successors`' one (the order the A* and the kernel's CSR lists try moves in),
     one list per adjacency object, and a new graph with the same cells, or a copy of the
     lists, gets its own list, not the first one's entries."""
+    from hierplan_opt.search import spacetime
+
+    # An empty cache: it holds 17 adjacencies at most (earlier tests' would push ours out).
+    monkeypatch.setattr(spacetime, "_LAZY", {})
     g = Graph.grid(5, 4, obstacles=[(1, 1), (3, 2)])
     lazy = lazy_successors(g.adj)
     assert lazy == [None] * g.n  # nothing made before a search asks
