@@ -381,3 +381,88 @@ def test_open_grid_distances_are_manhattan_and_equal_bfs() -> None:
             ref = graph_mod._bfs(g.adj, t)
             assert g.dist_list(t) == ref and g.dist_to(t).tolist() == ref
     assert not Graph.grid(4, 4, obstacles=[(1, 2)])._open_grid
+
+
+@pytest.mark.parametrize("many", [True, False])
+def test_many_target_bfs_equals_the_python_bfs(many: bool, monkeypatch: pytest.MonkeyPatch):
+    # Without scipy, fill_distances makes the first table by the Python BFS and, when
+    # its levels say so (MANY_BFS_RATIO), the others at once by numpy (_bfs_many), in
+    # batches between deadline checks. Both ways, forced here, give the Python BFS's
+    # tables: grids with walled-off parts, a 3D grid, a roadmap with an isolated vertex.
+    from hierplan_opt.core import graph as graph_mod
+
+    monkeypatch.setattr(graph_mod, "MANY_BFS_RATIO", 0 if many else 10**9)
+    monkeypatch.setattr(graph_mod, "DIST_BATCH_WORK", 64)  # batches of a few targets
+    monkeypatch.setattr(Graph, "_small_bfs", lambda self, count: True)  # as without scipy
+    calls: list[int] = []
+    real = graph_mod._bfs_many
+
+    def spy(nbr: np.ndarray, targets: list[int]) -> np.ndarray:
+        calls.append(len(targets))
+        return real(nbr, targets)
+
+    monkeypatch.setattr(graph_mod, "_bfs_many", spy)
+    rng = np.random.default_rng(35)
+    graphs = [g for g in grids_and_digraphs(rng, (12, 9), 0.35, 4, (30, 45)) if not g.directed]
+    graphs.append(Graph.grid(4, 3, 3, obstacles=[(1, 1, 1), (2, 0, 2)]))
+    pts = {f"v{i}": (float(i), float(i % 3)) for i in range(7)}
+    graphs.append(Graph.roadmap(pts, [("v0", "v1"), ("v1", "v2"), ("v2", "v0"), ("v3", "v4")]))
+    for g in graphs:
+        free = [v for v in range(g.n) if g.passable[v]]
+        targets = [int(t) for t in rng.choice(free, min(7, len(free)), replace=False)]
+        assert g.fill_distances(targets)
+        for t in targets:
+            ref = graph_mod._bfs(g.adj, t)
+            assert g.dist_list(t) == ref
+            assert g.dist_to(t).tolist() == ref
+            assert not g.dist_to(t).flags.writeable
+    assert (sum(calls) > 0) == many
+    assert not many or max(calls) < 7  # batches
+
+
+def test_many_target_bfs_only_on_small_degrees_and_stops_at_the_deadline(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from hierplan_opt.core import graph as graph_mod
+    from hierplan_opt.core.timer import Deadline
+
+    star = Graph.roadmap(
+        {f"v{i}": (float(i), 1.0 if i else 0.0) for i in range(12)},
+        [("v0", f"v{i}") for i in range(1, 12)],
+    )
+    assert star._neighbour_table is None  # a hub of 11 neighbours: a Python BFS each
+    digraph = Graph.roadmap({"A": (0, 0), "B": (1, 0)}, [("A", "B")], directed=True)
+    assert digraph._neighbour_table is None
+    monkeypatch.setattr(graph_mod, "MANY_BFS_RATIO", 0)
+    monkeypatch.setattr(graph_mod, "DIST_BATCH_WORK", 1)  # one target a batch
+    monkeypatch.setattr(Graph, "_small_bfs", lambda self, count: True)
+    star.fill_distances(range(12))
+    assert all(star.dist_list(t) == graph_mod._bfs(star.adj, t) for t in range(12))
+    g = Graph.grid(6, 5, obstacles=[(2, y) for y in range(4)])
+    assert g._neighbour_table is not None
+    assert g._neighbour_table.shape == (g.n + 1, 4)
+
+    # The deadline passes after the first batch: the first table (the Python BFS's) and
+    # that batch are made, and kept.
+    class Late(Deadline):
+        __slots__ = ("checks",)
+
+        def expired(self) -> bool:
+            self.checks += 1
+            return self.checks > 1
+
+    late = Late(60)
+    late.checks = 0
+    assert not g.fill_distances([0, 7, 12, 29], late)
+    made = [t for t in (0, 7, 12, 29) if t in g._dist_list_cache]
+    assert made == [0, 7]
+    assert g.fill_distances([0, 7, 12, 29])
+    assert all(g.dist_list(t) == graph_mod._bfs(g.adj, t) for t in (0, 7, 12, 29))
+    # The Python BFS of many tables (a maze's long corridors) checks it every 16 tables.
+    monkeypatch.setattr(graph_mod, "MANY_BFS_RATIO", 10**9)
+    g = Graph.grid(8, 5)
+    g._open_grid = False  # type: ignore[misc]  # (its tables would be Manhattan's)
+    late = Late(60)
+    late.checks = 0
+    assert not g.fill_distances(range(40), late)
+    assert sorted(g._dist_list_cache) == list(range(16))

@@ -384,3 +384,30 @@ def test_large_maps_are_decided() -> None:
     crowded = Instance(graph=g, agents=agents)
     why = quick_infeasibility(crowded)
     assert why is None or "cannot" in why or "order" in why
+
+
+def test_one_by_one_with_stuck_agents_first_or_last_agrees_with_brute_force(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The agents without a route clear of every endpoint may move first or last
+    # (one_by_one's STUCK_MAX): every placement that only this accepts is solvable by
+    # brute force, and there are such placements (the extension is exercised).
+    import hierplan_opt.core.pebble_motion as pm
+
+    rng = random.Random(35)
+    graphs = [G for G in nx.graph_atlas_g()[1:] if nx.is_connected(G) and G.number_of_nodes() <= 6]
+    graphs += [G for name, G in shapes() if G.number_of_nodes() <= 7]
+    only_extended = 0
+    for G in graphs:
+        g = as_graph(G)
+        for k in range(2, min(4, g.n - 1) + 1):
+            comp = reachability_classes(g.adj, k)
+            confs = list(comp)
+            for a, b in (rng.sample(confs, 2) for _ in range(min(40, len(confs) // 2))):
+                monkeypatch.setattr(pm, "STUCK_MAX", -1)
+                plain = one_by_one(g.adj, list(a), list(b))
+                monkeypatch.setattr(pm, "STUCK_MAX", 4)
+                if one_by_one(g.adj, list(a), list(b)) and not plain:
+                    only_extended += 1
+                    assert comp[a] == comp[b], (sorted(G.edges()), a, b)
+    assert only_extended > 300, only_extended

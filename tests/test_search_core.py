@@ -43,7 +43,7 @@ from hierplan_opt.search.focal import focal_path, park_conflicts, scored_moves
 from hierplan_opt.search.highways import inflated_focal_path
 from hierplan_opt.search.mdd import build_mdd
 from hierplan_opt.search.reservations import Reservations
-from hierplan_opt.search.spacetime import Moves, successors
+from hierplan_opt.search.spacetime import Moves, lazy_successors, successor, successors
 
 
 def grid(rng: random.Random) -> tuple[Graph, list[int]]:
@@ -269,3 +269,68 @@ def test_focal_loop_counts_as_scored_moves(seed):
             assert path[t] in moves, (seed, t)
             c = moves[path[t]]
         assert park_conflicts(c, len(path) - 1, res.visits(goal)) == 0, seed
+
+
+def test_lazy_successors_equal_the_full_lists_and_are_keyed_by_the_adjacency(monkeypatch):
+    """``Moves`` and the A* read :func:`lazy_successors` (an entry made when a search
+    first expands its vertex: a short search touches few cells): every entry made equals
+    :func:`successors`' one (the order the A* and the kernel's CSR lists try moves in),
+    one list per adjacency object, and a new graph with the same cells, or a copy of the
+    lists, gets its own list, not the first one's entries."""
+    from hierplan_opt.search import spacetime
+
+    # An empty cache: it holds 17 adjacencies at most (earlier tests' would push ours out).
+    monkeypatch.setattr(spacetime, "_LAZY", {})
+    g = Graph.grid(5, 4, obstacles=[(1, 1), (3, 2)])
+    lazy = lazy_successors(g.adj)
+    assert lazy == [None] * g.n  # nothing made before a search asks
+    assert lazy_successors(g.adj) is lazy
+    full = successors(g.adj)
+    assert successor(lazy, g.adj, 6) == full[6] and lazy[6] == full[6]
+    assert sum(x is not None for x in lazy) == 1
+    for v in range(g.n):
+        assert successor(lazy, g.adj, v) == full[v]
+    assert lazy == full
+    other = Graph.grid(5, 4, obstacles=[(2, 2)])
+    assert other.adj is not g.adj
+    assert lazy_successors(other.adj) is not lazy
+    assert successor(lazy_successors(other.adj), other.adj, 7) == (*other.adj[7], 7) != lazy[7]
+    copy = [list(nb) for nb in g.adj]  # equal to an adjacency but another object
+    assert lazy_successors(copy) is not lazy
+    assert Moves(g.adj, 0, g.dist_list(0), AgentConstraints.root(g.n, 0)).succ is lazy
+    # The moves of a fresh graph's first search fill only the entries it expands.
+    h = Graph.grid(6, 6)
+    path, expanded = astar.space_time_astar(
+        h.adj, 0, 7, h.dist_list(7), AgentConstraints.root(h.n, 7)
+    )
+    made = [v for v, x in enumerate(lazy_successors(h.adj)) if x is not None]
+    assert path is not None and 0 < len(made) <= expanded < h.n
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_astar_with_lazy_successors_equals_the_full_lists(seed):
+    """The Python A* loop on the lazy table finds the same path with the same expansion
+    count as on the full list of :func:`successors` (the rule before the change)."""
+    rng = random.Random(3100 + seed)
+    g, free = grid(rng)
+    if len(free) < 3:
+        return
+    res = Reservations(g.n)
+    for a in range(rng.randint(0, 3)):
+        res.add(a, walk(g, rng, free, rng.randint(0, 8)))
+    jit.set_low_level("python")
+    try:
+        for _ in range(4):
+            s, goal = rng.sample(free, 2)
+            cons = constraints(g, rng, free, goal, ALL_KINDS)
+            dist = g.dist_list(goal)
+            if cons.infeasible or dist[s] >= UNREACHABLE:
+                continue  # space_time_astar's early exits: the loop never runs
+            moves = Moves(g.adj, goal, dist, cons, g.dist_list)
+            args = (g.adj, s, goal, dist, cons, res, None)
+            tail = (moves.nxt, moves.horizon(), moves.h0(s))
+            lazy = astar._search(*args, lazy_successors(g.adj), *tail)  # type: ignore[arg-type]
+            full = astar._search(*args, successors(g.adj), *tail)  # type: ignore[arg-type]
+            assert lazy == full, (seed, s, goal)
+    finally:
+        jit.set_low_level(None)

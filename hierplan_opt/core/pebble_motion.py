@@ -774,6 +774,11 @@ def arrangement_key(graph: Graph, positions: Sequence[int]) -> tuple:
     return tuple(key)
 
 
+#: Agents without a route clear of every endpoint up to which :func:`one_by_one` still
+#: tries to move them first or last (a search each; beyond, the exact test decides).
+STUCK_MAX = 4
+
+
 def one_by_one(adj: Sequence[Sequence[int]], starts: Sequence[int], goals: Sequence[int]) -> bool:
     """Whether the agents can reach their goals one at a time: a cheap *sufficient* test.
 
@@ -784,8 +789,14 @@ def one_by_one(adj: Sequence[Sequence[int]], starts: Sequence[int], goals: Seque
     in turn along their routes while every other agent waits at its start or already
     stands on its goal -- all endpoints, so off the route, and the goal is free because
     it is nobody else's start or goal (the well-formed instances of Cap et al. 2015).
-    O(vertices + edges): one labelling of the endpoint-free components. False says
-    nothing (the exact test decides).
+    O(vertices + edges): one labelling of the endpoint-free components.
+
+    Up to :data:`STUCK_MAX` agents without such a route (an endpoint in a corridor) may
+    still move *first*, one at a time, before all the others: then the ones still to
+    move stand on their starts and the stuck ones moved before on their goals, so a
+    route clear of the other starts and of the other stuck agents' goals does. Or
+    *last*, after all the others: a route clear of the other goals and of the other
+    stuck agents' starts. False says nothing (the exact test decides).
 
     Example
     -------
@@ -795,6 +806,9 @@ def one_by_one(adj: Sequence[Sequence[int]], starts: Sequence[int], goals: Seque
     True
     >>> one_by_one(Graph.grid(4, 1).adj, [0, 1], [3, 2])  # must pass in a corridor
     False
+    >>> pocket = Graph.grid(5, 2, obstacles=[(0, 1), (1, 1), (3, 1), (4, 1)])  # cell 7 below
+    >>> one_by_one(pocket.adj, [0, 1], [3, 7])  # agent 1 into the pocket, then agent 0 last
+    True
     """
     k = len(starts)
     start_set, goal_set = set(starts), set(goals)
@@ -806,13 +820,46 @@ def one_by_one(adj: Sequence[Sequence[int]], starts: Sequence[int], goals: Seque
     ends = start_set | goal_set
     # The endpoint-free components next to the moving agents' starts.
     comp = _component_labels(adj, (x for s, _ in moving for x in adj[s]), ends)
+    stuck: list[tuple[int, int]] = []
     for s, t in moving:
         if t in adj[s]:
             continue
         near = {comp[x] for x in adj[s] if comp[x] >= 0}
         if not any(comp[x] in near for x in adj[t]):
-            return False
-    return True
+            stuck.append((s, t))
+            if len(stuck) > STUCK_MAX:
+                return False
+    if not stuck:
+        return True
+    stuck_starts = {s for s, _ in stuck}
+    stuck_goals = {t for _, t in stuck}
+    first = start_set | stuck_goals
+    if all(_route(adj, s, t, first) for s, t in stuck):
+        return True
+    last = goal_set | stuck_starts
+    return all(_route(adj, s, t, last) for s, t in stuck)
+
+
+def _route(adj: Sequence[Sequence[int]], s: int, t: int, blocked: set[int]) -> bool:
+    """Whether a path leads from ``s`` to ``t`` whose inner vertices avoid ``blocked``
+    (``s`` and ``t`` themselves may be in it).
+
+    Example
+    -------
+    >>> _route([[1], [0, 2], [1]], 0, 2, {0, 2}), _route([[1], [0, 2], [1]], 0, 2, {1})
+    (True, False)
+    """
+    seen = set(blocked)
+    seen.add(s)
+    stack = [s]
+    while stack:
+        for w in adj[stack.pop()]:
+            if w == t:
+                return True
+            if w not in seen:
+                seen.add(w)
+                stack.append(w)
+    return False
 
 
 def _component_labels(

@@ -29,7 +29,7 @@ from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.search import jit
 from hierplan_opt.search.constraints import AgentConstraints
 from hierplan_opt.search.reservations import Reservations
-from hierplan_opt.search.spacetime import Moves
+from hierplan_opt.search.spacetime import Moves, Successors
 
 #: Third heap key of a final-arrival entry (smaller than any ``-t``).
 TERMINAL = -(1 << 50)
@@ -155,7 +155,7 @@ def _search(
     cons: AgentConstraints,
     res: Reservations | None,
     node_limit: int | None,
-    succ: list[tuple[int, ...]],
+    succ: Successors,
     nxt: list[tuple[int, int, Sequence[int], int]],
     tcap: int,
     h0: int,
@@ -208,6 +208,8 @@ def _search(
         keyt1 = (t1 if t1 < tcap else tcap) * n
         negt1 = -t1
         cands = succ[v]
+        if cands is None:  # made on first expansion (spacetime.lazy_successors)
+            cands = succ[v] = (*adj[v], v)
         if lms:
             lm_need = lms.get(t1)
             if lm_need is not None:  # a landmark at t1: the only move is onto it

@@ -75,6 +75,47 @@ def successors(adj: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
     return succ
 
 
+#: :func:`successors` made on demand (:func:`lazy_successors`): ``None`` until made.
+Successors = list[tuple[int, ...] | None]
+
+_LAZY: dict[int, tuple[Sequence[Sequence[int]], Successors]] = {}
+
+
+def lazy_successors(adj: Sequence[Sequence[int]]) -> Successors:
+    """:func:`successors` made on demand, one list per ``adj`` (cached by identity like
+    :func:`successors`, so every search on a graph shares the entries made): entry ``v``
+    is None until a search makes it ``(*adj[v], v)`` (:func:`successor`). A short search
+    touches a few hundred of a map's thousands of vertices; a list (not a dict with
+    ``__missing__``) keeps the lookup in the hot loops as fast as the full list's.
+
+    Example
+    -------
+    >>> adj = [[1], [0]]
+    >>> succ = lazy_successors(adj)
+    >>> succ
+    [None, None]
+    >>> successor(succ, adj, 1), succ, lazy_successors(adj) is succ
+    ((0, 1), [None, (0, 1)], True)
+    """
+    hit = _LAZY.get(id(adj))
+    if hit is not None and hit[0] is adj:
+        return hit[1]
+    succ: Successors = [None] * len(adj)
+    if len(_LAZY) > 16:
+        _LAZY.clear()
+    _LAZY[id(adj)] = (adj, succ)
+    return succ
+
+
+def successor(succ: Successors, adj: Sequence[Sequence[int]], v: int) -> tuple[int, ...]:
+    """Entry ``v`` of a :func:`lazy_successors` list, made if not yet (the hot loops
+    write this out)."""
+    s = succ[v]
+    if s is None:
+        s = succ[v] = (*adj[v], v)
+    return s
+
+
 class Moves:
     """The moves one agent may make under its constraints, each with an admissible h.
 
@@ -96,6 +137,7 @@ class Moves:
     """
 
     __slots__ = (
+        "adj",
         "succ",
         "goal",
         "dist",
@@ -119,7 +161,8 @@ class Moves:
         cons: AgentConstraints,
         dist_of: Callable[[int], Sequence[int]] | None = None,
     ) -> None:
-        self.succ = successors(adj)
+        self.adj = adj
+        self.succ = lazy_successors(adj)
         self.goal = goal
         self.dist = dist
         self.cons = cons
@@ -176,14 +219,17 @@ class Moves:
         vc, ec, ff, lms, minf = self.vc, self.ec, self.ff, self.lms, self.minf
         dist = self.dist
         n = self.n
-        succ = self.succ
+        succ, adj = self.succ, self.adj
         need = lms.get(t) if lms else None
         nl = self.nxt[t] if t < len(self.nxt) else None
         base = t * n
         layer: list[list[tuple[int, int]]] = []
         for v in vs:
             out: list[tuple[int, int]] = []
-            for u in succ[v]:
+            cands = succ[v]
+            if cands is None:
+                cands = succ[v] = (*adj[v], v)
+            for u in cands:
                 if need is not None and u != need:
                     continue
                 if base + u in vc:
