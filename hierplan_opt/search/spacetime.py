@@ -28,6 +28,7 @@ loops that write the rule out are tied to :class:`Moves` by
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import TypeVar
 
 from hierplan_opt.core.graph import UNREACHABLE
 from hierplan_opt.search.constraints import AgentConstraints
@@ -54,7 +55,27 @@ def unwind(parent: dict[int, int], key: int, goal: int, n: int) -> list[int]:
     return path
 
 
+_T = TypeVar("_T")
+
 _SUCC: dict[int, tuple[Sequence[Sequence[int]], list[tuple[int, ...]]]] = {}
+
+
+def _per_adj(
+    cache: dict[int, tuple[Sequence[Sequence[int]], _T]],
+    adj: Sequence[Sequence[int]],
+    make: Callable[[], _T],
+) -> _T:
+    """``make()``'s value for ``adj``, kept in ``cache`` by the identity of ``adj`` (the
+    adjacency object kept beside it, so a new object at a reused id is a miss); the cache
+    is emptied once it holds more than 16 graphs."""
+    hit = cache.get(id(adj))
+    if hit is not None and hit[0] is adj:
+        return hit[1]
+    value = make()
+    if len(cache) > 16:
+        cache.clear()
+    cache[id(adj)] = (adj, value)
+    return value
 
 
 def successors(adj: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
@@ -65,14 +86,7 @@ def successors(adj: Sequence[Sequence[int]]) -> list[tuple[int, ...]]:
     >>> successors([[1], [0]])
     [(1, 0), (0, 1)]
     """
-    hit = _SUCC.get(id(adj))
-    if hit is not None and hit[0] is adj:
-        return hit[1]
-    succ = [(*nb, v) for v, nb in enumerate(adj)]
-    if len(_SUCC) > 16:
-        _SUCC.clear()
-    _SUCC[id(adj)] = (adj, succ)
-    return succ
+    return _per_adj(_SUCC, adj, lambda: [(*nb, v) for v, nb in enumerate(adj)])
 
 
 #: :func:`successors` made on demand (:func:`lazy_successors`): ``None`` until made.
@@ -97,14 +111,11 @@ def lazy_successors(adj: Sequence[Sequence[int]]) -> Successors:
     >>> successor(succ, adj, 1), succ, lazy_successors(adj) is succ
     ((0, 1), [None, (0, 1)], True)
     """
-    hit = _LAZY.get(id(adj))
-    if hit is not None and hit[0] is adj:
-        return hit[1]
-    succ: Successors = [None] * len(adj)
-    if len(_LAZY) > 16:
-        _LAZY.clear()
-    _LAZY[id(adj)] = (adj, succ)
-    return succ
+
+    def fresh() -> Successors:
+        return [None] * len(adj)
+
+    return _per_adj(_LAZY, adj, fresh)
 
 
 def successor(succ: Successors, adj: Sequence[Sequence[int]], v: int) -> tuple[int, ...]:
