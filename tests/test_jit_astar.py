@@ -436,10 +436,18 @@ def test_cbs_identical_call_by_call(monkeypatch):
         return got
 
     conflicts_of = jit.DenseMirror.conflicts_of
+    # The table of each dense mirror (a mirror keeps no reference back to its table).
+    tables = {}
+    mirror = jit._mirror
+
+    def recorded(k, g, res):
+        m = mirror(k, g, res)
+        tables[id(m)] = res
+        return m
 
     def checked_conflicts(self, r, path, skip):
         got = conflicts_of(self, r, path, skip)
-        assert got == as_dicts(self.owner).conflicts_of(r, path, skip)
+        assert got == as_dicts(tables[id(self)]).conflicts_of(r, path, skip)
         seen["dense_conflicts"] += 1
         return got
 
@@ -451,6 +459,7 @@ def test_cbs_identical_call_by_call(monkeypatch):
             monkeypatch.setattr(jit, "run", checked)
             monkeypatch.setattr(jit, "build_mdd", checked_mdd)
             monkeypatch.setattr(jit.DenseMirror, "conflicts_of", checked_conflicts)
+            monkeypatch.setattr(jit, "_mirror", recorded)
             for i, spec in enumerate(INSTANCES):
                 # Disjoint splitting (off by default) on one of them: its positive
                 # constraints are where the landmarks come from.
@@ -487,11 +496,13 @@ def test_auto_switches_after_python_time(monkeypatch):
         jit.note_python(0.0)
         assert jit.kernel() is not None
         jit.new_solve()  # the next solve starts in Python again, kernel loaded or not
-        assert jit.kernel() is None
-        jit.note_python(jit.JIT_WARM_S / 2)
-        assert jit.kernel() is None
-        jit.note_python(jit.JIT_WARM_S)  # loaded: it switches sooner (no pause to pay)
-        assert jit.kernel() is not None
+        n = 1024  # a 32x32 grid: loaded, it switches sooner (no pause to pay) ...
+        assert jit.kernel(n) is None
+        jit.note_python(n * jit.JIT_WARM_S_PER_VERTEX / 2)
+        assert jit.kernel(n) is None
+        jit.note_python(n * jit.JIT_WARM_S_PER_VERTEX)
+        assert jit.kernel(n) is not None
+        assert jit.kernel(16 * n) is None  # ... and later on a larger map
     finally:
         jit.set_low_level(None)
 
@@ -513,3 +524,48 @@ def test_bad_mode():
 
     with pytest.raises(OptionError, match="low level"):
         jit.set_low_level("fast")
+
+
+def test_a_solve_leaves_no_dense_table_behind():
+    # CBS's table hands its paths to a DenseMirror under the kernel. The mirror keeps
+    # no reference back to the table: with the cyclic collector off, both are freed when
+    # the solve returns (a cycle kept tens of MB a solve until a full collection), and
+    # the arrays kept per distance list are dropped when the next solve starts.
+    import gc
+
+    import hierplan_opt
+    from hierplan_opt.bench import scenario
+
+    def mirrors() -> int:
+        return sum(isinstance(o, jit.DenseMirror) for o in gc.get_objects())
+
+    jit.set_low_level("jit")
+    gc.collect()
+    gc.disable()
+    try:
+        before = mirrors()
+        r = hierplan_opt.solve(scenario("room-32-32-4-even-1:10")[1], "cbs", time_limit=60)
+        assert r.plan is not None and jit._ARRAYS
+        assert mirrors() == before
+        jit.new_solve()
+        assert not jit._ARRAYS and not jit._CONS
+    finally:
+        gc.enable()
+        jit.set_low_level(None)
+
+
+def test_graphs_of_one_map_share_their_lists():
+    # Graphs with the same edges share ``adj`` (so the kernel's arrays kept per ``adj``
+    # are made once per map); others do not; only the last few maps are kept.
+    from hierplan_opt.core import graph as core_graph
+
+    a, b = Graph.grid(5, 4), Graph.grid(5, 4)
+    assert a.adj is b.adj and a.dist_list(3) is not b.dist_list(3)
+    assert Graph.grid(4, 5).adj is not a.adj and Graph.grid(4, 5).adj == Graph.grid(4, 5).adj
+    blocked = Graph.grid(5, 4, obstacles=[(2, 2)])
+    assert blocked.adj is not a.adj and blocked.adj[2 + 5 * 2] == []
+    for w in range(6, 6 + core_graph.SHARED_ADJ_GRAPHS):
+        Graph.grid(w, 2).adj  # noqa: B018 - fills the shared lists
+    assert Graph.grid(5, 4).adj is not a.adj  # the oldest was dropped
+    jit._graph(a.adj)
+    assert jit._graph(b.adj) is jit._graph(a.adj)

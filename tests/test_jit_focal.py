@@ -269,7 +269,8 @@ def test_focal_python_time_counts_toward_the_switch(monkeypatch):
 
 def test_auto_switches_focal_calls_per_solve(monkeypatch):
     # ``auto`` with the kernel loaded: a solve starts in Python (ECBS resets the count),
-    # and the calls go to the kernel once the Python low level has run JIT_WARM_S.
+    # and the calls go to the kernel once the Python low level has run
+    # JIT_WARM_S_PER_VERTEX seconds per vertex of the map.
     import hierplan_opt
 
     jit.load()
@@ -281,16 +282,16 @@ def test_auto_switches_focal_calls_per_solve(monkeypatch):
         return run(*args, **kw)
 
     monkeypatch.setattr(jit, "run_focal", counted)
-    # An earlier solve's 10 s would switch at once (over JIT_WARM_S, here 5 s so that a
-    # slow machine does not reach it within this solve)
-    monkeypatch.setattr(jit, "JIT_WARM_S", 5.0)
+    # An earlier solve's 10 s would switch at once (over the threshold, here 5 s on the
+    # 16 vertices so that a slow machine does not reach it within this solve)
+    monkeypatch.setattr(jit, "JIT_WARM_S_PER_VERTEX", 5.0 / 16)
     monkeypatch.setattr(jit, "python_seconds", 10.0)
     jit.set_low_level("auto")
     g = Graph.grid(4, 4)
     inst = hierplan_opt.Instance.mapf(g, [(0, 0), (3, 0)], [(3, 0), (0, 0)])
     r = hierplan_opt.solve(inst, "eecbs", w=1.2)
     assert r.plan is not None and not used  # a short solve: Python only
-    jit.note_python(jit.JIT_WARM_S)
+    jit.note_python(5.0)
     focal.focal_path(g.adj, 0, 3, g.dist_list(3), AgentConstraints(), Reservations(g.n))
     assert used == [1]
 
@@ -340,7 +341,7 @@ def test_python_focal_admits_a_far_f_jump_from_its_buckets(monkeypatch: pytest.M
     def hang(*_: object) -> None:
         raise AssertionError("the bound was raised one integer at a time")
 
-    monkeypatch.setattr(jit, "focal_kernel", lambda: None)
+    monkeypatch.setattr(jit, "focal_kernel", lambda n=0: None)
     old = signal.signal(signal.SIGALRM, hang)
     signal.alarm(20)
     try:

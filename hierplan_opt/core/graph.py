@@ -59,6 +59,13 @@ DIST_BATCH_CELLS = 512
 #: hundredths of a second between deadline checks, and a bounded temporary matrix.
 DIST_BATCH_WORK = 1 << 19
 
+#: Maps whose ``Graph.adj`` is kept for graphs with the same edges (see there): a
+#: warm process (a notebook, ``hierplan bench cbs --reference``) that reads a map again
+#: per run then sets up the search's per-map arrays once, as a C++ solver that loads
+#: the map once does.
+SHARED_ADJ_GRAPHS = 4
+_SHARED_ADJ: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray, list[list[int]]]] = {}
+
 Location = tuple[int, ...] | str
 
 
@@ -339,12 +346,33 @@ class Graph:
         """Neighbour lists as plain Python ints (fastest for pure-Python search loops).
 
         Read-only: vertices without neighbours (blocked cells) share one empty list, as
-        making a list per cell is most of the cost on maps with many blocked cells.
+        making a list per cell is most of the cost on maps with many blocked cells; and
+        graphs with the same edges (the same map read again) share one ``adj`` (the
+        last :data:`SHARED_ADJ_GRAPHS` of them), so that what the search keeps per
+        ``adj`` (successor lists, the compiled kernel's arrays and buffers) is made once
+        per map and process. Distance tables stay per graph.
+
+        Example
+        -------
+        >>> Graph.grid(3, 2).adj is Graph.grid(3, 2).adj
+        True
         """
+        key = (self.indptr.shape[0], hash(self.indptr.tobytes()), hash(self.indices.tobytes()))
+        hit = _SHARED_ADJ.get(key)
+        if (
+            hit is not None
+            and np.array_equal(hit[0], self.indptr)
+            and np.array_equal(hit[1], self.indices)
+        ):
+            return hit[2]
         ip = self.indptr.tolist()
         ind = self.indices.tolist()
         none: list[int] = []
-        return [ind[a:b] if a != b else none for a, b in zip(ip[:-1], ip[1:], strict=True)]
+        adj = [ind[a:b] if a != b else none for a, b in zip(ip[:-1], ip[1:], strict=True)]
+        if len(_SHARED_ADJ) >= SHARED_ADJ_GRAPHS:
+            del _SHARED_ADJ[next(iter(_SHARED_ADJ))]  # the oldest
+        _SHARED_ADJ[key] = (self.indptr, self.indices, adj)
+        return adj
 
     @cached_property
     def grid_xy(self) -> tuple[int, list[int], list[int]] | None:

@@ -126,7 +126,7 @@ def space_time_astar(
         memo = (start, goal, cons.content())
         if memo in cut_cache:
             return None, 0
-    k = jit.kernel()
+    k = jit.kernel(len(adj))
     if k is not None and (res is None or res.moves):  # the kernel counts moves too
         found = jit.run(
             k, adj, start, goal, dist, cons, res, dist_of, node_limit, nxt=nxt, tcap=tcap, h0=h0

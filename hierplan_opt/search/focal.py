@@ -126,7 +126,7 @@ def focal_path(
     hold = cons.min_finish  # earliest time the agent may stay at its goal forever
     if max_t is None:
         max_t = cons.tmax + n + 1
-    fk = jit.focal_kernel()
+    fk = jit.focal_kernel(n)
     found = None
     if fk is not None and res.moves:  # the compiled twin (see search.jit): same results
         found = jit.run_focal(

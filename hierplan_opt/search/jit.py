@@ -17,10 +17,11 @@ both. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
     cache (a pause of about 0.6 s) and runs them. A small solve never imports numba;
     a long one is never blocked by the compiler. Should the helper outlive its parent,
     it finishes writing the cache. In a process where an earlier solve loaded the
-    kernel, a solve switches after :data:`JIT_WARM_S` seconds of Python low level
-    instead: a short one stays in Python, as the kernel's set-up per call and per map
-    (arrays of the graph and the conflict table) costs more than such searches
-    (warehouse-10-20-10-2-1-even-1 k10: 21.6 ms against 14.5 ms a solve).
+    kernel, a solve switches after :data:`JIT_WARM_S_PER_VERTEX` seconds of Python low
+    level per vertex of the map instead (0.5 ms on a 32x32 grid, 5 ms on
+    warehouse-10-20-10-2-1): the kernel's set-up per map is made once per process (the
+    graph's arrays, kept per ``Graph.adj``, which graphs of one map share), but its
+    conflict table (time steps times vertices) is made per solve.
 ``python``
     Never the kernel.
 ``jit``
@@ -69,10 +70,12 @@ log = logging.getLogger(__name__)
 MODES = ("auto", "python", "jit")
 #: Seconds of Python low-level search in one solve after which ``auto`` loads the kernel.
 JIT_AFTER_S = 0.5
-#: The same once the kernel is loaded (an earlier solve of the process loaded it): no
-#: pause to pay then, only the kernel's set-up per map, which a solve that has spent
-#: this long in the Python low level already outweighs.
-JIT_WARM_S = 0.02
+#: The same once the kernel is loaded (an earlier solve of the process loaded it), per
+#: vertex of the map: no pause to pay then, only the kernel's per-solve set-up, whose
+#: dense conflict table (``DenseMirror``: time steps times vertices and moves) grows
+#: with the map. Measured in one warm process on the reference instances under 0.5 s
+#: (medians of 11 interleaved runs; see docs/cbs.md, "Fixed costs of small solves").
+JIT_WARM_S_PER_VERTEX = 5e-7
 #: ``forbid_from`` / ``park_t`` value meaning "never" (as reservations.NEVER).
 NEVER = 1 << 60
 #: The focal kernel reads the clock by Linux's id of ``CLOCK_MONOTONIC``.
@@ -110,9 +113,15 @@ def low_level() -> str:
 
 
 def new_solve() -> None:
-    """A solver starts: ``auto`` counts Python low-level time from zero again."""
+    """A solver starts: ``auto`` counts Python low-level time from zero again, and the
+    arrays kept per distance list and constraint set are dropped (they held up to 1,024
+    distance lists of earlier solves alive: on warehouse-10-20-10-2-1 10k entries each,
+    for nothing once their graph is gone).
+    """
     global python_seconds
     python_seconds = 0.0
+    _ARRAYS.clear()
+    _CONS.clear()
 
 
 def note_python(seconds: float) -> None:
@@ -142,20 +151,21 @@ def note_python(seconds: float) -> None:
         _start_loading()
 
 
-def kernel() -> ModuleType | None:
-    """The loaded kernel module if the compiled low level should run now, else None."""
+def kernel(n: int = 0) -> ModuleType | None:
+    """The loaded kernel module if the compiled low level should run now, else None
+    (``n``: the graph's vertices, for ``auto``'s switch once the kernel is loaded)."""
     k = _kernel
     m = _mode if _mode is not None else low_level()
     if m == "python":
         return None
     if k is None and m == "jit":
         k = load()
-    elif m == "auto" and python_seconds < (JIT_AFTER_S if k is None else JIT_WARM_S):
+    elif m == "auto" and python_seconds < (JIT_AFTER_S if k is None else n * JIT_WARM_S_PER_VERTEX):
         return None  # a short solve stays in Python, also once a long one loaded the kernel
     return k
 
 
-def focal_kernel() -> ModuleType | None:
+def focal_kernel(n: int = 0) -> ModuleType | None:
     """The loaded focal kernel module if the compiled low level should run now, else None
     (the policy of :func:`kernel`).
 
@@ -168,7 +178,7 @@ def focal_kernel() -> ModuleType | None:
     """
     if not _LINUX:  # the kernel reads the clock by Linux's id of CLOCK_MONOTONIC
         return None
-    return _focal if kernel() is not None else None
+    return _focal if kernel(n) is not None else None
 
 
 def load() -> ModuleType:
@@ -502,7 +512,11 @@ class DenseMirror(CatMirror):
         for v, (a, t) in res.parked.items():
             self.park_a[v] = a
             self.park_t[v] = t
-        self.owner = res
+        # No ``owner``: the table holds this mirror (``res.dense``), and a reference back
+        # would make a cycle that keeps its arrays (tens of MB on a 10k-vertex map)
+        # until the next full garbage collection (numpy's bytes do not count towards
+        # it), which then pauses a warm process: warehouse-10-20-10-2-1-even-1 k10
+        # under the kernel took 11-55 ms a solve with the cycle, 15 ms without.
 
     def _apply(self, agent: int, path: Sequence[int], delta: int, stamp: int) -> None:
         n_t = len(path)

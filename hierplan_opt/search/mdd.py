@@ -132,7 +132,7 @@ def build_mdd(
     """
     if cost == 0:
         return MDD([{start: []}], 0, goal)
-    k = jit.kernel()  # the compiled twin of the two passes below (see search.jit)
+    k = jit.kernel(len(adj))  # the compiled twin of the two passes below (see search.jit)
     if k is not None:
         return MDD(None, cost, goal, jit.build_mdd(k, adj, start, goal, dist, cons, cost, dist_of))
     moves = Moves(adj, goal, dist, cons, dist_of)
