@@ -305,3 +305,19 @@ def test_cut_off_and_failure_memo_change_no_result():
                 assert plain is None, seed
         memo += sum(len(k) == 3 for k in cache)  # failed sets the cut-off did not catch
     assert cuts >= 20 and memo >= 3 and fails >= cuts + memo, (cuts, memo, fails)
+
+
+def test_cut_off_finds_a_goal_in_reach_along_one_path():
+    # On an open 20x20 grid (every shortest path from corner to corner has the same f)
+    # the check dives to the goal: about one vertex per step, not the whole rectangle
+    # between them; a goal walled off is still reported with every vertex it popped.
+    from hierplan_opt.search.astar import cut_off
+
+    g = Graph.grid(20, 20)
+    goal = g.n - 1
+    pops = cut_off(g.adj, 0, goal, g.dist_list(goal), {goal - 1: 5, 200: 0}, 1 << 40)
+    assert 0 < pops <= 40
+    walled = {goal - 1: 30, goal - 20: 30}
+    assert cut_off(g.adj, 0, goal, g.dist_list(goal), walled, 1 << 40) == -(
+        g.n - 3
+    )  # all but the goal and its two walls

@@ -302,10 +302,15 @@ def cut_off(
     (True, True)
     """
     reach: dict[int, int] = {start: 0}
+    # Entries (f, -t, v): among equal f the latest first, so that a goal in reach is
+    # found along one shortest path, not after every vertex of the f plateau (an open
+    # grid's whole rectangle between start and goal). Which vertices an exhausted search
+    # pops does not depend on that order (each first at its earliest time).
     heap = [(dist[start], 0, start)]
     pops = 0
     while heap:
-        f, t, v = heappop(heap)
+        f, negt, v = heappop(heap)
+        t = -negt
         if f > max_finish:
             break
         if reach[v] < t:
@@ -320,7 +325,7 @@ def cut_off(
             if dist[u] >= UNREACHABLE:
                 continue
             reach[u] = t1
-            heappush(heap, (t1 + dist[u], t1, u))
+            heappush(heap, (t1 + dist[u], -t1, u))
     return -max(pops, 1)
 
 
