@@ -569,3 +569,35 @@ def test_graphs_of_one_map_share_their_lists():
     assert Graph.grid(5, 4).adj is not a.adj  # the oldest was dropped
     jit._graph(a.adj)
     assert jit._graph(b.adj) is jit._graph(a.adj)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_distance_tables_equal_the_bfs(seed, monkeypatch):
+    # Once the kernels are loaded, Graph.fill_distances makes its tables with the
+    # compiled BFS (undirected graphs): the same distances as the Python BFS, unreachable
+    # cells and blocked targets included; the hook is the kernel's.
+    from hierplan_opt.core import graph as core_graph
+    from hierplan_opt.core.graph import _bfs
+
+    k = jit.load()
+    assert core_graph._compiled_bfs is k.bfs_many
+    calls = []
+
+    def counted(*args):
+        calls.append(1)
+        return k.bfs_many(*args)
+
+    monkeypatch.setattr(core_graph, "_compiled_bfs", counted)
+    expected = 0
+    rng = random.Random(seed)
+    for _ in range(10):
+        w, h = rng.randint(2, 14), rng.randint(1, 10)
+        obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 3))]
+        g = Graph.grid(w, h, obstacles=obst)
+        targets = rng.sample(range(g.n), min(g.n, 6))
+        expected += not g._open_grid  # (an open grid's tables are Manhattan distances)
+        assert g.fill_distances(targets)
+        for t in targets:
+            assert g.dist_list(t) == _bfs(g.adj, t)
+            assert g.dist_to(t).tolist() == g.dist_list(t)
+    assert len(calls) == expected > 0

@@ -66,6 +66,22 @@ DIST_BATCH_WORK = 1 << 19
 SHARED_ADJ_GRAPHS = 4
 _SHARED_ADJ: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray, list[list[int]]]] = {}
 
+#: A compiled breadth-first search of many targets, ``fn(indptr, indices, targets,
+#: unreachable)`` -> one row of hop distances per target, for undirected graphs: set by
+#: :mod:`hierplan_opt.search.jit` when it loads its kernels (the search layer may import
+#: this one, not the other way), so that a warm process makes its distance tables at
+#: compiled speed; None (a fresh process, no numba) keeps the tables below.
+_compiled_bfs: Callable[[np.ndarray, np.ndarray, np.ndarray, int], np.ndarray] | None = None
+
+
+def set_compiled_bfs(
+    fn: Callable[[np.ndarray, np.ndarray, np.ndarray, int], np.ndarray] | None,
+) -> None:
+    """Make :meth:`Graph.fill_distances` use ``fn`` (see :data:`_compiled_bfs`; None: not)."""
+    global _compiled_bfs
+    _compiled_bfs = fn
+
+
 Location = tuple[int, ...] | str
 
 
@@ -624,6 +640,14 @@ class Graph:
                 return arr
 
             return self._fill_batches(todo, 1, manhattan, deadline)
+        bfs_fn = _compiled_bfs
+        if bfs_fn is not None and not self.directed:
+            ip, ind = self.indptr, self.indices
+
+            def compiled(batch: list[int]) -> np.ndarray:
+                return bfs_fn(ip, ind, np.asarray(batch, dtype=np.int64), UNREACHABLE)
+
+            return self._fill_batches(todo, 1, compiled, deadline)
         if self._small_bfs(len(todo)):
             # Plain lists, what the search loops read; the array is made on request. The
             # first table's levels tell whether numpy's BFS of the others at once is faster.

@@ -751,3 +751,32 @@ def mdd_restrict(ov, ks, ke, kids, lo, hi, last, cost, goal, drop_t, drop_v, onl
                 m += 1
         hi2[t] = m
     return ov2[:m].copy(), ks2[:m].copy(), ke2[:m].copy(), kids2[:mk].copy(), lo2, hi2, True
+
+
+@_njit
+def bfs_many(indptr, indices, targets, unreachable):
+    """Hop distances to each of ``targets`` on an undirected CSR graph, one row each
+    (``unreachable`` where there is no path): ``core.graph``'s breadth-first search,
+    compiled, for the distance tables of a warm process (see ``Graph.fill_distances``)."""
+    n = indptr.shape[0] - 1
+    k = targets.shape[0]
+    out = np.full((k, n), unreachable, np.int64)
+    queue = np.empty(max(n, 1), np.int64)
+    for r in range(k):
+        d = out[r]
+        s = targets[r]
+        d[s] = 0
+        queue[0] = s
+        head = 0
+        tail = 1
+        while head < tail:
+            v = queue[head]
+            head += 1
+            dv = d[v] + 1
+            for j in range(indptr[v], indptr[v + 1]):
+                u = indices[j]
+                if d[u] == unreachable:
+                    d[u] = dv
+                    queue[tail] = u
+                    tail += 1
+    return out

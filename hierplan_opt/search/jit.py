@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from hierplan_opt.core import graph as core_graph
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.core.timer import Deadline
@@ -198,6 +199,8 @@ def load() -> ModuleType:
             raise
         _focal = fk
         _kernel = k
+        # The distance tables of later solves come from the compiled BFS too.
+        core_graph.set_compiled_bfs(k.bfs_many)
         return k
 
 
@@ -261,6 +264,7 @@ def _warm_up(k: ModuleType) -> None:
     own.remove(0)
     raw = build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
     mdd_restrict(raw, 2, 2, [None, {0}, None], [None, None, 2], {(0, 0, 1)}, k)
+    k.bfs_many(g.indptr, g.indices, np.array([0, 2], np.int64), UNREACHABLE)
 
 
 def _warm_up_focal(k: ModuleType, fk: ModuleType) -> None:
