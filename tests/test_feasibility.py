@@ -411,3 +411,17 @@ def test_one_by_one_with_stuck_agents_first_or_last_agrees_with_brute_force(
                     only_extended += 1
                     assert comp[a] == comp[b], (sorted(G.edges()), a, b)
     assert only_extended > 300, only_extended
+
+
+def test_structure_made_once_per_map():
+    # Graphs of one map (read again per solve) share the structure; a graph with the
+    # same edges but another free cell (an isolated free cell against a blocked one)
+    # does not.
+    from hierplan_opt.core.pebble_motion import PebbleStructure
+
+    a = Graph.grid(5, 1, obstacles=[(1, 0), (3, 0)])
+    b = Graph.grid(5, 1, obstacles=[(1, 0), (2, 0), (3, 0)])
+    assert a.adj is b.adj
+    sa, sb = PebbleStructure.of(a), PebbleStructure.of(b)
+    assert sa is not sb and (len(sa.comps), len(sb.comps)) == (3, 2)
+    assert PebbleStructure.of(Graph.grid(5, 1, obstacles=[(1, 0), (3, 0)])) is sa

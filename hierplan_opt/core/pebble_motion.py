@@ -31,8 +31,11 @@ import weakref
 from collections import Counter
 from collections.abc import Hashable, Iterable, Sequence
 from dataclasses import dataclass
+from typing import ClassVar
 
-from hierplan_opt.core.graph import Graph
+import numpy as np
+
+from hierplan_opt.core.graph import SHARED_ADJ_GRAPHS, Graph
 
 State = tuple  # ('H', ecc) | ('l', v) | ('c', v, holes_on_side_0) | ('j', v, 'rich' | branch)
 
@@ -157,20 +160,30 @@ class PebbleStructure:
     """
 
     _cache: weakref.WeakKeyDictionary[Graph, PebbleStructure] = weakref.WeakKeyDictionary()
+    # The structures of the last maps, by their shared ``Graph.adj`` (graphs of one map
+    # share it) and free cells: a map read again per solve is analysed once per process.
+    _by_map: ClassVar[dict[tuple[int, int], tuple[object, np.ndarray, PebbleStructure]]] = {}
 
     @classmethod
     def of(cls, graph: Graph) -> PebbleStructure:
         """The (cached) structure of ``graph``."""
         s = cls._cache.get(graph)
         if s is None:
-            s = cls(graph)
+            adj = graph.adj
+            key = (id(adj), hash(graph.passable.tobytes()))
+            hit = cls._by_map.get(key)
+            if hit is not None and hit[0] is adj and np.array_equal(hit[1], graph.passable):
+                s = hit[2]
+            else:
+                s = cls(graph)
+                if len(cls._by_map) >= SHARED_ADJ_GRAPHS:
+                    del cls._by_map[next(iter(cls._by_map))]  # the oldest
+                cls._by_map[key] = (adj, graph.passable, s)
             cls._cache[graph] = s
         return s
 
     def __init__(self, graph: Graph) -> None:
         import sys
-
-        import numpy as np
 
         # scipy's graph routines cost ~0.2 s to import: a process that has not loaded
         # them (a single small solve from the command line) uses the Python ones below.
