@@ -61,8 +61,8 @@ DIST_BATCH_WORK = 1 << 19
 
 #: Maps whose ``Graph.adj`` is kept for graphs with the same edges (see there): a
 #: warm process (a notebook, ``hierplan bench cbs --reference``) that reads a map again
-#: per run then sets up the search's per-map arrays once, as a C++ solver that loads
-#: the map once does.
+#: per run then sets up the search's per-map arrays once per map (a C++ solver's map
+#: loading is not part of its runtime either).
 SHARED_ADJ_GRAPHS = 4
 _SHARED_ADJ: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray, list[list[int]]]] = {}
 
