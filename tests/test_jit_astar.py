@@ -601,3 +601,40 @@ def test_compiled_distance_tables_equal_the_bfs(seed, monkeypatch):
             assert g.dist_list(t) == _bfs(g.adj, t)
             assert g.dist_to(t).tolist() == g.dist_list(t)
     assert len(calls) == expected > 0
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_mdd_dependence_identical(seed):
+    # The compiled dependence test on two MDDs' arrays gives the Python test's answer
+    # (on the same MDDs as levels) for random pairs, dependent and independent ones.
+    from hierplan_opt.search import heuristics, mdd
+
+    k = jit.load()
+    rng = random.Random(seed)
+    seen = {True: 0, False: 0}
+    for _ in range(60):
+        w, h = rng.randint(2, 7), rng.randint(1, 5)
+        obst = [(rng.randrange(w), rng.randrange(h)) for _ in range(rng.randint(0, w * h // 5))]
+        g = Graph.grid(w, h, obstacles=obst)
+        free = [v for v in range(g.n) if g.passable[v]]
+        if len(free) < 3:
+            continue
+        mdds = []
+        for _ in range(2):
+            s, t = rng.sample(free, 2)
+            d = g.dist_list(t)
+            if d[s] >= 1 << 30:
+                break
+            cost = d[s] + rng.randint(0, 2)
+            raw = jit.build_mdd(k, g.adj, s, t, d, AgentConstraints(), cost, None)
+            mdds.append((raw, cost, t))
+        if len(mdds) < 2:
+            continue
+        (ra, ca, ta), (rb, cb, tb) = mdds
+        got = jit.mdd_dependent(ra, ca, ta, rb, cb, tb, k)
+        la = mdd.MDD(jit.mdd_levels(ra, ca, ta), ca, ta)
+        lb = mdd.MDD(jit.mdd_levels(rb, cb, tb), cb, tb)
+        assert got == heuristics.dependent(la, lb)
+        assert got == heuristics.dependent(mdd.MDD(None, ca, ta, ra), mdd.MDD(None, cb, tb, rb))
+        seen[got] += 1
+    assert min(seen.values()) > 3, seen

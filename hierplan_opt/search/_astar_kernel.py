@@ -780,3 +780,73 @@ def bfs_many(indptr, indices, targets, unreachable):
                     queue[tail] = u
                     tail += 1
     return out
+
+
+@_njit
+def _kid_range(ov, ks, ke, lo, hi, cost, t, u):
+    """Where the children of ``u`` at level ``t`` of an MDD's arrays lie in its ``kids``:
+    ``(-1, -1)`` from level ``cost`` on (the path parks: the only child is the goal)."""
+    if t >= cost:
+        return -1, -1
+    for i in range(lo[t], hi[t]):
+        if ov[i] == u:
+            return ks[i], ke[i]
+    return 0, 0
+
+
+@_njit
+def mdd_dependent(
+    ova, ksa, kea, kidsa, loa, hia, costa, goala, ovb, ksb, keb, kidsb, lob, hib, costb, goalb
+):  # fmt: skip
+    """``heuristics.dependent`` on two MDDs' arrays (``jit.build_mdd``): whether no pair
+    of their paths is free of vertex and swap conflicts (paths park at their goals)."""
+    horizon = max(costa, costb)
+    if loa[0] == hia[0] or lob[0] == hib[0]:
+        return True
+    dead = set()
+    dead.add((-1, -1, -1))
+    cap = horizon + 2
+    ft = np.empty(cap, np.int64)
+    fu = np.empty(cap, np.int64)
+    fv = np.empty(cap, np.int64)
+    fas = np.empty(cap, np.int64)
+    fae = np.empty(cap, np.int64)
+    fbs = np.empty(cap, np.int64)
+    fbe = np.empty(cap, np.int64)
+    fp = np.empty(cap, np.int64)
+
+    def push(d, t, u, v):  # a frame for the joint state (t, u, v) at depth d
+        ft[d] = t
+        fu[d] = u
+        fv[d] = v
+        fas[d], fae[d] = _kid_range(ova, ksa, kea, loa, hia, costa, t, u)
+        fbs[d], fbe[d] = _kid_range(ovb, ksb, keb, lob, hib, costb, t, v)
+        fp[d] = 0
+
+    push(0, 0, ova[loa[0]], ovb[lob[0]])
+    depth = 1
+    while depth > 0:
+        d = depth - 1
+        t = ft[d]
+        u = fu[d]
+        v = fv[d]
+        if t >= horizon:
+            return False
+        na = 1 if fas[d] < 0 else fae[d] - fas[d]
+        nb = 1 if fbs[d] < 0 else fbe[d] - fbs[d]
+        pushed = False
+        while fp[d] < na * nb:
+            p = fp[d]
+            fp[d] = p + 1
+            u2 = goala if fas[d] < 0 else kidsa[fas[d] + p // nb]
+            v2 = goalb if fbs[d] < 0 else kidsb[fbs[d] + p % nb]
+            if u2 == v2 or (u2 == v and v2 == u) or (t + 1, u2, v2) in dead:
+                continue
+            push(depth, t + 1, u2, v2)
+            depth += 1
+            pushed = True
+            break
+        if not pushed:
+            dead.add((t, u, v))
+            depth -= 1
+    return True

@@ -15,6 +15,7 @@ sum of costs must grow, so ``g + min cover`` is admissible.
 
 from __future__ import annotations
 
+from hierplan_opt.search import jit
 from hierplan_opt.search.mdd import MDD
 
 #: Components larger than this use the matching lower bound instead of exact search.
@@ -37,6 +38,9 @@ def dependent(ma: MDD, mb: MDD) -> bool:
     >>> dependent(a, b)
     True
     """
+    ra, rb = ma.arrays, mb.arrays
+    if ra is not None and rb is not None:  # both from the kernel: its twin of the below
+        return jit.mdd_dependent(ra, ma.cost, ma.goal, rb, mb.cost, mb.goal)
     # Depth-first search for one conflict-free pair of paths, memoising dead states:
     # quick when the pair is independent, exhaustive only when it is dependent.
     horizon = max(ma.cost, mb.cost)

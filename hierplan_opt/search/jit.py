@@ -264,6 +264,7 @@ def _warm_up(k: ModuleType) -> None:
     own.remove(0)
     raw = build_mdd(k, g.adj, 0, 2, g.dist_list(2), root, 2, None)
     mdd_restrict(raw, 2, 2, [None, {0}, None], [None, None, 2], {(0, 0, 1)}, k)
+    mdd_dependent(raw, 2, 2, raw, 2, 2, k)
     k.bfs_many(g.indptr, g.indices, np.array([0, 2], np.int64), UNREACHABLE)
 
 
@@ -693,6 +694,30 @@ def mdd_restrict(
         np.array(dv, np.int64), np.array(on, np.int64), cuts,
     )  # fmt: skip
     return out if out[4].shape[0] else None
+
+
+def mdd_dependent(
+    a: tuple[Any, ...],
+    cost_a: int,
+    goal_a: int,
+    b: tuple[Any, ...],
+    cost_b: int,
+    goal_b: int,
+    k: ModuleType | None = None,
+) -> bool:
+    """:func:`.heuristics.dependent` on two MDDs kept as :func:`build_mdd`'s arrays
+    (which exist only once the kernel is loaded; ``k`` defaults to it): the same answer,
+    without making their levels."""
+    k = k or _kernel
+    assert k is not None
+    ova, ksa, kea, kidsa, loa, hia, _ = a
+    ovb, ksb, keb, kidsb, lob, hib, _ = b
+    return bool(
+        k.mdd_dependent(
+            ova, ksa, kea, kidsa, loa, hia, cost_a, goal_a,
+            ovb, ksb, keb, kidsb, lob, hib, cost_b, goal_b,
+        )
+    )  # fmt: skip
 
 
 def mdd_singles(raw: tuple[Any, ...], cost: int, goal: int) -> list[int]:

@@ -54,6 +54,11 @@ class MDD:
         self._one: list[int] | None = None
 
     @property
+    def arrays(self) -> Any:
+        """The compiled builder's arrays while the levels are not made, else None."""
+        return self._raw
+
+    @property
     def levels(self) -> list[dict[int, list[int]]]:
         """Level ``t``: ``vertex -> its children at level t + 1`` (made on first use)."""
         lv = self._levels
