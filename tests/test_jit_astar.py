@@ -488,13 +488,13 @@ def test_auto_switches_after_python_time(monkeypatch):
     monkeypatch.setattr(jit, "python_seconds", 0.0)
     jit.set_low_level("auto")
     try:
-        assert jit.kernel() is None
+        assert jit.kernel(1024) is None
         jit.note_python(jit.JIT_AFTER_S)
         proc = jit._proc
-        assert proc is not None and jit.kernel() is None
+        assert proc is not None and jit.kernel(1024) is None
         assert proc.wait(300) == 0
         jit.note_python(0.0)
-        assert jit.kernel() is not None
+        assert jit.kernel(1024) is not None
         jit.new_solve()  # the next solve starts in Python again, kernel loaded or not
         n = 1024  # a 32x32 grid: loaded, it switches sooner (no pause to pay) ...
         assert jit.kernel(n) is None

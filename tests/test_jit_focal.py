@@ -42,7 +42,7 @@ def both(*args, **kw):
     out = []
     for mode in ("python", "jit"):
         jit.set_low_level(mode)
-        assert (jit.focal_kernel() is not None) == (mode == "jit")
+        assert (jit.focal_kernel(16) is not None) == (mode == "jit")
         stats: dict[str, int] = {}
         try:
             got = focal.focal_path(*args, stats=stats, **kw)
@@ -341,7 +341,7 @@ def test_python_focal_admits_a_far_f_jump_from_its_buckets(monkeypatch: pytest.M
     def hang(*_: object) -> None:
         raise AssertionError("the bound was raised one integer at a time")
 
-    monkeypatch.setattr(jit, "focal_kernel", lambda n=0: None)
+    monkeypatch.setattr(jit, "focal_kernel", lambda n: None)
     old = signal.signal(signal.SIGALRM, hang)
     signal.alarm(20)
     try:

@@ -66,6 +66,15 @@ DIST_BATCH_WORK = 1 << 19
 SHARED_ADJ_GRAPHS = 4
 _SHARED_ADJ: dict[tuple[int, int, int], tuple[np.ndarray, np.ndarray, list[list[int]]]] = {}
 
+
+def keep_per_map(cache: dict[Any, Any], key: Any, value: Any) -> None:
+    """``cache[key] = value``, dropping the oldest entry when ``cache`` holds
+    :data:`SHARED_ADJ_GRAPHS` already (the caches kept per map, as ``Graph.adj``'s)."""
+    if len(cache) >= SHARED_ADJ_GRAPHS:
+        del cache[next(iter(cache))]
+    cache[key] = value
+
+
 #: A compiled breadth-first search of many targets, ``fn(indptr, indices, targets,
 #: unreachable)`` -> one row of hop distances per target, for undirected graphs: set by
 #: :mod:`hierplan_opt.search.jit` when it loads its kernels (the search layer may import
@@ -385,9 +394,7 @@ class Graph:
         ind = self.indices.tolist()
         none: list[int] = []
         adj = [ind[a:b] if a != b else none for a, b in zip(ip[:-1], ip[1:], strict=True)]
-        if len(_SHARED_ADJ) >= SHARED_ADJ_GRAPHS:
-            del _SHARED_ADJ[next(iter(_SHARED_ADJ))]  # the oldest
-        _SHARED_ADJ[key] = (self.indptr, self.indices, adj)
+        keep_per_map(_SHARED_ADJ, key, (self.indptr, self.indices, adj))
         return adj
 
     @cached_property

@@ -35,7 +35,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from hierplan_opt.core.graph import SHARED_ADJ_GRAPHS, Graph
+from hierplan_opt.core.graph import Graph, keep_per_map
 
 State = tuple  # ('H', ecc) | ('l', v) | ('c', v, holes_on_side_0) | ('j', v, 'rich' | branch)
 
@@ -176,9 +176,7 @@ class PebbleStructure:
                 s = hit[2]
             else:
                 s = cls(graph)
-                if len(cls._by_map) >= SHARED_ADJ_GRAPHS:
-                    del cls._by_map[next(iter(cls._by_map))]  # the oldest
-                cls._by_map[key] = (adj, graph.passable, s)
+                keep_per_map(cls._by_map, key, (adj, graph.passable, s))
             cls._cache[graph] = s
         return s
 

@@ -804,7 +804,7 @@ def mdd_dependent(
     if loa[0] == hia[0] or lob[0] == hib[0]:
         return True
     dead = set()
-    dead.add((-1, -1, -1))
+    dead.add((-1, -1, -1))  # (types the set for numba; no state has t = -1)
     cap = horizon + 2
     ft = np.empty(cap, np.int64)
     fu = np.empty(cap, np.int64)

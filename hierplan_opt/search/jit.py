@@ -37,7 +37,7 @@ their levels are asked for (:func:`mdd_levels`).
 Example
 -------
 >>> set_low_level("python")
->>> kernel() is None
+>>> kernel(9) is None
 True
 >>> set_low_level(None)  # back to HIERPLAN_LOW_LEVEL / auto
 """
@@ -115,14 +115,15 @@ def low_level() -> str:
 
 def new_solve() -> None:
     """A solver starts: ``auto`` counts Python low-level time from zero again, and the
-    arrays kept per distance list and constraint set are dropped (they held up to 1,024
-    distance lists of earlier solves alive: on warehouse-10-20-10-2-1 10k entries each,
-    for nothing once their graph is gone).
+    arrays kept per distance list and constraint set (A* and focal) are dropped: they
+    held earlier solves' lists and constraints alive (up to 1,024 distance lists, on
+    warehouse-10-20-10-2-1 10k entries each, for nothing once their graph is gone).
     """
     global python_seconds
     python_seconds = 0.0
     _ARRAYS.clear()
     _CONS.clear()
+    _FCONS.clear()
 
 
 def note_python(seconds: float) -> None:
@@ -152,7 +153,7 @@ def note_python(seconds: float) -> None:
         _start_loading()
 
 
-def kernel(n: int = 0) -> ModuleType | None:
+def kernel(n: int) -> ModuleType | None:
     """The loaded kernel module if the compiled low level should run now, else None
     (``n``: the graph's vertices, for ``auto``'s switch once the kernel is loaded)."""
     k = _kernel
@@ -166,14 +167,14 @@ def kernel(n: int = 0) -> ModuleType | None:
     return k
 
 
-def focal_kernel(n: int = 0) -> ModuleType | None:
+def focal_kernel(n: int) -> ModuleType | None:
     """The loaded focal kernel module if the compiled low level should run now, else None
     (the policy of :func:`kernel`).
 
     Example
     -------
     >>> set_low_level("python")
-    >>> focal_kernel() is None
+    >>> focal_kernel(9) is None
     True
     >>> set_low_level(None)
     """
