@@ -17,6 +17,16 @@ from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.timer import Deadline
 
 
+@pytest.fixture(autouse=True)
+def _uncompiled_distance_tables(monkeypatch: pytest.MonkeyPatch) -> None:
+    # These tests are about the tables made without the compiled BFS, which an earlier
+    # test that loaded the kernels would otherwise have switched on for the process
+    # (tests/test_jit_astar.py checks the compiled tables).
+    from hierplan_opt.core import graph as graph_mod
+
+    monkeypatch.setattr(graph_mod, "_compiled_bfs", None)
+
+
 # ---------------------------------------------------------------- graphs
 def test_grid_ids_coordinates_and_edges() -> None:
     g = Graph.grid(4, 3, obstacles=[(1, 1)])

@@ -78,12 +78,15 @@ def test_cli_solve_builds_only_its_own_arguments(tmp_path) -> None:
     assert (tmp_path / "plan.yaml").is_file()
 
 
-def test_python_bfs_matches_scipy_distances() -> None:
-    # Small batches use a Python BFS while scipy is not loaded; it must agree with scipy.
+def test_python_bfs_matches_scipy_distances(monkeypatch) -> None:
+    # Small batches use a Python BFS while scipy is not loaded; it must agree with scipy
+    # (the reference made by scipy, also after a test that loaded the compiled BFS).
     import random
 
     from hierplan_opt.core import graph as graph_mod
     from hierplan_opt.core.graph import Graph
+
+    monkeypatch.setattr(graph_mod, "_compiled_bfs", None)
 
     rng = random.Random(3)
     for _ in range(5):
