@@ -211,3 +211,43 @@ def test_random_roadmaps_keep_the_distance(case: tuple[Instance, hp.Plan, dict])
     assert check_bounds(s.stn, s.times) == []
     rep = replay(s, inst, all_pairs=True)
     assert rep.ok, (rep, s.stats["regime"])
+
+
+@pytest.mark.parametrize("deadline", [None, 1.0])
+def test_safety_lp_round_off_below_the_earliest_arrival(deadline: float | None) -> None:
+    # Found by the property above: HiGHS put the safety LP's last arrival 2e-9 s before
+    # the earliest possible one, and the windows then refused the schedule as
+    # inconsistent (with and without a deadline that the robot meets with room).
+    passable = np.array([1, 1, 1, 1, 0, 0, 1, 0, 1, 1, 1, 0, 1, 1, 1, 1, 1, 1, 0, 1, 1, 1, 0, 1])
+    g = Graph.grid(6, 2, 2, blocked=(passable == 0).reshape(2, 2, 6), cell_size=0.5)
+    kins = [
+        Kinematics("diff0", "differential", 0.3, 1.0, 1.0, 0.15263980177087538),
+        Kinematics("omni1", "omni", 0.7, None, 0.3, 0.02769994844484267),
+        Kinematics("omni0", "omni", 0.7, None, None, 0.1168080174894953),
+        Kinematics("omni1", "omni", 0.7, None, None, 0.08170220305675396),
+    ]
+    paths = [
+        [(0, 1, 0), (0, 0, 0), (0, 0, 1), (0, 0, 1), (1, 0, 1)],
+        [(4, 0, 1), (3, 0, 1), (2, 0, 1), (1, 0, 1), (1, 0, 0)],
+        [(2, 1, 0), (2, 0, 0)],
+        [(3, 1, 1), (2, 1, 1), (1, 1, 1)],
+    ]
+    inst = Instance.mapf(g, [p[0] for p in paths], [p[-1] for p in paths], kinematics=kins)
+    plan = hp.Plan.from_paths([[g.vertex(c) for c in p] for p in paths])
+    deadlines = None if deadline is None else {"agent2": deadline}
+    s = postprocess(
+        inst,
+        plan,
+        margin=0.0,
+        acceleration=True,
+        objective="safety",
+        method="lp",
+        lp_backend="highs",
+        deadlines=deadlines,
+    )
+    earliest = postprocess(inst, plan, margin=0.0, acceleration=True)
+    assert s.stn is not None and check_bounds(s.stn, s.times) == []
+    assert s.makespan >= earliest.makespan
+    for wp in s.waypoints:
+        assert np.all(wp.earliest <= wp.arrival) and np.all(wp.arrival <= wp.latest + 1e-9)
+    assert replay(s, inst).ok

@@ -240,7 +240,12 @@ def _times(
         out["R"] = lp.R
         if lp.R > 0:
             out["min_speed_bound"] = 1.0 / lp.R
-    return lp.times, out
+    # The LP's times meet every bound within HiGHS's tolerance, which can put a robot's
+    # last arrival a few 1e-9 s before the earliest possible one (the safety LP on a 3D
+    # grid did); the windows then see a horizon nobody can meet. The pointwise maximum of
+    # two solutions of difference constraints is a solution, so lifting the LP's times
+    # to the earliest ones keeps every STN bound and only moves round-off.
+    return np.maximum(lp.times, earliest), out
 
 
 def _stats(tpg: TPG, stn: STN, earliest: np.ndarray, extra: dict[str, Any]) -> dict[str, Any]:
