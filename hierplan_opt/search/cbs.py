@@ -900,6 +900,7 @@ class _CBS:
             expanded += 1
             if not self.sub:
                 st["high_level_expanded"] += 1
+                self.deadline.keep_back_heap()  # freeing the tree fits in the limit
                 tick("expanded", expanded, lb=self.lower_bound or None, open=len(openl))
                 now = time.perf_counter()
                 if now - last_log > 5.0:
