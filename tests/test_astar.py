@@ -93,6 +93,17 @@ def test_derived_constraints_of_positive_ones():
     assert le.forbid_from == {1: 4}
 
 
+def test_length_constraint_violated_by_any_visit_of_the_goal_from_its_time_on():
+    # LEN_LE (agent 0 at its goal 1 from time t on): another path breaks it by being at
+    # vertex 1 at any time >= t, parked there included. All paths over 3 vertices.
+    goals = [1, 0]
+    for length in range(1, 6):
+        for path in itertools.product(range(3), repeat=length):
+            for t in range(7):
+                at = [path[min(tt, length - 1)] for tt in range(t, t + 8)]
+                assert violates_derived((LEN_LE, 0, -1, -1, t), path, 3, goals) == (1 in at)
+
+
 def test_time_collapse_terminates_without_path():
     # Goal forbidden from t=2 on (another agent parks there): no path; must terminate.
     g = Graph.grid(4, 1)

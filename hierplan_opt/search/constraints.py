@@ -289,6 +289,9 @@ def add_derived(
 def violates_derived(con: Constraint, path: tuple[int, ...], n: int, goals: list[int]) -> bool:
     """Whether another agent's ``path`` breaks what the positive ``con`` implies."""
     kind, agent, a, b, t = con
+    if kind == LEN_LE:  # the most frequent (target reasoning): one C scan of the path
+        g = goals[agent]
+        return path[-1] == g or g in path[t:]
     last = len(path) - 1
 
     def at(tt: int) -> int:
@@ -298,9 +301,4 @@ def violates_derived(con: Constraint, path: tuple[int, ...], n: int, goals: list
         return at(t) == a
     if kind == POS_E:
         return at(t) == b or at(t - 1) == a or (at(t - 1) == b and at(t) == a)
-    if kind == LEN_LE:
-        g = goals[agent]
-        if path[-1] == g:
-            return True
-        return any(path[tt] == g for tt in range(t, last + 1))
     return False
