@@ -54,7 +54,7 @@ from heapq import heappop, heappush
 from typing import Any
 
 from hierplan_opt import registry
-from hierplan_opt.core.collector import relaxed_gc
+from hierplan_opt.core.collector import paused_gc
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.highways_learned import check_spec
@@ -1065,8 +1065,8 @@ def solve(
         corridor_target=corridor_target,
         node_limit=node_limit,
     )
-    # Millions of short-lived acyclic objects: generation-0 scans find nothing (20 %).
-    with relaxed_gc():
+    # Millions of objects, no cycles: the cyclic collector finds nothing (core.collector).
+    with paused_gc():
         return _search(instance, Deadline(time_limit), objective, heuristic, opts)
 
 

@@ -49,7 +49,7 @@ from heapq import heappop, heappush
 from typing import Any
 
 from hierplan_opt import registry
-from hierplan_opt.core.collector import relaxed_gc
+from hierplan_opt.core.collector import paused_gc
 from hierplan_opt.core.highways import HIGHWAY_OPTIONS
 from hierplan_opt.core.highways_learned import resolve
 from hierplan_opt.core.instance import Instance
@@ -755,16 +755,14 @@ def run_search(
 
 
 def searched(make: Callable[[], _ECBS]) -> Result:
-    """The result of ``make()``'s search, with the collector relaxed as in CBS.
+    """The result of ``make()``'s search, with the cyclic collector paused as in CBS
+    (``core.collector``: 9.7 of 30 s went to it on empty-32-32 k200, EECBS w 1.005).
 
-    Millions of short-lived acyclic objects: with Python's default thresholds the
-    collector took 9.7 of 30 s on empty-32-32 k200 (EECBS, w 1.005), in pauses of over
-    1 s that overran the time limit; relaxed, 3.4 s (+29 % nodes). The search object
-    dies inside the block, so its tree is freed by reference counting (within the time
-    limit, see ``Deadline.keep_back_heap``), not by the full collection that follows
-    the block.
+    The search object dies inside the block, so its tree is freed by reference
+    counting (within the time limit, see ``Deadline.keep_back_heap``), not by the
+    next full collection after it.
     """
-    with relaxed_gc():
+    with paused_gc():
         return make().search()
 
 

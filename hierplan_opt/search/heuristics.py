@@ -144,17 +144,34 @@ def _exact_cover(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
 
 
 def _exact_cover_search(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
-    order = sorted(comp, key=lambda v: -len(adj[v]))
-    calls = [0]
-    pos = {v: k for k, v in enumerate(order)}
-    value: dict[int, int] = {}
-    best = [_matching_upper(order, adj)]
+    return _CoverSearch(comp, adj).best_cover()
 
-    def rest_bound(k: int) -> int:
+
+class _CoverSearch:
+    """Depth-first branch and bound over vertex values (an object, not closures: a
+    recursive closure is a reference cycle, and searches run with the cyclic collector
+    paused, see core.collector)."""
+
+    __slots__ = ("adj", "order", "pos", "value", "best", "calls")
+
+    def __init__(self, comp: list[int], adj: dict[int, dict[int, int]]) -> None:
+        self.adj = adj
+        self.order = sorted(comp, key=lambda v: -len(adj[v]))
+        self.pos = {v: k for k, v in enumerate(self.order)}
+        self.value: dict[int, int] = {}
+        self.best = _matching_upper(self.order, adj)
+        self.calls = 0
+
+    def best_cover(self) -> int:
+        self.rec(0, 0)
+        return self.best
+
+    def rest_bound(self, k: int) -> int:
         # Matching bound on edges among unassigned vertices (residual weights).
+        adj, pos = self.adj, self.pos
         used: set[int] = set()
         lb = 0
-        for v in order[k:]:
+        for v in self.order[k:]:
             if v in used:
                 continue
             bw, bu = 0, -1
@@ -167,21 +184,23 @@ def _exact_cover_search(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
                 lb += bw
         return lb
 
-    def rec(k: int, cost: int) -> None:
-        calls[0] += 1
-        if calls[0] > EXACT_COVER_BUDGET:
+    def rec(self, k: int, cost: int) -> None:
+        self.calls += 1
+        if self.calls > EXACT_COVER_BUDGET:
             raise _OverBudget
-        if cost >= best[0]:
+        if cost >= self.best:
             return
+        order = self.order
         if k == len(order):
-            best[0] = cost
+            self.best = cost
             return
-        if cost + rest_bound(k) >= best[0]:
+        if cost + self.rest_bound(k) >= self.best:
             return
         v = order[k]
+        value = self.value
         need = 0
         top = 0
-        for u, w in adj[v].items():
+        for u, w in self.adj[v].items():
             if u in value:
                 r = w - value[u]
                 if r > need:
@@ -190,11 +209,8 @@ def _exact_cover_search(comp: list[int], adj: dict[int, dict[int, int]]) -> int:
                 top = w
         for x in range(need, max(need, top) + 1):
             value[v] = x
-            rec(k + 1, cost + x)
+            self.rec(k + 1, cost + x)
             del value[v]
-
-    rec(0, 0)
-    return best[0]
 
 
 def _matching_upper(order: list[int], adj: dict[int, dict[int, int]]) -> int:
