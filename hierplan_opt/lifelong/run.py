@@ -27,15 +27,13 @@ stood).
 
 from __future__ import annotations
 
-import gc
 import logging
 import random
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+from hierplan_opt.core.collector import paused_gc
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import tick
 from hierplan_opt.io.lorr import LorrProblem, encode_path
@@ -259,7 +257,9 @@ def run_lifelong(
 
     for t in range(ticks):
         if t % period == 0:
-            with _collector_paused():  # no cyclic GC pass inside a timed call
+            # No cyclic GC pass inside a timed call (a full pass over a large run's
+            # objects takes up to 0.5 s); it runs again between calls.
+            with paused_gc():
                 # ---- plan: assign, then a window from the committed states
                 c0 = time.perf_counter()
                 dist.new_round()
@@ -430,20 +430,6 @@ def run_lifelong(
         stn_pushed=ex.stn_pushed,
         log=out_log,
     )
-
-
-@contextmanager
-def _collector_paused() -> Iterator[None]:
-    """Pause Python's cyclic garbage collector (a full pass over a large run's objects
-    takes up to 0.5 s) for one planning call; it runs again between calls. The call's
-    garbage is acyclic (freed by reference counting) except what waits for that pass."""
-    was = gc.isenabled()
-    gc.disable()
-    try:
-        yield
-    finally:
-        if was:
-            gc.enable()
 
 
 def _committed(s: RobotState, moves: tuple[int, int, int, int]) -> tuple[int, int]:
