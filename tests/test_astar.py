@@ -332,3 +332,35 @@ def test_cut_off_finds_a_goal_in_reach_along_one_path():
     assert cut_off(g.adj, 0, goal, g.dist_list(goal), walled, 1 << 40) == -(
         g.n - 3
     )  # all but the goal and its two walls
+
+
+def test_constraint_copies_share_containers_until_written() -> None:
+    """Copy on write: a child's constraints never show in its parent, and a child built
+    step by step constrains exactly like one built from scratch."""
+    n, goal, other_goal = 30, 7, 9
+    own = [
+        (NEG_V, 0, 3, -1, 2),
+        (NEG_E, 0, 3, 4, 5),
+        (POS_V, 0, 5, -1, 6),
+        (POS_E, 0, 5, 6, 8),
+        (LEN_GT, 0, -1, -1, 4),
+    ]
+    others = [(LEN_LE, 1, -1, -1, 3), (POS_E, 1, 11, 12, 4), (POS_V, 1, 13, -1, 2)]
+    goals = [goal, other_goal]
+    chain = [AgentConstraints.root(n, goal)]
+    for con in own:
+        chain.append(chain[-1].add(con, n=n, goal=goal))
+    for con in others:
+        chain.append(add_derived(chain[-1], [con], n=n, goals=goals, goal=goal))
+    contents = [c.content() for c in chain]
+    # A sibling of every version, written in every container: no version changes.
+    for c in chain:
+        add_derived(
+            c.add((NEG_V, 0, 20, -1, 15), n=n, goal=goal), others, n=n, goals=goals, goal=goal
+        )
+        c.add_many([(POS_V, 0, 21, -1, 16), (NEG_E, 0, 1, 2, 17)], n=n, goal=goal)
+    assert [c.content() for c in chain] == contents
+    fresh = AgentConstraints.root(n, goal).add_many(own, n=n, goal=goal)
+    fresh = add_derived(fresh, others, n=n, goals=goals, goal=goal)
+    assert fresh.content() == chain[-1].content()
+    assert chain[-1].forbid_from == {other_goal: 3} and not chain[0].forbid_from

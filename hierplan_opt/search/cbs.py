@@ -332,8 +332,8 @@ class _CBS:
         if m is None:
             # The nearest ancestor constraint set with a cached MDD of this cost: its
             # paths that obey the constraints added since are this MDD's paths.
-            own: list[Constraint] = []
-            derived: list[tuple[Constraint, int]] = []
+            own: tuple[Constraint, ...] = ()
+            derived: tuple[tuple[Constraint, int], ...] = ()
             p = c
             for _ in range(MDD_ANCESTORS):
                 q = p.parent

@@ -175,7 +175,9 @@ def build_mdd(
     return MDD(levels, cost, goal)
 
 
-def restrict(m: MDD, own: list[Constraint], derived: list[tuple[Constraint, int]]) -> MDD | None:
+def restrict(
+    m: MDD, own: Sequence[Constraint], derived: Sequence[tuple[Constraint, int]]
+) -> MDD | None:
     """The MDD of the same cost under extra constraints, or None if that cost is gone.
 
     The paths of the new MDD are exactly the old MDD's paths that obey the extra
