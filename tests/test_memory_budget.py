@@ -160,3 +160,39 @@ def test_cli_solve_memory_limit(tmp_path, capsys) -> None:
     assert "stopped_by=memory_limit" in std.out
     assert std.err.startswith("hierplan solve: the mip model at horizon ")
     assert "over the memory budget of 0.0001 GB" in std.err
+
+
+@pytest.mark.parametrize("solver", ["cbs", "eecbs"])
+def test_search_stops_at_the_memory_limit_with_its_bound(monkeypatch, solver: str) -> None:
+    """A long search stops near the process's memory limit, says so and keeps its lower
+    bound, instead of dying in a MemoryError (here the limit is set 40 MB above what the
+    process uses, plus the search's margin)."""
+    from hierplan_opt.core import timer
+
+    data, _ = timer.memory_use()
+    limit = float(data + timer.MEMORY_MARGIN + (40 << 20))
+    monkeypatch.setattr(timer, "memory_limits", lambda: (limit, float("inf")))
+    inst = movingai("empty-32-32", "empty-32-32-even-1.scen", 200)()
+    options = {"w": 1.001, "lacam": "off"} if solver == "eecbs" else {}
+    res = hp.solve(inst, solver, time_limit=120, **options)
+    assert res.status is hp.Status.TIME_LIMIT and res.plan is None
+    assert res.stats["stopped_by"] == "memory_limit"
+    assert res.stats["reason"].startswith(f"{solver.upper()} stopped at the memory limit")
+    assert res.runtime < 60 and res.lower_bound >= inst.soc_lower_bound()
+
+
+@pytest.mark.slow
+def test_cli_search_memory_limit_is_one_line_and_exit_4(tmp_path) -> None:
+    """``--memory-limit`` also bounds CBS: the result line, then one line saying why."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "p.yaml"
+    argv = [sys.executable, "-m", "hierplan_opt", "solve", "instances/movingai/empty-32-32.map"]
+    argv += ["--scen", "instances/movingai/empty-32-32-even-1.scen", "--agents", "200"]
+    argv += ["--solver", "cbs", "--time-limit", "120", "--memory-limit", "0.2", "--out", str(out)]
+    run = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 4 and not out.exists()
+    assert run.stdout.startswith("TIME_LIMIT lb=") and "stopped_by=memory_limit" in run.stdout
+    assert run.stderr.startswith("hierplan solve: CBS stopped at the memory limit (")
+    assert run.stderr.count("\n") == 1

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.timer import data_size
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance
@@ -266,7 +267,7 @@ def _data_limit(budget: int) -> Iterator[None]:
         yield
         return
     soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
-    want = _vm_data() + budget + DATA_HEADROOM
+    want = data_size() + budget + DATA_HEADROOM
     if hard != resource.RLIM_INFINITY:
         want = min(want, hard)
     if soft != resource.RLIM_INFINITY:
@@ -280,18 +281,6 @@ def _data_limit(budget: int) -> Iterator[None]:
         yield
     finally:
         resource.setrlimit(resource.RLIMIT_DATA, (soft, hard))
-
-
-def _vm_data() -> int:
-    """Bytes of this process's data segment (what RLIMIT_DATA limits)."""
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("VmData:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return 0
 
 
 def load_instance_from_args(args: argparse.Namespace) -> Instance:

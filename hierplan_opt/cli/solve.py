@@ -301,7 +301,8 @@ def run(args: argparse.Namespace) -> int:
         return INFEASIBLE
     if result.status is Status.TIME_LIMIT:
         if result.stats.get("stopped_by") == "memory_limit":
-            print(f"hierplan solve: {result.stats.get('reason', 'memory limit')}", file=sys.stderr)
+            reason = result.stats.get("reason", "memory limit")
+            print(f"hierplan solve: {reason} (--memory-limit GB raises it)", file=sys.stderr)
         return LIMIT
     print(f"hierplan solve: solver returned {result.status} without a plan", file=sys.stderr)
     return INTERNAL

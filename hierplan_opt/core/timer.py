@@ -1,4 +1,4 @@
-"""Wall-clock deadlines shared by every solver."""
+"""Wall-clock deadlines shared by every solver, and the memory watch of long searches."""
 
 from __future__ import annotations
 
@@ -47,6 +47,60 @@ def check_time_limit(time_limit: float | None, *, allow_zero: bool = False) -> f
 FREE_S_PER_BLOCK = 130e-9
 #: Seconds between two measurements of :meth:`Deadline.keep_back_heap`.
 HEAP_CHECK_S = 0.25
+#: A search that calls :meth:`Deadline.keep_back_heap` stops, as at its time limit, when
+#: the process comes within this many bytes of its memory limit (``RLIMIT_DATA``, which
+#: ``hierplan solve --memory-limit`` sets, or ``RLIMIT_AS``, which ``hierplan sweep``'s
+#: workers set): room for the allocations between two measurements (CBS on
+#: empty-32-32-even-1 k200 grows by about 100 MB a second) and for building its result.
+MEMORY_MARGIN = 256 << 20
+
+_STATUS_FIELDS = {"VmData:": 0, "VmSize:": 1}
+
+
+def memory_use() -> tuple[int, int]:
+    """Bytes of this process's data segment and address space (what ``RLIMIT_DATA``
+    and ``RLIMIT_AS`` limit); zeros where unknown.
+
+    Example
+    -------
+    >>> data, space = memory_use()
+    >>> 0 <= data <= space
+    True
+    """
+    out = [0, 0]
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                i = _STATUS_FIELDS.get(line[:7])
+                if i is not None:
+                    out[i] = int(line.split()[1]) * 1024
+    except OSError:  # pragma: no cover - not Linux
+        pass
+    return out[0], out[1]
+
+
+def data_size() -> int:
+    """Bytes of this process's data segment (what ``RLIMIT_DATA`` limits); 0 if unknown."""
+    return memory_use()[0]
+
+
+def memory_limits() -> tuple[float, float]:
+    """The process's soft ``RLIMIT_DATA`` and ``RLIMIT_AS`` in bytes (``inf``: none).
+
+    Example
+    -------
+    >>> all(x > 0 for x in memory_limits())
+    True
+    """
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not on POSIX
+        return math.inf, math.inf
+    out = []
+    for which in (resource.RLIMIT_DATA, resource.RLIMIT_AS):
+        soft = resource.getrlimit(which)[0]
+        out.append(math.inf if soft == resource.RLIM_INFINITY else float(soft))
+    return out[0], out[1]
 
 
 class Deadline:
@@ -62,7 +116,16 @@ class Deadline:
     (False, inf)
     """
 
-    __slots__ = ("limit", "start", "_end", "_kept", "_heap_base", "_heap_next")
+    __slots__ = (
+        "limit",
+        "start",
+        "stopped_by",
+        "_end",
+        "_kept",
+        "_heap_base",
+        "_heap_next",
+        "_limits",
+    )
 
     def __init__(self, time_limit: float | None) -> None:
         self.limit = time_limit = check_time_limit(time_limit, allow_zero=True)
@@ -71,6 +134,10 @@ class Deadline:
         self._kept = 0.0
         self._heap_base = -1  # allocated blocks at the first keep_back_heap call
         self._heap_next = 0.0  # perf_counter time of its next measurement
+        self._limits = memory_limits()  # (read once: ``hierplan`` sets them before)
+        #: None, or ``"memory_limit"`` once :meth:`keep_back_heap` stopped the search
+        #: near the data limit (then :meth:`expired` is True).
+        self.stopped_by: str | None = None
 
     def expired(self) -> bool:
         """True once the budget is used up."""
@@ -110,13 +177,51 @@ class Deadline:
         True
         """
         now = time.perf_counter()
-        if now < self._heap_next or self._end == math.inf:
+        if now < self._heap_next:
+            return
+        self._heap_next = now + HEAP_CHECK_S
+        if self._memory_short():
+            self.stop_for_memory()
+            return
+        if self._end == math.inf:
             return
         blocks = sys.getallocatedblocks()  # walks pymalloc's arenas: ~1 ms per GB
         if self._heap_base < 0:
             self._heap_base = blocks
-        self._heap_next = now + HEAP_CHECK_S
         self.keep_back(FREE_S_PER_BLOCK * max(0, blocks - self._heap_base))
+
+    def _memory_short(self) -> bool:
+        """Whether the process is within :data:`MEMORY_MARGIN` of a memory limit."""
+        data_limit, space_limit = self._limits
+        if data_limit == math.inf and space_limit == math.inf:
+            return False
+        data, space = memory_use()
+        return data > data_limit - MEMORY_MARGIN or space > space_limit - MEMORY_MARGIN
+
+    def stop_for_memory(self) -> None:
+        """End the budget now because memory ran short (see :data:`MEMORY_MARGIN`).
+
+        Example
+        -------
+        >>> d = Deadline(None)
+        >>> d.stop_for_memory()
+        >>> d.expired(), d.remaining(), d.stopped_by
+        (True, 0.0, 'memory_limit')
+        """
+        self.stopped_by = "memory_limit"
+        self._end = -math.inf
+
+    def stop_reason(self, what: str) -> str:
+        """The one line that says ``what`` stopped at the memory limit (for ``stats``).
+
+        Example
+        -------
+        >>> Deadline(None).stop_reason("CBS")[:30]
+        'CBS stopped at the memory limit'
+        """
+        limit = min(self._limits)
+        size = "" if limit == math.inf else f" ({limit / (1 << 30):.1f} GB)"
+        return f"{what} stopped at the memory limit{size} after {self.elapsed():.1f} s"
 
     def remaining(self) -> float:
         """Seconds left (``inf`` without a limit, never negative)."""

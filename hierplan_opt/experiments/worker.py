@@ -132,8 +132,11 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
         **task.get("options", {}),
     )
     stats = {k: v for k, v in res.stats.items() if _json_safe(v)}
+    # a search that stopped itself at the memory limit (core.timer.MEMORY_MARGIN) ran
+    # out of memory as much as one that raised MemoryError, and says so with its bound
+    memout = res.plan is None and res.stats.get("stopped_by") == "memory_limit"
     return {
-        "status": str(res.status),
+        "status": MEMOUT if memout else str(res.status),
         "cost": res.cost,
         "lower_bound": res.lower_bound,
         "runtime": res.runtime,
