@@ -96,7 +96,7 @@ def memory_limits() -> tuple[float, float]:
         import resource
     except ImportError:  # pragma: no cover - not on POSIX
         return math.inf, math.inf
-    out = []
+    out: list[float] = []
     for which in (resource.RLIMIT_DATA, resource.RLIMIT_AS):
         soft = resource.getrlimit(which)[0]
         out.append(math.inf if soft == resource.RLIM_INFINITY else float(soft))
