@@ -757,8 +757,10 @@ class _CBS:
                     weights[key] = 1
             return min_vertex_cover(weights)
         known = node.pairw
-        mine = dict(known)
         costs = node.costs
+        # An entry whose costs are no longer the pair's is never used again below this
+        # node (an agent's cost only grows along a branch): it is not inherited.
+        mine = {k: x for k, x in known.items() if x[3] == costs[k[0]] and x[4] == costs[k[1]]}
         paths = node.paths
         for (a, b), cs in pairs.items():
             if self.deadline.expired():
