@@ -216,7 +216,7 @@ class Deadline:
 
         Example
         -------
-        >>> Deadline(None).stop_reason("CBS")[:30]
+        >>> Deadline(None).stop_reason("CBS")[:31]
         'CBS stopped at the memory limit'
         """
         limit = min(self._limits)
