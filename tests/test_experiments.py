@@ -715,3 +715,26 @@ def test_a_warm_worker_that_cannot_start_is_not_retried(
     finally:
         runner.close_servers()
         runner._failed.clear()
+
+
+def test_worker_records_a_search_stopped_at_its_memory_limit_as_memout(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A search that stopped itself near the memory limit (core.timer.MEMORY_MARGIN) is a
+    MEMOUT row, with the lower bound it proved; a plain time-out stays TIME_LIMIT."""
+    from hierplan_opt.core.result import Result, Status
+    from hierplan_opt.experiments import worker
+
+    stats = {"stopped_by": "memory_limit", "reason": "CBS stopped at the memory limit"}
+    task = {
+        "solver": "cbs", "time_limit": 10, "seed": 0, "agents": 3,
+        "instance": {"kind": "generator", "name": "g", "generator": "random_grid",
+                     "params": {"width": 5, "height": 5}},
+    }  # fmt: skip
+    given = Result(Status.TIME_LIMIT, None, lower_bound=7, stats=stats)
+    monkeypatch.setattr(worker, "solve", lambda *a, **k: given)
+    out = worker.solve_task(task)
+    assert out["status"] == "MEMOUT" and out["lower_bound"] == 7
+    assert out["stats"]["reason"].startswith("CBS stopped")
+    monkeypatch.setattr(worker, "solve", lambda *a, **k: Result(Status.TIME_LIMIT, None))
+    assert worker.solve_task(task)["status"] == "TIME_LIMIT"
