@@ -9,6 +9,7 @@ from canned import corridor_lmrp, movingai, tapf_paper_like
 
 import hierplan_opt as hp
 from hierplan_opt.cli import main
+from hierplan_opt.core.resources import meminfo
 from hierplan_opt.formulations import cpsat, mip
 from hierplan_opt.formulations import memory as mem
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork, commodity_min_deadline
@@ -145,7 +146,7 @@ def test_budget_from_environment(monkeypatch, tmp_path, capsys) -> None:
 
 
 def test_default_budget_is_a_fraction_of_the_machine() -> None:
-    info = mem._meminfo()
+    info = meminfo()
     budget = mem.default_budget()
     if "MemTotal" in info:
         assert budget <= info["MemTotal"] // 2
@@ -196,3 +197,17 @@ def test_cli_search_memory_limit_is_one_line_and_exit_4(tmp_path) -> None:
     assert run.stdout.startswith("TIME_LIMIT lb=") and "stopped_by=memory_limit" in run.stdout
     assert run.stderr.startswith("hierplan solve: CBS stopped at the memory limit (")
     assert run.stderr.count("\n") == 1
+
+
+def test_search_stops_when_the_machine_runs_short_of_memory(monkeypatch) -> None:
+    """Without any limit of its own (a program calling the library), a search stops with
+    its bound when the machine or container has less than MEMORY_MARGIN left."""
+    from hierplan_opt.core import timer
+
+    monkeypatch.setattr(timer, "memory_available", lambda: float(timer.MEMORY_MARGIN - 1))
+    monkeypatch.setattr(timer, "memory_limits", lambda: (float("inf"), float("inf")))
+    inst = movingai("room-32-32-4", "room-32-32-4-even-1.scen", 20)()
+    res = hp.solve(inst, "cbs", time_limit=60)
+    assert res.status is hp.Status.TIME_LIMIT and res.stats["stopped_by"] == "memory_limit"
+    assert res.stats["reason"].startswith("CBS stopped at the memory limit after ")
+    assert res.lower_bound >= inst.soc_lower_bound()

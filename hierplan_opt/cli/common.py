@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
 from hierplan_opt.core.errors import InputError
-from hierplan_opt.core.timer import data_size
+from hierplan_opt.core.resources import data_size
 
 if TYPE_CHECKING:
     from hierplan_opt.core.instance import Instance

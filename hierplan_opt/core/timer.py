@@ -8,6 +8,7 @@ import time
 from typing import cast
 
 from hierplan_opt.core.errors import OptionError
+from hierplan_opt.core.resources import MEMORY_MARGIN, memory_available, memory_limits, memory_use
 
 
 def check_time_limit(time_limit: float | None, *, allow_zero: bool = False) -> float | None:
@@ -47,60 +48,6 @@ def check_time_limit(time_limit: float | None, *, allow_zero: bool = False) -> f
 FREE_S_PER_BLOCK = 130e-9
 #: Seconds between two measurements of :meth:`Deadline.keep_back_heap`.
 HEAP_CHECK_S = 0.25
-#: A search that calls :meth:`Deadline.keep_back_heap` stops, as at its time limit, when
-#: the process comes within this many bytes of its memory limit (``RLIMIT_DATA``, which
-#: ``hierplan solve --memory-limit`` sets, or ``RLIMIT_AS``, which ``hierplan sweep``'s
-#: workers set): room for the allocations between two measurements (CBS on
-#: empty-32-32-even-1 k200 grows by about 100 MB a second) and for building its result.
-MEMORY_MARGIN = 256 << 20
-
-_STATUS_FIELDS = {"VmData:": 0, "VmSize:": 1}
-
-
-def memory_use() -> tuple[int, int]:
-    """Bytes of this process's data segment and address space (what ``RLIMIT_DATA``
-    and ``RLIMIT_AS`` limit); zeros where unknown.
-
-    Example
-    -------
-    >>> data, space = memory_use()
-    >>> 0 <= data <= space
-    True
-    """
-    out = [0, 0]
-    try:
-        with open("/proc/self/status", encoding="ascii") as f:
-            for line in f:
-                i = _STATUS_FIELDS.get(line[:7])
-                if i is not None:
-                    out[i] = int(line.split()[1]) * 1024
-    except OSError:  # pragma: no cover - not Linux
-        pass
-    return out[0], out[1]
-
-
-def data_size() -> int:
-    """Bytes of this process's data segment (what ``RLIMIT_DATA`` limits); 0 if unknown."""
-    return memory_use()[0]
-
-
-def memory_limits() -> tuple[float, float]:
-    """The process's soft ``RLIMIT_DATA`` and ``RLIMIT_AS`` in bytes (``inf``: none).
-
-    Example
-    -------
-    >>> all(x > 0 for x in memory_limits())
-    True
-    """
-    try:
-        import resource
-    except ImportError:  # pragma: no cover - not on POSIX
-        return math.inf, math.inf
-    out: list[float] = []
-    for which in (resource.RLIMIT_DATA, resource.RLIMIT_AS):
-        soft = resource.getrlimit(which)[0]
-        out.append(math.inf if soft == resource.RLIM_INFINITY else float(soft))
-    return out[0], out[1]
 
 
 class Deadline:
@@ -191,7 +138,10 @@ class Deadline:
         self.keep_back(FREE_S_PER_BLOCK * max(0, blocks - self._heap_base))
 
     def _memory_short(self) -> bool:
-        """Whether the process is within :data:`MEMORY_MARGIN` of a memory limit."""
+        """Whether the process is within ``MEMORY_MARGIN`` of its memory limits, or the
+        machine (or container) has less than that left (see :mod:`.resources`)."""
+        if memory_available() < MEMORY_MARGIN:
+            return True
         data_limit, space_limit = self._limits
         if data_limit == math.inf and space_limit == math.inf:
             return False
@@ -199,7 +149,7 @@ class Deadline:
         return data > data_limit - MEMORY_MARGIN or space > space_limit - MEMORY_MARGIN
 
     def stop_for_memory(self) -> None:
-        """End the budget now because memory ran short (see :data:`MEMORY_MARGIN`).
+        """End the budget now because memory ran short (see ``resources.MEMORY_MARGIN``).
 
         Example
         -------

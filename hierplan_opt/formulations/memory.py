@@ -38,6 +38,7 @@ import numpy as np
 from hierplan_opt.core.errors import HierplanError, InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.options import positive_amount
+from hierplan_opt.core.resources import cgroup_limit, meminfo
 
 GB = 1 << 30
 
@@ -139,32 +140,6 @@ def model_bytes(size: NetworkSize, backend: str) -> int:
 
 
 # ---------------------------------------------------------------------- the budget
-def _meminfo() -> dict[str, int]:
-    out: dict[str, int] = {}
-    try:
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                key, _, rest = line.partition(":")
-                parts = rest.split()
-                if parts and parts[0].isdigit():
-                    out[key] = int(parts[0]) * 1024
-    except OSError:
-        pass
-    return out
-
-
-def _cgroup_limit() -> int | None:
-    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
-        try:
-            with open(path, encoding="ascii") as f:
-                text = f.read().strip()
-        except OSError:
-            continue
-        if text.isdigit() and int(text) < 1 << 60:
-            return int(text)
-    return None
-
-
 def default_budget() -> int:
     """Half of the physical memory (or of the cgroup limit), at most 80 % of what is free.
 
@@ -173,14 +148,14 @@ def default_budget() -> int:
     >>> default_budget() > 0
     True
     """
-    info = _meminfo()
+    info = meminfo()
     total = info.get("MemTotal")
     if total is None:
         try:
             total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
         except (ValueError, OSError, AttributeError):
             total = 8 * GB
-    cg = _cgroup_limit()
+    cg = cgroup_limit()
     if cg is not None:
         total = min(total, cg)
     budget = total // 2
