@@ -209,5 +209,5 @@ def test_search_stops_when_the_machine_runs_short_of_memory(monkeypatch) -> None
     inst = movingai("room-32-32-4", "room-32-32-4-even-1.scen", 20)()
     res = hp.solve(inst, "cbs", time_limit=60)
     assert res.status is hp.Status.TIME_LIMIT and res.stats["stopped_by"] == "memory_limit"
-    assert res.stats["reason"].startswith("CBS stopped at the memory limit after ")
+    assert res.stats["reason"].startswith("CBS stopped at the machine's free memory (under 256 MB")
     assert res.lower_bound >= inst.soc_lower_bound()

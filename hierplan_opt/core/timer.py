@@ -72,6 +72,7 @@ class Deadline:
         "_heap_base",
         "_heap_next",
         "_limits",
+        "_short",
     )
 
     def __init__(self, time_limit: float | None) -> None:
@@ -85,6 +86,7 @@ class Deadline:
         #: None, or ``"memory_limit"`` once :meth:`keep_back_heap` stopped the search
         #: near the data limit (then :meth:`expired` is True).
         self.stopped_by: str | None = None
+        self._short = ""  # what ran short, for stop_reason
 
     def expired(self) -> bool:
         """True once the budget is used up."""
@@ -127,8 +129,9 @@ class Deadline:
         if now < self._heap_next:
             return
         self._heap_next = now + HEAP_CHECK_S
-        if self._memory_short():
-            self.stop_for_memory()
+        short = self._memory_short()
+        if short:
+            self.stop_for_memory(short)
             return
         if self._end == math.inf:
             return
@@ -137,18 +140,21 @@ class Deadline:
             self._heap_base = blocks
         self.keep_back(FREE_S_PER_BLOCK * max(0, blocks - self._heap_base))
 
-    def _memory_short(self) -> bool:
-        """Whether the process is within ``MEMORY_MARGIN`` of its memory limits, or the
-        machine (or container) has less than that left (see :mod:`.resources`)."""
+    def _memory_short(self) -> str:
+        """What is short if the process is within ``MEMORY_MARGIN`` of one of its memory
+        limits or the machine (or container) has less than that left, else ""
+        (see :mod:`.resources`)."""
         if memory_available() < MEMORY_MARGIN:
-            return True
+            return f"the machine's free memory (under {MEMORY_MARGIN >> 20} MB left)"
         data_limit, space_limit = self._limits
         if data_limit == math.inf and space_limit == math.inf:
-            return False
+            return ""
         data, space = memory_use()
-        return data > data_limit - MEMORY_MARGIN or space > space_limit - MEMORY_MARGIN
+        if data > data_limit - MEMORY_MARGIN or space > space_limit - MEMORY_MARGIN:
+            return f"the memory limit ({min(self._limits) / (1 << 30):.1f} GB)"
+        return ""
 
-    def stop_for_memory(self) -> None:
+    def stop_for_memory(self, short: str = "the memory limit") -> None:
         """End the budget now because memory ran short (see ``resources.MEMORY_MARGIN``).
 
         Example
@@ -159,19 +165,20 @@ class Deadline:
         (True, 0.0, 'memory_limit')
         """
         self.stopped_by = "memory_limit"
+        self._short = short
         self._end = -math.inf
 
     def stop_reason(self, what: str) -> str:
-        """The one line that says ``what`` stopped at the memory limit (for ``stats``).
+        """The one line that says ``what`` stopped for memory and why (for ``stats``).
 
         Example
         -------
-        >>> Deadline(None).stop_reason("CBS")[:31]
+        >>> d = Deadline(None)
+        >>> d.stop_for_memory()
+        >>> d.stop_reason("CBS")[:31]
         'CBS stopped at the memory limit'
         """
-        limit = min(self._limits)
-        size = "" if limit == math.inf else f" ({limit / (1 << 30):.1f} GB)"
-        return f"{what} stopped at the memory limit{size} after {self.elapsed():.1f} s"
+        return f"{what} stopped at {self._short or 'the memory limit'} after {self.elapsed():.1f} s"
 
     def remaining(self) -> float:
         """Seconds left (``inf`` without a limit, never negative)."""
