@@ -129,7 +129,8 @@ class Deadline:
         if now < self._heap_next:
             return
         self._heap_next = now + HEAP_CHECK_S
-        short = self._memory_short()
+        # (memory from the second measurement on: a short search never reads /proc)
+        short = self._memory_short() if now - self.start >= HEAP_CHECK_S else ""
         if short:
             self.stop_for_memory(short)
             return
