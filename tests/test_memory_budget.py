@@ -166,12 +166,12 @@ def test_cli_solve_memory_limit(tmp_path, capsys) -> None:
 @pytest.mark.parametrize("solver", ["cbs", "eecbs"])
 def test_search_stops_at_the_memory_limit_with_its_bound(monkeypatch, solver: str) -> None:
     """A long search stops near the process's memory limit, says so and keeps its lower
-    bound, instead of dying in a MemoryError (here the limit is set 40 MB above what the
-    process uses, plus the search's margin)."""
+    bound, instead of dying in a MemoryError (here the limit is set 80 MB above what the
+    process uses)."""
     from hierplan_opt.core import timer
 
     data, _ = timer.memory_use()
-    limit = float(data + timer.MEMORY_MARGIN + (40 << 20))
+    limit = float(data + (80 << 20))  # the margin is then a quarter of that: 20 MB
     monkeypatch.setattr(timer, "memory_limits", lambda: (limit, float("inf")))
     inst = movingai("empty-32-32", "empty-32-32-even-1.scen", 200)()
     options = {"w": 1.001, "lacam": "off"} if solver == "eecbs" else {}
@@ -211,3 +211,17 @@ def test_search_stops_when_the_machine_runs_short_of_memory(monkeypatch) -> None
     assert res.status is hp.Status.TIME_LIMIT and res.stats["stopped_by"] == "memory_limit"
     assert res.stats["reason"].startswith("CBS stopped at the machine's free memory (under 256 MB")
     assert res.lower_bound >= inst.soc_lower_bound()
+
+
+def test_the_margin_below_a_small_limit_is_a_quarter_of_the_room(monkeypatch) -> None:
+    """A sweep worker of 512 MB has less room than MEMORY_MARGIN once numba is loaded:
+    its searches keep a quarter of the room as margin, so they run, and stop near it."""
+    from hierplan_opt.core import timer
+
+    data, space = timer.memory_use()
+    room = 100 << 20
+    monkeypatch.setattr(timer, "memory_limits", lambda: (float("inf"), float(space + room)))
+    d = timer.Deadline(60)
+    assert d._memory_short() == ""
+    monkeypatch.setattr(timer, "memory_use", lambda: (data, space + room - (20 << 20)))
+    assert d._memory_short() == "the memory limit (%.1f GB)" % ((space + room) / (1 << 30))

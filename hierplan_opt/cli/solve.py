@@ -301,8 +301,10 @@ def run(args: argparse.Namespace) -> int:
         return INFEASIBLE
     if result.status is Status.TIME_LIMIT:
         if result.stats.get("stopped_by") == "memory_limit":
-            reason = result.stats.get("reason", "memory limit")
-            print(f"hierplan solve: {reason} (--memory-limit GB raises it)", file=sys.stderr)
+            reason = str(result.stats.get("reason", "memory limit"))
+            if "--memory-limit" not in reason and "free memory" not in reason:
+                reason += " (--memory-limit GB raises it)"
+            print(f"hierplan solve: {reason}", file=sys.stderr)
         return LIMIT
     print(f"hierplan solve: solver returned {result.status} without a plan", file=sys.stderr)
     return INTERNAL

@@ -105,9 +105,27 @@ def cgroup_limit() -> int | None:
     return _cgroup_file("memory.max", "memory.limit_in_bytes")
 
 
+def _cgroup_inactive_file() -> int:
+    """The container's reclaimable page cache (``inactive_file``), 0 if unknown."""
+    for path, key in (
+        ("/sys/fs/cgroup/memory.stat", "inactive_file"),
+        ("/sys/fs/cgroup/memory/memory.stat", "total_inactive_file"),
+    ):
+        try:
+            with open(path, encoding="ascii") as f:
+                for line in f:
+                    name, _, value = line.partition(" ")
+                    if name == key and value.strip().isdigit():
+                        return int(value)
+        except OSError:
+            continue
+    return 0
+
+
 def memory_available() -> float:
     """Bytes the machine can still give (``MemAvailable``), or the container if it has
-    less left below its limit; ``inf`` where unknown.
+    less left below its limit (its usage less the page cache it can drop, as ``docker
+    stats`` counts it); ``inf`` where unknown.
 
     Example
     -------
@@ -119,5 +137,5 @@ def memory_available() -> float:
     if limit is not None:
         used = _cgroup_file("memory.current", "memory.usage_in_bytes")
         if used is not None:
-            avail = min(avail, float(limit - used))
+            avail = min(avail, float(limit - used + _cgroup_inactive_file()))
     return avail

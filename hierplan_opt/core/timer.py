@@ -72,6 +72,7 @@ class Deadline:
         "_heap_base",
         "_heap_next",
         "_limits",
+        "_margins",
         "_short",
     )
 
@@ -83,6 +84,16 @@ class Deadline:
         self._heap_base = -1  # allocated blocks at the first keep_back_heap call
         self._heap_next = 0.0  # perf_counter time of its next measurement
         self._limits = memory_limits()  # (read once: ``hierplan`` sets them before)
+        # The margin below each limit: MEMORY_MARGIN, or a quarter of what was left when
+        # the deadline was made if that is less (a 512 MB sweep worker with numba loaded
+        # has 60-190 MB left: a fixed 256 MB would stop every search at once).
+        self._margins = (MEMORY_MARGIN, MEMORY_MARGIN)
+        if min(self._limits) != math.inf:
+            used = memory_use()
+            self._margins = (
+                min(MEMORY_MARGIN, max(0.0, self._limits[0] - used[0]) / 4),
+                min(MEMORY_MARGIN, max(0.0, self._limits[1] - used[1]) / 4),
+            )
         #: None, or ``"memory_limit"`` once :meth:`keep_back_heap` stopped the search
         #: near the data limit (then :meth:`expired` is True).
         self.stopped_by: str | None = None
@@ -142,17 +153,18 @@ class Deadline:
         self.keep_back(FREE_S_PER_BLOCK * max(0, blocks - self._heap_base))
 
     def _memory_short(self) -> str:
-        """What is short if the process is within ``MEMORY_MARGIN`` of one of its memory
-        limits or the machine (or container) has less than that left, else ""
-        (see :mod:`.resources`)."""
+        """What is short if the process is within its margin (``MEMORY_MARGIN`` or less,
+        see ``__init__``) of one of its memory limits or the machine (or container) has
+        less than ``MEMORY_MARGIN`` left, else "" (see :mod:`.resources`)."""
         if memory_available() < MEMORY_MARGIN:
             return f"the machine's free memory (under {MEMORY_MARGIN >> 20} MB left)"
         data_limit, space_limit = self._limits
         if data_limit == math.inf and space_limit == math.inf:
             return ""
         data, space = memory_use()
-        if data > data_limit - MEMORY_MARGIN or space > space_limit - MEMORY_MARGIN:
-            return f"the memory limit ({min(self._limits) / (1 << 30):.1f} GB)"
+        for use, limit, margin in zip((data, space), self._limits, self._margins, strict=True):
+            if use > limit - margin:
+                return f"the memory limit ({limit / (1 << 30):.1f} GB)"
         return ""
 
     def stop_for_memory(self, short: str = "the memory limit") -> None:

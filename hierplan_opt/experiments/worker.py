@@ -134,7 +134,7 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
     stats = {k: v for k, v in res.stats.items() if _json_safe(v)}
     # a search that stopped itself at the memory limit (core.timer.MEMORY_MARGIN) ran
     # out of memory as much as one that raised MemoryError, and says so with its bound
-    memout = res.plan is None and res.stats.get("stopped_by") == "memory_limit"
+    memout = res.status is Status.TIME_LIMIT and res.stats.get("stopped_by") == "memory_limit"
     return {
         "status": MEMOUT if memout else str(res.status),
         "cost": res.cost,

@@ -261,6 +261,7 @@ def solved_free_robots(
         lbs.append((bound, ends))
     lbs.sort()
     lower = lbs[0][0] if lbs else None
+    stopped: dict[str, Any] = {}  # why an inner search stopped early, if one did
     for bound, ends in lbs:
         if best is not None and best.cost is not None and bound >= best.cost:
             break
@@ -271,6 +272,11 @@ def solved_free_robots(
         remaining = None if time_limit is None else max(0.01, deadline.remaining())
         r = registry.run(name, inst, time_limit=remaining, objective=used_objective, **kwargs)
         solved += 1
+        if r.stats.get("stopped_by") == "memory_limit" and not r.solved:
+            # out of memory: the next choice of ends would stop the same way
+            stopped = {k: r.stats[k] for k in ("stopped_by", "reason") if k in r.stats}
+            proven = False
+            break
         if r.status is Status.INFEASIBLE:
             continue
         if r.status is not Status.OPTIMAL:
@@ -279,6 +285,7 @@ def solved_free_robots(
             best, best_inst = r, inst
     stats: dict[str, Any] = {"free_ends": solved, "free_agents": len(free)}
     if best is None:
+        stats.update(stopped)
         status = Status.INFEASIBLE if proven and solved == len(lbs) else Status.TIME_LIMIT
         res = Result(status, None, lower_bound=lower, solver=name, stats=stats)
         return replace(res, objective=used_objective or "soc"), instance
