@@ -82,7 +82,9 @@ class Deadline:
         self._end = math.inf if time_limit is None else self.start + time_limit
         self._kept = 0.0
         self._heap_base = -1  # allocated blocks at the first keep_back_heap call
-        self._heap_next = 0.0  # perf_counter time of its next measurement
+        # perf_counter time of its next measurement: the first after HEAP_CHECK_S, so a
+        # short solve never pays one (sys.getallocatedblocks walks the arenas, /proc)
+        self._heap_next = self.start + HEAP_CHECK_S
         self._limits = memory_limits()  # (read once: ``hierplan`` sets them before)
         # The margin below each limit: MEMORY_MARGIN, or a quarter of what was left when
         # the deadline was made if that is less (a 512 MB sweep worker with numba loaded
@@ -119,8 +121,9 @@ class Deadline:
 
     def keep_back_heap(self) -> None:
         """Keep back the time it takes to free what the caller allocated since its
-        first call (see :data:`FREE_S_PER_BLOCK`); measured at most every
-        :data:`HEAP_CHECK_S` seconds, so a search may call it once per iteration.
+        first measurement (see :data:`FREE_S_PER_BLOCK`); measured from
+        :data:`HEAP_CHECK_S` seconds on and at most every :data:`HEAP_CHECK_S` seconds,
+        so a search may call it once per iteration.
 
         A search that holds millions of objects takes seconds to free them when it
         returns (CBS's OPEN on empty-32-32 k200: 2.7 s after a 60 s limit); the time
@@ -129,6 +132,7 @@ class Deadline:
         Example
         -------
         >>> d = Deadline(10.0)
+        >>> d._heap_next = 0.0  # measure now (normally from HEAP_CHECK_S on)
         >>> d.keep_back_heap()
         >>> heap = [[i] for i in range(200_000)]
         >>> d._heap_next = 0.0  # measure again now (normally every HEAP_CHECK_S)
@@ -140,8 +144,7 @@ class Deadline:
         if now < self._heap_next:
             return
         self._heap_next = now + HEAP_CHECK_S
-        # (memory from the second measurement on: a short search never reads /proc)
-        short = self._memory_short() if now - self.start >= HEAP_CHECK_S else ""
+        short = self._memory_short()
         if short:
             self.stop_for_memory(short)
             return
