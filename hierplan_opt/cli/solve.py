@@ -301,10 +301,7 @@ def run(args: argparse.Namespace) -> int:
         return INFEASIBLE
     if result.status is Status.TIME_LIMIT:
         if result.stats.get("stopped_by") == "memory_limit":
-            reason = str(result.stats.get("reason", "memory limit"))
-            if "--memory-limit" not in reason and "free memory" not in reason:
-                reason += " (--memory-limit GB raises it)"
-            print(f"hierplan solve: {reason}", file=sys.stderr)
+            print(f"hierplan solve: {result.stats.get('reason', 'memory limit')}", file=sys.stderr)
         return LIMIT
     print(f"hierplan solve: solver returned {result.status} without a plan", file=sys.stderr)
     return INTERNAL

@@ -85,21 +85,14 @@ class Deadline:
         # perf_counter time of its next measurement: the first after HEAP_CHECK_S, so a
         # short solve never pays one (sys.getallocatedblocks walks the arenas, /proc)
         self._heap_next = self.start + HEAP_CHECK_S
-        self._limits = memory_limits()  # (read once: ``hierplan`` sets them before)
-        # The margin below each limit: MEMORY_MARGIN, or a quarter of what was left when
-        # the deadline was made if that is less (a 512 MB sweep worker with numba loaded
-        # has 60-190 MB left: a fixed 256 MB would stop every search at once).
+        # The memory limits and the margins below them, read at the first measurement
+        # (a deadline of a short call never reads them); see _memory_short.
+        self._limits: tuple[float, float] | None = None
         self._margins = (MEMORY_MARGIN, MEMORY_MARGIN)
-        if min(self._limits) != math.inf:
-            used = memory_use()
-            self._margins = (
-                min(MEMORY_MARGIN, max(0.0, self._limits[0] - used[0]) / 4),
-                min(MEMORY_MARGIN, max(0.0, self._limits[1] - used[1]) / 4),
-            )
         #: None, or ``"memory_limit"`` once :meth:`keep_back_heap` stopped the search
         #: near the data limit (then :meth:`expired` is True).
         self.stopped_by: str | None = None
-        self._short = ""  # what ran short, for stop_reason
+        self._short = ""  # what ran short, for stop_stats
 
     def expired(self) -> bool:
         """True once the budget is used up."""
@@ -156,18 +149,28 @@ class Deadline:
         self.keep_back(FREE_S_PER_BLOCK * max(0, blocks - self._heap_base))
 
     def _memory_short(self) -> str:
-        """What is short if the process is within its margin (``MEMORY_MARGIN`` or less,
-        see ``__init__``) of one of its memory limits or the machine (or container) has
-        less than ``MEMORY_MARGIN`` left, else "" (see :mod:`.resources`)."""
+        """What is short if the process is within its margin of one of its memory limits
+        or the machine (or container) has less than ``MEMORY_MARGIN`` left, else ""
+        (see :mod:`.resources`).
+
+        The margin below a limit is ``MEMORY_MARGIN``, or a quarter of the room left at
+        the first call if that is less (a 512 MB sweep worker with numba loaded has
+        60-190 MB left: a fixed 256 MB would stop every search at once)."""
         if memory_available() < MEMORY_MARGIN:
             return f"the machine's free memory (under {MEMORY_MARGIN >> 20} MB left)"
-        data_limit, space_limit = self._limits
-        if data_limit == math.inf and space_limit == math.inf:
+        limits = self._limits
+        if limits is None:  # read once (``hierplan`` sets them before any solve)
+            limits = self._limits = memory_limits()
+            if min(limits) != math.inf:
+                room = [max(0.0, x - u) for x, u in zip(limits, memory_use(), strict=True)]
+                self._margins = (min(MEMORY_MARGIN, room[0] / 4), min(MEMORY_MARGIN, room[1] / 4))
+        if min(limits) == math.inf:
             return ""
-        data, space = memory_use()
-        for use, limit, margin in zip((data, space), self._limits, self._margins, strict=True):
-            if use > limit - margin:
-                return f"the memory limit ({limit / (1 << 30):.1f} GB)"
+        for i, use in enumerate(memory_use()):
+            if use > limits[i] - self._margins[i]:
+                # RLIMIT_DATA is what ``hierplan solve --memory-limit`` sets
+                hint = ", --memory-limit GB raises it" if i == 0 else ""
+                return f"the memory limit ({limits[i] / (1 << 30):.1f} GB{hint})"
         return ""
 
     def stop_for_memory(self, short: str = "the memory limit") -> None:
@@ -184,17 +187,25 @@ class Deadline:
         self._short = short
         self._end = -math.inf
 
-    def stop_reason(self, what: str) -> str:
-        """The one line that says ``what`` stopped for memory and why (for ``stats``).
+    def stop_stats(self, what: str) -> dict[str, str]:
+        """The entries a result's ``stats`` gets when ``what`` stopped for memory
+        (``stopped_by`` and a one-line ``reason``); none otherwise.
 
         Example
         -------
         >>> d = Deadline(None)
+        >>> d.stop_stats("CBS")
+        {}
         >>> d.stop_for_memory()
-        >>> d.stop_reason("CBS")[:31]
+        >>> d.stop_stats("CBS")["reason"][:31]
         'CBS stopped at the memory limit'
         """
-        return f"{what} stopped at {self._short or 'the memory limit'} after {self.elapsed():.1f} s"
+        if self.stopped_by is None:
+            return {}
+        reason = (
+            f"{what} stopped at {self._short or 'the memory limit'} after {self.elapsed():.1f} s"
+        )
+        return {"stopped_by": self.stopped_by, "reason": reason}
 
     def remaining(self) -> float:
         """Seconds left (``inf`` without a limit, never negative)."""

@@ -1084,12 +1084,13 @@ def _search(
         roots = [AgentConstraints.root(g.n, x) for x in goals]
         cbs = _CBS(g, starts, goals, roots, deadline, heuristic=heuristic, **opts)  # type: ignore[arg-type]
         node = cbs.search()
-        stats = dict(cbs.stats)
+        stats: dict[str, Any] = dict(cbs.stats)
         if node is None:
             if cbs.exhausted:  # pragma: no cover - SOC CT never empties on a solvable tree
                 return Result(Status.INFEASIBLE, None, stats=stats)
             lb = max(cbs.lower_bound, instance.soc_lower_bound())
-            return Result(Status.TIME_LIMIT, None, lower_bound=lb, stats=_stopped(deadline, stats))
+            stats.update(deadline.stop_stats("CBS"))
+            return Result(Status.TIME_LIMIT, None, lower_bound=lb, stats=stats)
         plan = Plan.from_paths(node.paths)
         return Result(Status.OPTIMAL, plan, cost=plan.sum_of_costs, lower_bound=node.g, stats=stats)
 
@@ -1107,17 +1108,10 @@ def _search(
             plan = Plan.from_paths(node.paths)
             return Result(Status.OPTIMAL, plan, cost=plan.makespan, lower_bound=m, stats=total)
         if not cbs.exhausted:
-            return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=_stopped(deadline, total))
+            total.update(deadline.stop_stats("CBS"))
+            return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=total)
         log.info("CBS makespan: no plan with makespan %d", m)
         m += 1
         if m > NO_BOUND:  # pragma: no cover
             break
     return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=total)  # pragma: no cover
-
-
-def _stopped(deadline: Deadline, stats: dict[str, Any]) -> dict[str, Any]:
-    """``stats``, with why the search stopped early if not by its time limit."""
-    if deadline.stopped_by is not None:
-        stats["stopped_by"] = deadline.stopped_by
-        stats["reason"] = deadline.stop_reason("CBS")
-    return stats

@@ -669,9 +669,7 @@ class _ECBS:
     ) -> Result:
         if plan is not None:
             self.low.annotate(self.stats, plan)
-        if self.deadline.stopped_by is not None:
-            self.stats["stopped_by"] = self.deadline.stopped_by
-            self.stats["reason"] = self.deadline.stop_reason(self.name.upper())
+        self.stats.update(self.deadline.stop_stats(self.name.upper()))
         self.stats["runtime"] = self.deadline.elapsed()
         return Result(status, plan, cost, lb, stats=self.stats, objective="soc")
 
