@@ -5,8 +5,9 @@ highway-inflated focal search each expand states in their own hot loop, written 
 speed; these tests tie the loops to the one rule, :class:`~hierplan_opt.search.
 spacetime.Moves` (which move is allowed at which time, with which lower bound):
 
-* the compiled kernel's rule (``_move_h``, shared by its A* and its MDD builder) gives
-  exactly ``Moves.at`` for every state of random instances and constraint sets;
+* the compiled kernel's rule (``_move_h`` with ``_landmark``, the one its A* and its MDD
+  builder call) gives exactly ``Moves.at`` for every state of random instances and
+  constraint sets;
 * the Python A*'s path takes only moves of ``Moves``, lies in the MDD of its cost, and
   no path of one step less exists (the MDD of that cost is empty);
 * the focal searches' shared rule (``focal.scored_moves``, ``park_conflicts``) allows
@@ -98,17 +99,15 @@ def test_kernel_rule_is_moves(seed):
         kg, args, _ = jit._search_args(g.adj, s, goal, dist, cons, moves.nxt, 0)
         ptr, idx, darr = kg.ptr, kg.idx, args[2]
         vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, minf = args[6:]
-        n_lm = lm_need.shape[0]
         for t in range(1, cons.tmax + 4):
-            nl = t < n_lm
-            need = int(lm_need[t]) if nl else -1
+            need, lrow, ltl, lhb = k._landmark(t, lm_need, nxt_row, nxt_tl, nxt_hb)
             for v in free:
                 kernel = []
                 for j in range(ptr[v], ptr[v + 1]):
                     u = int(idx[j])
                     hu = k._move_h(
-                        u, v, t, g.n, need, vkeys, ekeys, ff, darr, nl, lmd, nxt_row, nxt_tl,
-                        nxt_hb, minf, UNREACHABLE,
+                        u, v, t, g.n, need, lrow, ltl, lhb, vkeys, ekeys, ff, darr, lmd, minf,
+                        UNREACHABLE,
                     )  # fmt: skip
                     if hu >= 0:
                         kernel.append((u, int(hu)))

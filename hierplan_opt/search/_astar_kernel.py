@@ -40,7 +40,21 @@ def _njit(f):
         return numba.njit(nogil=True)(f)
 
 
-@_njit
+def _leaf(f):
+    """``numba.njit`` for a helper of a hot loop that only reads and writes the arrays it
+    is given (it allocates none and keeps none): compiled without numba's reference
+    counting (``_nrt=False``), so a call costs no atomic increments and decrements of
+    each array's count. With them, a helper called per move made the focal kernel 2.2x
+    slower (its state update, 15 arrays); without, the same helper costs nothing
+    measurable (``bench``-style medians, CPU lock). Numba refuses to compile a leaf that
+    allocates."""
+    try:
+        return numba.njit(cache=True, nogil=True, _nrt=False)(f)
+    except RuntimeError:  # no writable cache location (numba raises at decoration)
+        return numba.njit(nogil=True, _nrt=False)(f)
+
+
+@_leaf
 def _contains(keys, x):
     lo = 0
     hi = keys.shape[0]
@@ -53,13 +67,12 @@ def _contains(keys, x):
     return lo < keys.shape[0] and keys[lo] == x
 
 
-@_njit
-def _move_h(
-    u, v, t, n, need, vkeys, ekeys, ff, dist, nl, lmd, nxt_row, nxt_tl, nxt_hb, minf, unreachable
-):
+@_leaf
+def _move_h(u, v, t, n, need, lrow, ltl, lhb, vkeys, ekeys, ff, dist, lmd, minf, unreachable):
     """``h`` of the move ``v -> u`` arriving at ``t``, -1 if it is not allowed.
 
-    The rule of ``spacetime.Moves`` (shared by the A* and the MDD kernels).
+    The rule of ``spacetime.Moves``, written once for the A* and the MDD kernels;
+    ``need, lrow, ltl, lhb`` are :func:`_landmark`'s at ``t``.
     """
     if need >= 0 and u != need:
         return -1
@@ -73,15 +86,24 @@ def _move_h(
     hu = dist[u]
     if hu >= unreachable:
         return -1
-    if nl:
-        if lmd[nxt_row[t], u] > nxt_tl[t] - t:
+    if lrow >= 0:
+        if lmd[lrow, u] > ltl:
             return -1
-        hb = nxt_hb[t]
-        if hb - t > hu:
-            hu = hb - t
+        if lhb > hu:
+            hu = lhb
     if minf - t > hu:
         hu = minf - t
     return hu
+
+
+@_leaf
+def _landmark(t, lm_need, nxt_row, nxt_tl, nxt_hb):
+    """What the next landmark asks of a move arriving at ``t``: ``(need, lrow, ltl,
+    lhb)``, the vertex the move must reach (-1: any), the landmark's row of ``lmd`` (-1:
+    no landmark left), the time left to reach it and the bound on ``h`` it gives."""
+    if t < lm_need.shape[0]:
+        return lm_need[t], nxt_row[t], nxt_tl[t] - t, nxt_hb[t] - t
+    return -1, -1, 0, 0
 
 
 @_njit
@@ -115,18 +137,81 @@ _CLOSED = -1
 _HMUL = 0x5851F42D4C957F2D
 
 
-# Complexity: the loop of space_time_astar in one compiled body. In numba every call of a
-# module-level function that takes arrays, and every array reassigned in the loop, costs
-# atomic reference counts (the focal kernel's author measured 2.4 us an expansion with
-# helpers, 0.15-0.25 us without), and numba's IR-level inlining does not remove that
-# cost: _move_h as ``njit(inline="always")`` here instead of written out kept results
-# identical but took 36.5 us instead of 14 us per call of a 110-expansion search
-# (den312d, 200 calls, medians of 7, CPU lock). Inner functions (closures over the loop's
-# arrays) are inlined free (same 0.25 us an expansion), so the heap order, the sifts, the
-# binary search and the best-table update are written once as those, and _move_h's rule
-# stays written out (tied to _move_h and spacetime.Moves by tests/test_jit_astar.py).
-# When an array is about to run out, the loop hands back to ``astar``, which grows it
-# and calls again. Over 150 lines for that reason (171, of which 55 the inner functions).
+@_leaf
+def _before(pf, pc, pn, a, b):
+    """Entry ``a`` pops before entry ``b``: by ``f`` (``pf``), conflicts (``pc``), ``-t``
+    (``pn``), then by number."""
+    if pf[a] != pf[b]:
+        return pf[a] < pf[b]
+    if pc[a] != pc[b]:
+        return pc[a] < pc[b]
+    if pn[a] != pn[b]:
+        return pn[a] < pn[b]
+    return a < b
+
+
+@_leaf
+def _lower(bkeys, bvals, key, c):
+    """``best[key] = c`` in the open-addressing table if ``c`` is below its value (or
+    the key is absent): ``(done, 1 if the key is new else 0)``."""
+    bmask = bkeys.shape[0] - 1
+    slot = ((key * _HMUL) >> 17) & bmask
+    while bkeys[slot] != -1 and bkeys[slot] != key:
+        slot = (slot + 1) & bmask
+    added = 0
+    if bkeys[slot] == key:
+        if bvals[slot] <= c:  # (_CLOSED, below every count, included)
+            return False, 0
+    else:
+        bkeys[slot] = key
+        added = 1
+    bvals[slot] = c
+    return True, added
+
+
+@_leaf
+def _sift_down(heap, pf, pc, pn, size):
+    """``heap[size]`` into the heap of ``size`` entries, from the root."""
+    x = heap[size]
+    i = 0
+    while True:
+        c1 = 2 * i + 1
+        if c1 >= size:
+            break
+        m = heap[c1]
+        if c1 + 1 < size and _before(pf, pc, pn, heap[c1 + 1], m):
+            m = heap[c1 + 1]
+            c1 += 1
+        if not _before(pf, pc, pn, m, x):
+            break
+        heap[i] = m
+        i = c1
+    heap[i] = x
+
+
+@_leaf
+def _push(heap, pf, pc, pn, pv, pt, pp, e, size, f, c, nn, u, t, par):
+    """Entry ``e`` (``f``, conflicts, ``nn``, vertex, ``t``, parent) onto the heap of
+    ``size`` entries (sift up)."""
+    pf[e] = f
+    pc[e] = c
+    pn[e] = nn
+    pv[e] = u
+    pt[e] = t
+    pp[e] = par
+    i = size
+    while i > 0 and _before(pf, pc, pn, e, heap[(i - 1) >> 1]):
+        heap[i] = heap[(i - 1) >> 1]
+        i = (i - 1) >> 1
+    heap[i] = e
+
+
+# The loop of space_time_astar in one compiled body. Its steps are the
+# leaves above (the move rule _move_h and the landmark's _landmark, shared with the MDD
+# builder; the heap and the best table), compiled without reference counting: a call
+# costs nothing measurable, where helpers compiled with it made the loop 15 % slower
+# and closures had to stand in. When an array is about to run out, the loop hands back
+# to ``astar``, which grows it and calls again.
 @_njit
 def _astar_loop(
     ptr, idx, dist, goal, vkeys, ekeys, ff, lm_need, nxt_tl, nxt_hb, nxt_row, lmd, minf,
@@ -137,83 +222,13 @@ def _astar_loop(
     status (:data:`_A_FOUND`, :data:`_A_NONE` or :data:`_A_GROW`, ``regs`` saved)."""
     n = ptr.shape[0] - 1
     nnz = idx.shape[0]
-    n_lm = lm_need.shape[0]
-    nv = vkeys.shape[0]
-    ne = ekeys.shape[0]
     cap = pf.shape[0]
     bcap = bkeys.shape[0]
-    bmask = bcap - 1
     size = regs[_SIZE]
     cnt = regs[_CNT]
     bsize = regs[_BSIZE]
     expanded = regs[_EXP]
     status = _A_NONE
-
-    # Inner functions: numba inlines them where called, and the arrays they read are the
-    # loop's own (not arguments), so they cost nothing at run time.
-    def before(a, b):  # entry a pops before entry b: by f, conflicts, -t, then number
-        if pf[a] != pf[b]:
-            return pf[a] < pf[b]
-        if pc[a] != pc[b]:
-            return pc[a] < pc[b]
-        if pn[a] != pn[b]:
-            return pn[a] < pn[b]
-        return a < b
-
-    def listed(keys, m, x):  # x in the sorted keys[:m] (binary search)
-        a = 0
-        b = m
-        while a < b:
-            mid = (a + b) >> 1
-            if keys[mid] < x:
-                a = mid + 1
-            else:
-                b = mid
-        return a < m and keys[a] == x
-
-    def lower(key, c):  # best[key] = c if c is below it (or absent): (done, new keys)
-        slot = ((key * _HMUL) >> 17) & bmask
-        while bkeys[slot] != -1 and bkeys[slot] != key:
-            slot = (slot + 1) & bmask
-        added = 0
-        if bkeys[slot] == key:
-            if bvals[slot] <= c:  # (_CLOSED, below every count, included)
-                return False, 0
-        else:
-            bkeys[slot] = key
-            added = 1
-        bvals[slot] = c
-        return True, added
-
-    def sift_down(size):  # heap[size] into the heap of size entries, from the root
-        x = heap[size]
-        i = 0
-        while True:
-            c1 = 2 * i + 1
-            if c1 >= size:
-                break
-            m = heap[c1]
-            if c1 + 1 < size and before(heap[c1 + 1], m):
-                m = heap[c1 + 1]
-                c1 += 1
-            if not before(m, x):
-                break
-            heap[i] = m
-            i = c1
-        heap[i] = x
-
-    def push(e, size, f, c, nn, u, t, par):  # entry e (f, c, nn) onto the heap (sift up)
-        pf[e] = f
-        pc[e] = c
-        pn[e] = nn
-        pv[e] = u
-        pt[e] = t
-        pp[e] = par
-        i = size
-        while i > 0 and before(e, heap[(i - 1) >> 1]):
-            heap[i] = heap[(i - 1) >> 1]
-            i = (i - 1) >> 1
-        heap[i] = e
 
     while size > 0:
         top = heap[0]
@@ -226,14 +241,14 @@ def _astar_loop(
             break
         size -= 1
         if size > 0:  # the last entry down from the root
-            sift_down(size)
+            _sift_down(heap, pf, pc, pn, size)
         t = pt[top]
         conf = pc[top]
         if pn[top] == TERMINAL:
             regs[_TOP] = top
             status = _A_FOUND
             break
-        done, added = lower((t if t < tcap else tcap) * n + v, _CLOSED)
+        done, added = _lower(bkeys, bvals, (t if t < tcap else tcap) * n + v, _CLOSED)
         if not done:  # expanded before
             continue
         bsize += added
@@ -245,33 +260,15 @@ def _astar_loop(
             continue
         base = t1 * n
         keyt1 = (t1 if t1 < tcap else tcap) * n
-        nl = t1 < n_lm  # the next landmark's need, row of lmd, time left, bound on h
-        need = lm_need[t1] if nl else -1
-        lrow = nxt_row[t1] if nl else 0
-        ltl = nxt_tl[t1] - t1 if nl else 0
-        lhb = nxt_hb[t1] - t1 if nl else 0
+        need, lrow, ltl, lhb = _landmark(t1, lm_need, nxt_row, nxt_tl, nxt_hb)
         in_cat = use_cat and t1 < cat_h
         for j in range(ptr[v], ptr[v + 1]):
             u = idx[j]
-            # _move_h: h of the move v -> u arriving at t1, or not allowed.
-            if need >= 0 and u != need:
+            hu = _move_h(
+                u, v, t1, n, need, lrow, ltl, lhb, vkeys, ekeys, ff, dist, lmd, minf, unreachable
+            )
+            if hu < 0:
                 continue
-            if nv > 0 and listed(vkeys, nv, base + u):  # a vertex constraint
-                continue
-            if ne > 0 and u != v and listed(ekeys, ne, (base + v) * n + u):  # an edge one
-                continue
-            if t1 >= ff[u]:
-                continue
-            hu = dist[u]
-            if hu >= unreachable:
-                continue
-            if nl:
-                if lmd[lrow, u] > ltl:
-                    continue
-                if lhb > hu:
-                    hu = lhb
-            if minf - t1 > hu:
-                hu = minf - t1
             fu = t1 + hu
             if fu > maxf:
                 continue
@@ -286,13 +283,13 @@ def _astar_loop(
             # A move into the goal (not a wait there) may be the final arrival.
             if u == goal and v != goal and t1 >= minf and t1 > last_off_goal_lm:
                 cnt += 1
-                push(cnt, size, t1, c, TERMINAL, u, t1, top)
+                _push(heap, pf, pc, pn, pv, pt, pp, cnt, size, t1, c, TERMINAL, u, t1, top)
                 size += 1
-            done, added = lower(keyt1 + u, c)
+            done, added = _lower(bkeys, bvals, keyt1 + u, c)
             if done:
                 bsize += added
                 cnt += 1
-                push(cnt, size, fu, c, -t1, u, t1, top)
+                _push(heap, pf, pc, pn, pv, pt, pp, cnt, size, fu, c, -t1, u, t1, top)
                 size += 1
     regs[_SIZE] = size
     regs[_CNT] = cnt
@@ -551,7 +548,6 @@ def mdd(
     ``last`` whether level ``cost`` holds the goal.
     """
     n = ptr.shape[0] - 1
-    n_lm = lm_need.shape[0]
     cap = 1024
     fv = np.empty(cap, np.int64)  # forward nodes, level by level
     fks = np.empty(cap, np.int64)  # their children: fkid[fks[i]:fke[i]]
@@ -567,10 +563,7 @@ def mdd(
     nf = 1
     for t in range(1, cost + 1):
         slack = cost - t
-        need = -1
-        nl = t < n_lm
-        if nl:
-            need = lm_need[t]
+        need, lrow, ltl, lhb = _landmark(t, lm_need, nxt_row, nxt_tl, nxt_hb)
         for i in range(lvl[t - 1], lvl[t]):
             v = fv[i]
             fks[i] = nk
@@ -582,8 +575,8 @@ def mdd(
                 if t == cost and u != goal:
                     continue
                 hu = _move_h(
-                    u, v, t, n, need, vkeys, ekeys, ff, dist, nl, lmd, nxt_row, nxt_tl,
-                    nxt_hb, minf, unreachable,
+                    u, v, t, n, need, lrow, ltl, lhb, vkeys, ekeys, ff, dist, lmd, minf,
+                    unreachable,
                 )  # fmt: skip
                 if hu < 0 or hu > slack:
                     continue

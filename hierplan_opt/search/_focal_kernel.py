@@ -40,7 +40,7 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from hierplan_opt.search._astar_kernel import _grow, _njit, _path_of
+from hierplan_opt.search._astar_kernel import _contains, _grow, _leaf, _njit, _path_of
 
 #: As :data:`.focal._TIE` and :data:`.focal.PARTNER_WEIGHT` (tests check they agree).
 TIE = 1 << 20
@@ -91,7 +91,7 @@ def monotonic():
 _HMUL = 0x5851F42D4C957F2D
 
 
-@_njit
+@_leaf
 def _hslot(hkeys, enc):
     """The slot of ``enc`` in the table ``hkeys`` (or the free slot where it goes)."""
     mask = hkeys.shape[0] - 1
@@ -114,7 +114,7 @@ def _rehash_to(hkeys, hids, cap):
     return nk, ni
 
 
-@_njit
+@_leaf
 def _lt(a0, a1, a2, a3, b0, b1, b2, b3):
     """``(a0, a1, a2, a3) < (b0, b1, b2, b3)``: the order of two FOCAL entries."""
     if a0 != b0:
@@ -142,6 +142,158 @@ def _grow_fill(a, cap, fill):
     return out
 
 
+@_leaf
+def _before(p0, p1, ef, ek, a, b):
+    """Entry ``a`` pops before entry ``b``."""
+    return _lt(p0[a], p1[a], ef[a], ek[a], p0[b], p1[b], ef[b], ek[b])
+
+
+@_leaf
+def _sift_up(heap, p0, p1, ef, ek, x, i):
+    """Entry ``x`` into the heap at free position ``i``."""
+    while i > 0 and _before(p0, p1, ef, ek, x, heap[(i - 1) >> 1]):
+        heap[i] = heap[(i - 1) >> 1]
+        i = (i - 1) >> 1
+    heap[i] = x
+
+
+@_leaf
+def _sift_down(heap, p0, p1, ef, ek, x, i, size):
+    """Entry ``x`` into the heap of ``size`` entries at position ``i``."""
+    while True:
+        c1 = 2 * i + 1
+        if c1 >= size:
+            break
+        m = heap[c1]
+        if c1 + 1 < size and _before(p0, p1, ef, ek, heap[c1 + 1], m):
+            m = heap[c1 + 1]
+            c1 += 1
+        if not _before(p0, p1, ef, ek, m, x):
+            break
+        heap[i] = m
+        i = c1
+    heap[i] = x
+
+
+@_leaf
+def _raise_bound(live, bhead, enext, heap, p0, p1, ef, ek, w, fmin, bound, lo, size):
+    """``focal._raise_bound``: ``f_min`` up to the next live ``f`` (``lo``: no live ``f``
+    below it) and the bucketed entries the new bound admits pushed; the new ``(fmin,
+    bound, lo, size)``."""
+    if live[fmin] == 0:
+        while live[lo] == 0:
+            lo += 1
+        if lo > fmin:
+            fmin = lo
+    new_bound = int(w * fmin + 1e-9)
+    fcap = live.shape[0]
+    top_f = new_bound if new_bound < fcap - 1 else fcap - 1
+    for fx in range(bound + 1, top_f + 1):
+        x = bhead[fx]
+        bhead[fx] = -1
+        while x >= 0:
+            nx = enext[x]
+            _sift_up(heap, p0, p1, ef, ek, x, size)
+            size += 1
+            x = nx
+    if new_bound > bound:
+        bound = new_bound
+    return fmin, bound, lo, size
+
+
+@_leaf
+def _to_fallback(heap, p0, p1, ef, ek, n_e, size):
+    """FOCAL by ``g + 2h`` first from now on: every entry's two leading keys swap, then
+    the heap is made again (sift downs)."""
+    for x in range(n_e):
+        y = p0[x]
+        p0[x] = p1[x]
+        p1[x] = y
+    for r in range((size >> 1) - 1, -1, -1):
+        _sift_down(heap, p0, p1, ef, ek, heap[r], r, size)
+
+
+@_leaf
+def _max_f(ptr, idx, h, v, nt, hold):
+    """The largest ``f`` of a state the expansion of ``v`` (arriving at ``nt``) makes."""
+    mf = nt
+    for j in range(ptr[v], ptr[v + 1]):
+        hu = h[idx[j]]
+        x = nt + hu if nt + hu > hold else hold
+        if x > mf:
+            mf = x
+    return mf
+
+
+@_leaf
+def _offer(
+    hkeys, hids, s_v, s_best, s_par, s_closed, live, p0, p1, ef, ek, es, enext, bhead,
+    pend, enc, nc, vx, nf, tie, key, par, fb, bound, cnt,
+):  # fmt: skip
+    """A state (``enc``: 2 key, + 1 a terminal) reached with ``nc`` conflicts, ``f =
+    nf``, from state ``par``: kept and given a FOCAL entry if new or with fewer conflicts
+    than before. ``cnt = (n_s, n_e, n_live, lo, n_pend)``, returned updated."""
+    n_s, n_e, n_live, lo, n_pend = cnt
+    slot = _hslot(hkeys, enc)
+    sid = hids[slot] if hkeys[slot] == enc else -1
+    if sid >= 0 and nc >= s_best[sid]:
+        return cnt
+    if sid < 0:
+        sid = n_s
+        n_s += 1
+        s_v[sid] = vx
+        s_closed[sid] = False
+        hkeys[slot] = enc
+        hids[slot] = sid
+        live[nf] += 1
+        n_live += 1
+        if nf < lo:
+            lo = nf
+    s_best[sid] = nc
+    s_par[sid] = par
+    e = n_e
+    n_e += 1
+    p0[e] = tie if fb else nc
+    p1[e] = nc if fb else tie
+    ef[e] = nf
+    ek[e] = key
+    es[e] = sid
+    if nf <= bound:
+        pend[n_pend] = e
+        n_pend += 1
+    else:
+        enext[e] = bhead[nf]
+        bhead[nf] = e
+    return n_s, n_e, n_live, lo, n_pend
+
+
+@_leaf
+def _move_conflicts(cat_vt, cat_et, cat_h, park_t, pp, j, v, u, nt, n, nnz):
+    """The conflicts of move ``j`` (``v -> u`` arriving at ``nt``), as
+    ``focal.scored_moves`` counts them: each other agent at ``u`` at ``nt``, parked at
+    ``u`` before ``nt`` or moving ``u -> v`` (a swap) is one, :data:`PARTNER_WEIGHT` more
+    when it is the partner (``pp``, its path)."""
+    lp = pp.shape[0]
+    nc = 0
+    if nt < cat_h:
+        occ = cat_vt[nt * n + u]
+        if occ:
+            nc += occ
+            if nt < lp and pp[nt] == u:
+                nc += PARTNER_WEIGHT
+    if nt > park_t[u]:
+        nc += 1
+        if lp > 0 and u == pp[lp - 1]:  # the partner is the one parked at u
+            nc += PARTNER_WEIGHT
+    if u != v and nt < cat_h:
+        occ = cat_et[nt * nnz + j]  # someone moves u -> v: a swap
+        if occ:
+            nc += occ
+            if nt < lp and pp[nt - 1] == u and pp[nt] == v:
+                nc += PARTNER_WEIGHT
+    return nc
+
+
 # The search's scalars between the calls of _loop (``regs[...]``).
 _N_S, _N_E, _SIZE, _FMIN, _BOUND, _FB, _EXP, _RAISE, _LO, _NLIVE, _NPEND = range(11)
 _TOP, _NEED_F, _NEED_D = 11, 12, 13
@@ -151,15 +303,11 @@ _GROW = 4
 
 
 # Complexity: focal._focal_loop (with _park and _raise_bound) in one compiled body, step
-# by step like the Python one, so the tests can hold them to identical results. In numba
-# every call of a module-level function that takes arrays costs atomic reference counts
-# (measured: about 2 us an expansion when the heap's sifts, the hash probes and the
-# comparisons were such helpers, against 0.15-0.25 us now), and so does numba's
-# ``inline="always"`` (measured on the A* kernel); inner functions (closures over the
-# loop's arrays) are inlined free, so the sifts, the binary search and the state update
-# are written once as those. No array is reassigned in the loop: when one is about to run
-# out, the loop hands back to ``focal``, which grows it and calls again. Over 150 lines
-# for that reason (264, of which 90 the inner functions).
+# by step like the Python one, so the tests can hold them to identical results. Its
+# steps are the leaves above (heap, bound, conflicts of a move, state update), compiled
+# without reference counting (see ``_astar_kernel._leaf``: with it, the state update as
+# a helper made the loop 2.2x slower). No array is reassigned in the loop: when one is
+# about to run out, the loop hands back to ``focal``, which grows it and calls again.
 @_njit
 def _loop(
     ptr, idx, h, goal, vkeys, ekeys, hold, max_t, cat_vt, cat_et, cat_h, park_t, pp,
@@ -178,12 +326,9 @@ def _loop(
     pw = PARTNER_WEIGHT
     nv = vkeys.shape[0]
     ne = ekeys.shape[0]
-    lp = pp.shape[0]
-    partner_goal = pp[lp - 1] if lp > 0 else -1
     scap = s_v.shape[0]
     ecap = p0.shape[0]
     hcap = hkeys.shape[0]
-    hmask = hcap - 1
     fcap = live.shape[0]
     n_s = regs[_N_S]
     n_e = regs[_N_E]
@@ -198,116 +343,26 @@ def _loop(
     n_pend = regs[_NPEND]
     status = NO_PATH
 
-    # Inner functions: numba inlines them where called, and the arrays they read are the
-    # loop's own, so they cost nothing at run time (helpers at module level did).
-    def before(a, b):  # entry a pops before entry b
-        return _lt(p0[a], p1[a], ef[a], ek[a], p0[b], p1[b], ef[b], ek[b])
-
-    def sift_up(x, i):  # entry x into the heap at free position i
-        while i > 0 and before(x, heap[(i - 1) >> 1]):
-            heap[i] = heap[(i - 1) >> 1]
-            i = (i - 1) >> 1
-        heap[i] = x
-
-    def sift_down(x, i, size):  # entry x into the heap of size entries at position i
-        while True:
-            c1 = 2 * i + 1
-            if c1 >= size:
-                break
-            m = heap[c1]
-            if c1 + 1 < size and before(heap[c1 + 1], m):
-                m = heap[c1 + 1]
-                c1 += 1
-            if not before(m, x):
-                break
-            heap[i] = m
-            i = c1
-        heap[i] = x
-
-    def listed(keys, m, x):  # x in the sorted keys[:m] (binary search)
-        a = 0
-        b = m
-        while a < b:
-            mid = (a + b) >> 1
-            if keys[mid] < x:
-                a = mid + 1
-            else:
-                b = mid
-        return a < m and keys[a] == x
-
-    def offer(enc, nc, vx, nf, tie, key, par, fb, bound, cnt):
-        # A state (enc: 2 key, + 1 a terminal) reached with nc conflicts, f = nf, from
-        # state par: kept and given a FOCAL entry if new or with fewer conflicts than
-        # before. cnt = (n_s, n_e, n_live, lo, n_pend), returned updated.
-        n_s, n_e, n_live, lo, n_pend = cnt
-        slot = ((enc * _HMUL) >> 17) & hmask
-        while hkeys[slot] != -1 and hkeys[slot] != enc:
-            slot = (slot + 1) & hmask
-        sid = hids[slot] if hkeys[slot] == enc else -1
-        if sid >= 0 and nc >= s_best[sid]:
-            return cnt
-        if sid < 0:
-            sid = n_s
-            n_s += 1
-            s_v[sid] = vx
-            s_closed[sid] = False
-            hkeys[slot] = enc
-            hids[slot] = sid
-            live[nf] += 1
-            n_live += 1
-            if nf < lo:
-                lo = nf
-        s_best[sid] = nc
-        s_par[sid] = par
-        e = n_e
-        n_e += 1
-        p0[e] = tie if fb else nc
-        p1[e] = nc if fb else tie
-        ef[e] = nf
-        ek[e] = key
-        es[e] = sid
-        if nf <= bound:
-            pend[n_pend] = e
-            n_pend += 1
-        else:
-            enext[e] = bhead[nf]
-            bhead[nf] = e
-        return n_s, n_e, n_live, lo, n_pend
-
     while True:
         while n_pend > 0:  # push the waiting entries
             n_pend -= 1
-            sift_up(pend[n_pend], size)
+            _sift_up(heap, p0, p1, ef, ek, pend[n_pend], size)
             size += 1
         if raise_fmin or size == 0:
             raise_fmin = False
             if n_live == 0:
                 if size == 0:
                     break
-            else:  # focal._raise_bound
-                if live[fmin] == 0:
-                    while live[lo] == 0:
-                        lo += 1
-                    if lo > fmin:
-                        fmin = lo
-                new_bound = int(w * fmin + 1e-9)
-                top_f = new_bound if new_bound < fcap - 1 else fcap - 1
-                for fx in range(bound + 1, top_f + 1):
-                    x = bhead[fx]
-                    bhead[fx] = -1
-                    while x >= 0:
-                        nx = enext[x]
-                        sift_up(x, size)
-                        size += 1
-                        x = nx
-                if new_bound > bound:
-                    bound = new_bound
+            else:
+                fmin, bound, lo, size = _raise_bound(
+                    live, bhead, enext, heap, p0, p1, ef, ek, w, fmin, bound, lo, size
+                )
                 if size == 0:
                     continue
         top_e = heap[0]
         size -= 1
         if size > 0:  # the last entry down from the root
-            sift_down(heap[size], 0, size)
+            _sift_down(heap, p0, p1, ef, ek, heap[size], 0, size)
         c = p1[top_e] if fb else p0[top_e]
         f = ef[top_e]
         top = es[top_e]
@@ -325,12 +380,7 @@ def _loop(
             # Room for this expansion's states and entries (each move a state and a
             # terminal at most) and for their f; else back to the caller, entry put back.
             deg = ptr[v + 1] - ptr[v]
-            mf = nt
-            for j in range(ptr[v], ptr[v + 1]):
-                hu = h[idx[j]]
-                x = nt + hu if nt + hu > hold else hold
-                if x > mf:
-                    mf = x
+            mf = _max_f(ptr, idx, h, v, nt, hold)
             if mf > F_CAP:
                 status = DECLINED
                 break
@@ -356,15 +406,8 @@ def _loop(
         if expanded == limit:
             break
         if expanded == budget:
-            # FOCAL by g + 2h first from now on: every entry's two leading keys swap,
-            # then the heap is made again (sift downs).
-            fb = True
-            for x in range(n_e):
-                y = p0[x]
-                p0[x] = p1[x]
-                p1[x] = y
-            for r in range((size >> 1) - 1, -1, -1):
-                sift_down(heap[r], r, size)
+            fb = True  # FOCAL by g + 2h first from now on
+            _to_fallback(heap, p0, p1, ef, ek, n_e, size)
         if (expanded & 1023) == 0 and _monotonic() >= end:
             status = TIMEOUT
             break
@@ -377,39 +420,28 @@ def _loop(
         for j in range(ptr[v], ptr[v + 1]):
             u = idx[j]
             nk = base + u
-            if nv > 0 and listed(vkeys, nv, nk):  # a vertex constraint
+            if nv > 0 and _contains(vkeys, nk):  # a vertex constraint
                 continue
-            if ne > 0 and u != v and listed(ekeys, ne, (base + v) * n + u):  # an edge one
+            if ne > 0 and u != v and _contains(ekeys, (base + v) * n + u):  # an edge one
                 continue
-            nc = c
-            if nt < cat_h:
-                occ = cat_vt[nk]
-                if occ:
-                    nc += occ
-                    if nt < lp and pp[nt] == u:
-                        nc += pw
-            if nt > park_t[u]:
-                nc += 1
-                if u == partner_goal:  # the partner is the one parked at u
-                    nc += pw
-            if u != v and nt < cat_h:
-                occ = cat_et[nt * nnz + j]  # someone moves u -> v: a swap
-                if occ:
-                    nc += occ
-                    if nt < lp and pp[nt - 1] == u and pp[nt] == v:
-                        nc += pw
+            nc = c + _move_conflicts(cat_vt, cat_et, cat_h, park_t, pp, j, v, u, nt, n, nnz)
             if avoid and nc:
                 continue
             hu = h[u]
             nf = nt + hu if nt + hu > hold else hold
-            cnt = offer(2 * nk, nc, u, nf, (nf + hu) * TIE - nt, nk, top, fb, bound, cnt)
+            cnt = _offer(
+                hkeys, hids, s_v, s_best, s_par, s_closed, live, p0, p1, ef, ek, es, enext,
+                bhead, pend, 2 * nk, nc, u, nf, (nf + hu) * TIE - nt, nk, top, fb, bound, cnt,
+            )  # fmt: skip
             if u == goal and nt >= hold:
                 ix = nt if nt < span else span
                 tc = nc + goal_after[ix] + pw * p_after[ix]
                 if not (avoid and tc):  # focal._park: parked at the goal from nt on
-                    cnt = offer(
-                        2 * nk + 1, tc, goal, nt, nt * TIE - nt, -(nk + 1), top, fb, bound, cnt
-                    )
+                    cnt = _offer(
+                        hkeys, hids, s_v, s_best, s_par, s_closed, live, p0, p1, ef, ek, es,
+                        enext, bhead, pend, 2 * nk + 1, tc, goal, nt, nt * TIE - nt, -(nk + 1),
+                        top, fb, bound, cnt,
+                    )  # fmt: skip
         n_s, n_e, n_live, lo, n_pend = cnt
         if first and f == fmin and live[f] == 0:
             raise_fmin = True
