@@ -23,6 +23,8 @@ Data layout (all ``int64`` unless said otherwise):
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
 
@@ -40,6 +42,10 @@ def _njit(f):
         return numba.njit(nogil=True)(f)
 
 
+#: Options of a leaf (``_nrt`` is numba's own switch of its runtime, not in its stubs).
+_NO_NRT: dict[str, Any] = {"nogil": True, "_nrt": False}
+
+
 def _leaf(f):
     """``numba.njit`` for a helper of a hot loop that only reads and writes the arrays it
     is given (it allocates none and keeps none): compiled without numba's reference
@@ -49,9 +55,9 @@ def _leaf(f):
     measurable (``bench``-style medians, CPU lock). Numba refuses to compile a leaf that
     allocates."""
     try:
-        return numba.njit(cache=True, nogil=True, _nrt=False)(f)
+        return numba.njit(cache=True, **_NO_NRT)(f)
     except RuntimeError:  # no writable cache location (numba raises at decoration)
-        return numba.njit(nogil=True, _nrt=False)(f)
+        return numba.njit(**_NO_NRT)(f)
 
 
 @_leaf
