@@ -481,7 +481,7 @@ _BUILTIN = [
      "Conflict-based min-cost flow: optimal makespan for teams (TAPF)"),
     ("flow", "search.flow", "tapf", "makespan", "optimal one team",
      "Max-flow on the time-expanded network: anonymous MAPF (one team)"),
-    ("hungarian", "search.assignment", "tapf", "soc makespan", "heuristic",
+    ("hungarian", "search.hungarian", "tapf", "soc makespan", "heuristic",
      "Hungarian target assignment by distance, then a MAPF solver"),
     ("mip", "formulations.mip", "mapf tapf", "soc makespan", "optimal",
      "Time-expanded network MIP (Pyomo + HiGHS)"),

@@ -143,6 +143,18 @@ def private_imports(edges: Iterable[Edge]) -> list[str]:
     return sorted(set(out))
 
 
+def peer_imports(edges: Iterable[Edge], peers: Iterable[str]) -> list[str]:
+    """Imports of one of ``peers`` (e.g. the modules that define a registered solver)
+    by another: peers reach each other through something else (the registry)."""
+    group = set(peers)
+    out = [
+        f"{e}: both are solver modules"
+        for e in edges
+        if e.importer in group and e.imported in group and e.importer != e.imported
+    ]
+    return sorted(set(out))
+
+
 def cycles(edges: Iterable[Edge]) -> list[list[str]]:
     """The module circles: each strongly connected set of two or more modules (or a
     module that imports itself), sorted, with one concrete circle through it."""

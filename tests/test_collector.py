@@ -83,7 +83,7 @@ def _pair() -> Instance:
 
 
 def test_cbs_pauses_and_turns_it_back_on(enabled, monkeypatch: pytest.MonkeyPatch) -> None:
-    import hierplan_opt.search.cbs as cbs
+    import hierplan_opt.search.cbs_engine as cbs
 
     inst = _pair()
     assert run("cbs", inst).cost == 8
@@ -100,7 +100,7 @@ def test_cbs_pauses_and_turns_it_back_on(enabled, monkeypatch: pytest.MonkeyPatc
 
 
 def test_ecbs_pauses_and_turns_it_back_on(enabled, monkeypatch: pytest.MonkeyPatch) -> None:
-    import hierplan_opt.search.ecbs as ecbs
+    import hierplan_opt.search.ecbs_engine as ecbs
 
     inst = _pair()
     seen: list[bool] = []

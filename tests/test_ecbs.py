@@ -18,7 +18,7 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Status
 from hierplan_opt.core.validate import validate
-from hierplan_opt.search import ecbs, eecbs
+from hierplan_opt.search import ecbs, ecbs_engine, eecbs
 from hierplan_opt.search.constraints import NEG_E, NEG_V, AgentConstraints
 from hierplan_opt.search.focal import focal_path
 from hierplan_opt.search.reservations import Reservations
@@ -498,7 +498,7 @@ def test_head_on_aisles_with_and_without_partner_weighting(
     # Without the partner weighting ECBS(2.0) splits on the same head-on pairs for
     # thousands of nodes here (time limit); with it, 15 nodes. Either way a plan is
     # valid and within w of the lower bound.
-    monkeypatch.setattr(ecbs._ECBS, "avoid_partner", partner)
+    monkeypatch.setattr(ecbs_engine._ECBS, "avoid_partner", partner)
     inst = three_aisles()
     r = hp.solve(inst, solver, w=w, time_limit=2, lacam="off")
     if partner or r.plan is not None:
@@ -518,7 +518,7 @@ def test_root_pair_bound_stays_below_the_optimum(
     # Issue 35: the LB is raised by the root's pairwise (WDG) bound (here from the first
     # expansion on); with more agents than brute force handles, CBS's optimum is the
     # reference.
-    monkeypatch.setattr(ecbs, "ROOT_BOUND_AFTER", 0)
+    monkeypatch.setattr(ecbs_engine, "ROOT_BOUND_AFTER", 0)
     rnd = random.Random(11)
     raised = 0
     for _ in range(6):

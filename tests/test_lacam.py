@@ -24,7 +24,7 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.search.lacam import _configs, _LaCAM, _paths
 from hierplan_opt.search.lns import Refiner
-from hierplan_opt.search.pibt import Space, sum_of_costs
+from hierplan_opt.search.pibt_engine import Space, sum_of_costs
 
 MAPF_CASES = {c.name: c for c in CASES if c.kind == "mapf"}
 
@@ -312,7 +312,7 @@ def test_guide_paths_are_short_walks_that_spread_out():
 # ---------------------------------------------------------------- ECBS / EECBS anytime
 @pytest.mark.parametrize("solver", ["ecbs", "eecbs"])
 def test_bounded_solvers_return_lacam_plan_when_their_limit_runs_out(solver: str, monkeypatch):
-    from hierplan_opt.search import ecbs
+    from hierplan_opt.search import ecbs_engine as ecbs
 
     inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 250)
     off = hp.solve(inst, solver, time_limit=1.5, lacam="off")
@@ -331,7 +331,7 @@ def test_bounded_solvers_return_lacam_plan_when_their_limit_runs_out(solver: str
 
 @pytest.mark.parametrize("solver", ["ecbs", "eecbs"])
 def test_bounded_solvers_defer_the_fallback_plan(solver: str, monkeypatch):
-    from hierplan_opt.search import ecbs
+    from hierplan_opt.search import ecbs_engine as ecbs
 
     # A search that ends before FALLBACK_AFTER_S never computes LaCAM's plan.
     inst = movingai("random-32-32-20", "random-32-32-20-random-1.scen", 20)

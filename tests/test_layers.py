@@ -23,6 +23,7 @@ being untangled on another branch, are reported apart from the rest.
 
 from __future__ import annotations
 
+import ast
 import functools
 from pathlib import Path
 
@@ -33,10 +34,12 @@ from import_graph import (
     import_graph,
     layer_violations,
     modules,
+    peer_imports,
     private_imports,
 )
 
 import hierplan_opt
+from hierplan_opt import registry
 
 PACKAGE = Path(hierplan_opt.__file__).resolve().parent
 
@@ -106,6 +109,18 @@ def test_no_import_circle_in_search() -> None:
     assert bad == [], "\n".join(circle_text(c, edges) for c in bad)
 
 
+def _solver_modules() -> set[str]:
+    return {registry.get(n).target.split(":")[0] for n in registry.names()}
+
+
+def test_no_solver_module_imports_another() -> None:
+    # ecbs imported cbs's engine, eecbs ecbs's, lacam pibt's, cbm and flow hungarian's
+    # module (issue 31): the engines are library modules now (cbs_engine, ...).
+    solvers = _solver_modules()
+    assert {"hierplan_opt.search.cbs", "hierplan_opt.formulations.mip"} <= solvers
+    assert peer_imports(_edges(), solvers) == []
+
+
 # ------------------------------------------------------------- the checker itself
 def _tree(root: Path, files: dict[str, str]) -> Path:
     pkg = root / "pkg"
@@ -158,6 +173,10 @@ def test_checker_reports_a_planted_upward_import_and_a_circle(tmp_path: Path) ->
         "pkg.cli.main -> pkg.io._helpers (line 1, top): private to io"
     ]
 
+    assert peer_imports(edges, ["pkg.io.b", "pkg.io.c", "pkg.cli.main"]) == [
+        "pkg.cli.main -> pkg.io.b (line 1, top): both are solver modules"
+    ]
+
     found = cycles(edges)
     assert found == [
         ["pkg.core.a", "pkg.io.b"],  # the planted upward import closes a circle too
@@ -196,4 +215,41 @@ def test_imports_inside_functions_say_why_outside_the_command_layers() -> None:
         lines = files[e.importer].read_text().splitlines()
         if not any("#" in line for line in lines[max(0, e.line - 3) : e.line]):
             bare.append(str(e))
+    assert not bare, bare
+
+
+def _other_imports_in_functions() -> list[tuple[str, int, str]]:
+    """Imports of other distributions (numpy, matplotlib, the standard library) inside
+    a function, outside ``cli`` and ``bench``: ``(file, line, module)``."""
+    out = []
+    for name, path in modules(PACKAGE).items():
+        if name.split(".")[1:2] in (["cli"], ["bench"]):
+            continue
+        tree = ast.parse(path.read_text())
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                if isinstance(node, ast.ImportFrom) and not node.level:
+                    mod = node.module or ""
+                elif isinstance(node, ast.Import):
+                    mod = node.names[0].name
+                else:
+                    continue
+                if not mod.startswith("hierplan_opt"):
+                    out.append((str(path), node.lineno, mod))
+    return sorted(set(out))
+
+
+def test_imports_of_other_packages_inside_functions_say_why() -> None:
+    """The same rule for numpy, matplotlib, the standard library, ...: inside a function
+    only with a reason on the line or the two above (``# heavy module: matplotlib``;
+    issue 31 found 97 without one, many of them light modules that save nothing)."""
+    found = _other_imports_in_functions()
+    assert any(mod.startswith("matplotlib") for _, _, mod in found)  # the scan sees them
+    bare = []
+    for file, line, mod in found:
+        lines = Path(file).read_text().splitlines()
+        if not any("#" in text for text in lines[max(0, line - 3) : line]):
+            bare.append(f"{file}:{line}: {mod}")
     assert not bare, bare

@@ -16,7 +16,7 @@ import hierplan_opt as hp
 from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
-from hierplan_opt.search.pibt import NIL, PIBT, Space, next_priorities, sum_of_costs
+from hierplan_opt.search.pibt_engine import NIL, PIBT, Space, next_priorities, sum_of_costs
 
 
 def _step(inst: Instance, order: list[int], q_to: list[int] | None = None, swap: bool = True):

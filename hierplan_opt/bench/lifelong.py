@@ -28,6 +28,7 @@ from typing import Any
 
 from hierplan_opt.bench import BenchParser
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.io.values import to_json
 
 ROOT = Path(__file__).resolve().parents[2]
 LOCAL = ROOT / "instances" / "lorr"
@@ -204,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
             _print(row)
             rows.append(row)
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=1, default=str))
+        Path(args.json).write_text(to_json(rows, indent=1, default=str))
     return 0
 
 

@@ -86,7 +86,11 @@ def prioritized_plan(
             return None
         res.add(i, out[0])
         paths.append(out[0])
-    return Plan.from_paths(paths)
+    plan = Plan.from_paths(paths)
+    bad = validate(instance, plan)  # as every solve is checked (api.solve)
+    if bad:
+        raise RuntimeError(f"prioritized planning made an invalid plan: {bad[0]}")
+    return plan
 
 
 def make_plan(instance: Instance, *, w: float = 1.5, time_limit: float = 120.0) -> tuple[Plan, str]:

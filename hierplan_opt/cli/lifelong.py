@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from hierplan_opt.cli.common import (
     add_progress_arguments,
@@ -13,6 +12,7 @@ from hierplan_opt.cli.common import (
     progress_of,
 )
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.io.values import to_json
 
 HELP = "run a League of Robot Runners problem lifelong (tasks, delays) and write its log"
 
@@ -153,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         write_log(args.out, res.log)
     if args.json:
-        print(json.dumps(summary))
+        print(to_json(summary))
     else:
         pt = res.planner_times
         print(

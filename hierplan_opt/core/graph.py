@@ -750,7 +750,7 @@ class Graph:
 
     @cached_property
     def _csgraph(self) -> sp.csr_matrix:
-        import scipy.sparse as sp
+        import scipy.sparse as sp  # heavy module: scipy
 
         data = np.ones(len(self.indices), dtype=float)
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
@@ -847,7 +847,7 @@ def _bfs_levels(mat: sp.csr_matrix, source: int) -> np.ndarray:
     >>> _bfs_levels(g._csgraph, 0).tolist()[2:]
     [4, 1, 2, 3]
     """
-    from scipy.sparse.csgraph import breadth_first_order
+    from scipy.sparse.csgraph import breadth_first_order  # heavy module: scipy
 
     n = mat.shape[0]
     order, pred = breadth_first_order(mat, source, directed=True, return_predecessors=True)

@@ -17,6 +17,8 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, cast
 
+import yaml
+
 from hierplan_opt.core.errors import InputError, OptionError
 
 #: Words read as booleans, wherever a boolean is given as text.
@@ -231,8 +233,6 @@ def parse_pairs(pairs: Sequence[str], flag: str = "--set") -> dict[str, str]:
 
 
 def _yaml_mapping(text: str) -> dict[str, Any] | None:
-    import yaml
-
     try:
         out = yaml.safe_load(text)
     except yaml.YAMLError:
@@ -241,8 +241,6 @@ def _yaml_mapping(text: str) -> dict[str, Any] | None:
 
 
 def _yaml_scalar(text: str) -> Any:
-    import yaml
-
     try:
         out = yaml.safe_load(text) if text else ""
     except yaml.YAMLError:

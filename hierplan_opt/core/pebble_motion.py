@@ -27,6 +27,7 @@ agree, and the two special invariants are checked on colour sequences.
 
 from __future__ import annotations
 
+import sys
 import weakref
 from collections import Counter
 from collections.abc import Hashable, Iterable, Sequence
@@ -181,8 +182,6 @@ class PebbleStructure:
         return s
 
     def __init__(self, graph: Graph) -> None:
-        import sys
-
         # scipy's graph routines cost ~0.2 s to import: a process that has not loaded
         # them (a single small solve from the command line) uses the Python ones below.
         use_scipy = "scipy.sparse.csgraph" in sys.modules
@@ -197,8 +196,8 @@ class PebbleStructure:
         rows = np.repeat(np.arange(n), deg)
         mat = None
         if use_scipy:
-            import scipy.sparse as sp
-            from scipy.sparse.csgraph import connected_components
+            import scipy.sparse as sp  # heavy module: scipy
+            from scipy.sparse.csgraph import connected_components  # heavy module: scipy
 
             mat = sp.csr_matrix(
                 (np.ones(len(indices), dtype=np.int8), indices, indptr), shape=(n, n)
@@ -234,7 +233,7 @@ class PebbleStructure:
         for c in range(ncomp):
             root = self.comps[c][0]
             if mat is not None:
-                from scipy.sparse.csgraph import depth_first_order
+                from scipy.sparse.csgraph import depth_first_order  # heavy module: scipy
 
                 order, pred = depth_first_order(mat, root, directed=False, return_predecessors=True)
             else:
@@ -272,8 +271,8 @@ class PebbleStructure:
         parent_br = is_br_child[rows] & (parent[rows] == indices)
         keep = ~(child_br | parent_br)
         if use_scipy:
-            import scipy.sparse as sp
-            from scipy.sparse.csgraph import connected_components
+            import scipy.sparse as sp  # heavy module: scipy
+            from scipy.sparse.csgraph import connected_components  # heavy module: scipy
 
             mat2 = sp.csr_matrix(
                 (np.ones(int(keep.sum()), dtype=np.int8), (rows[keep], indices[keep])),
@@ -352,7 +351,6 @@ class PebbleStructure:
 
     def subtree_holes(self, occupied: Sequence[bool]) -> list[int]:
         """Empty vertices in each bridge-tree subtree for one arrangement."""
-        import numpy as np
 
         empty = ~np.asarray(occupied, dtype=bool)[self._free]
         holes = np.bincount(
@@ -537,7 +535,7 @@ class PebbleStructure:
 
     def odd_cactus(self, e: int) -> bool:
         """Whether 2ECC ``e`` has only odd cycles (every block an odd cycle)."""
-        import networkx as nx
+        import networkx as nx  # heavy module: networkx
 
         members = set(self.ecc_members[e])
         g = nx.Graph()
@@ -921,7 +919,6 @@ def _dfs_order(adj: Sequence[Sequence[int]], root: int):
     >>> order.tolist(), pred.tolist()
     ([0, 1, 2], [-9999, 0, 1, -9999])
     """
-    import numpy as np
 
     pred = [-9999] * len(adj)
     seen = [False] * len(adj)

@@ -208,14 +208,14 @@ class Progress:
     # ------------------------------------------------------------------ Rich
     def _start_bar(self) -> None:
         from rich.console import Console
-        from rich.progress import (
+        from rich.progress import (  # heavy module: rich
             BarColumn,
             MofNCompleteColumn,
             TextColumn,
             TimeElapsedColumn,
             TimeRemainingColumn,
         )
-        from rich.progress import Progress as RichProgress
+        from rich.progress import Progress as RichProgress  # heavy module: rich
 
         columns: list[Any] = [TextColumn("[bold]{task.description}")]
         if self.total is not None:

@@ -57,7 +57,7 @@ def memory_limits() -> tuple[float, float]:
     True
     """
     try:
-        import resource
+        import resource  # POSIX only (see the except)
     except ImportError:  # pragma: no cover - not on POSIX
         return math.inf, math.inf
     out: list[float] = []

@@ -26,6 +26,7 @@ import logging
 import math
 import os
 import statistics as pystats
+import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -277,7 +278,6 @@ def _estimate(
     trajectories: Any = None,
 ) -> MonteCarloResult:
     """The Monte Carlo batch itself (no threshold)."""
-    import time
 
     delay_model = per_run_seeds(delay_model)
 

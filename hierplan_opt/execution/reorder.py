@@ -221,7 +221,7 @@ def _solve(
     pairs: list[_Pair],
     now: float,
 ) -> list[int]:
-    from ortools.sat.python import cp_model
+    from ortools.sat.python import cp_model  # heavy module: OR-Tools
 
     idx = {v: i for i, v in enumerate(nodes)}
     ms = 1000.0

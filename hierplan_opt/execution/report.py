@@ -10,6 +10,7 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.execution.state import Execution
 from hierplan_opt.io.files import write_text
+from hierplan_opt.io.yaml import to_yaml
 from hierplan_opt.schedule.files import load_schedule
 
 
@@ -92,10 +93,9 @@ def _f(x: Any) -> str:
 
 
 def write_report(path: str | Path, data: dict[str, Any]) -> Path:
-    """Write YAML atomically (a temporary file renamed): never a half-written file."""
-    import yaml
-
-    return write_text(path, yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+    """Write YAML atomically (a temporary file renamed): never a half-written file;
+    numbers through the one converter (a non-finite float is null)."""
+    return write_text(path, to_yaml(data))
 
 
 def plan_from_schedule(instance: Instance, path: str | Path, data: dict[str, Any]) -> Plan:

@@ -137,7 +137,7 @@ def random_grid(*, width: int, height: int, obstacles: float, agents: int, seed:
     >>> inst.num_agents, inst.graph.num_vertices <= 64
     (5, True)
     """
-    from scipy import ndimage
+    from scipy import ndimage  # heavy module: scipy
 
     if not 0 <= obstacles < 1:
         raise InputError(f"obstacles must be a fraction in [0, 1), got {obstacles!r}")

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import importlib.util
+import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -54,7 +55,7 @@ def read_runs(db: str | Path) -> pd.DataFrame:
     >>> len(read_runs(f))
     0
     """
-    import pandas as pd
+    import pandas as pd  # heavy module: pandas
 
     con = store.open_existing(db)
     try:
@@ -79,7 +80,7 @@ def success_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def runtime_table(df: pd.DataFrame) -> pd.DataFrame:
     """Runtime distribution of the solved runs per solver, and PAR2."""
-    import pandas as pd
+    import pandas as pd  # heavy module: pandas
 
     out = []
     for label in _labels(df):
@@ -104,7 +105,7 @@ def runtime_table(df: pd.DataFrame) -> pd.DataFrame:
 
 def cost_table(df: pd.DataFrame) -> pd.DataFrame:
     """Cost over lower bounds of the solved runs per solver."""
-    import pandas as pd
+    import pandas as pd  # heavy module: pandas
 
     ok: Any = df[df["status"].isin(("OPTIMAL", "FEASIBLE")) & df["cost"].notna()].copy()
     group = ["instance", "agents", "objective", "seed"]
@@ -142,7 +143,6 @@ def stats_table(df: pd.DataFrame, key: str) -> pd.DataFrame:
     >>> stats_table(df, "n").to_dict()
     {2: {'a': 4.0}, 4: {'a': 9.0}}
     """
-    import json
 
     def value(text: Any) -> float:
         v = json.loads(text).get(key) if isinstance(text, str) and text else None
@@ -211,7 +211,7 @@ def _time_limit(df: pd.DataFrame) -> float:
 
 def _figure() -> tuple[Figure, Axes]:
     """A new figure of the reports' size and its one Axes."""
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy module: matplotlib
 
     fig = Figure(figsize=(6.5, 4.0), layout="constrained")
     return fig, fig.add_subplot()
@@ -298,7 +298,7 @@ def cactus_figure(df: pd.DataFrame, *, title: str | None = None, logx: bool = Tr
     limit = _time_limit(df)
     if math.isfinite(limit):
         ax.axvline(limit, color="grey", ls="--", lw=1, label="time limit")
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import MaxNLocator  # heavy module: matplotlib
 
     ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("runtime (s)")
@@ -366,7 +366,7 @@ def export(db: str | Path, out: str | Path) -> int:
                 w.writerow(names)
                 w.writerows(data)
         else:
-            import pandas as pd
+            import pandas as pd  # heavy module: pandas
 
             pd.DataFrame.from_records(data, columns=names).to_parquet(tmp, index=False)
         tmp.replace(target)

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.io.values import to_json
 
 #: Columns of ``runs`` in order, with their SQLite types.
 COLUMNS: tuple[tuple[str, str], ...] = (
@@ -112,7 +113,7 @@ def insert_run(con: sqlite3.Connection, row: Mapping[str, Any]) -> bool:
     for name in NAMES[1:]:
         v = row.get(name)
         if name in JSON_COLUMNS and v is not None and not isinstance(v, str):
-            v = json.dumps(v, sort_keys=True, default=str)
+            v = to_json(v, sort_keys=True, default=str)
         values.append(v)
     cur = con.execute(
         f"INSERT OR IGNORE INTO runs ({', '.join(NAMES[1:])}) "

@@ -221,7 +221,7 @@ class _Dask:
 
     def __init__(self, address: Any, workers: int) -> None:
         try:
-            from distributed import Client, LocalCluster
+            from distributed import Client, LocalCluster  # heavy module: Dask
         except ImportError:
             raise InputError(
                 "a Dask sweep needs the 'cluster' extra: pip install 'hierplan_opt[cluster]'"
@@ -256,7 +256,7 @@ class _Dask:
         return self.client.submit(run_task, task, key=f"hierplan-run-{task['key']}", pure=False)
 
     def as_completed(self, futures: Iterable[Any]) -> Iterable[Any]:
-        from distributed import as_completed
+        from distributed import as_completed  # heavy module: Dask
 
         return as_completed(list(futures))
 

@@ -24,13 +24,18 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import gc
+import importlib
 import json
 import os
 import resource
+import signal
+import socket
 import sys
 import tempfile
 import threading
 import time
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +45,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.result import Status
 from hierplan_opt.experiments.generators import GENERATORS
 from hierplan_opt.io import load_instance
+from hierplan_opt.io.values import to_json
 from hierplan_opt.io.yaml import one_line
 
 MEMOUT = "MEMOUT"
@@ -82,7 +88,6 @@ def watchdog(hard_limit: float | None, poll: float = 0.2) -> None:
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages in :data:`VERSIONED` that are installed
     (looked up once a process: 10-35 ms; a warm worker's children inherit them)."""
-    from importlib import metadata
 
     out = {"python": sys.version.split()[0]}
     for name in VERSIONED:
@@ -149,7 +154,7 @@ def solve_task(task: dict[str, Any]) -> dict[str, Any]:
 
 def _json_safe(value: Any) -> bool:
     try:
-        json.dumps(value)
+        to_json(value)
     except (TypeError, ValueError):
         return False
     return True
@@ -168,12 +173,11 @@ def report(task: dict[str, Any]) -> None:
         out = {"status": "ERROR", "error": one_line(f"{type(exc).__name__}: {exc}")[:500]}
     out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     out["versions"] = dict(versions())
-    import socket
 
     out["host"] = socket.gethostname()
     path = Path(task["result_path"])
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(out, default=str), encoding="utf-8")
+    tmp.write_text(to_json(out, default=str), encoding="utf-8")
     os.replace(tmp, path)
 
 
@@ -197,7 +201,6 @@ def address_space_mb() -> float:
 def preload() -> list[str]:
     """Import what runs need (solvers, scipy's graph routines) and, if numba's on-disk
     cache holds them, load the compiled kernels; the names of what was loaded."""
-    import importlib
 
     done = []
     for mod in (
@@ -233,8 +236,6 @@ def preload() -> list[str]:
 
 def serve() -> int:
     """The fork server (see the module doc); returns when stdin closes."""
-    import gc
-    import signal
 
     preload()
     # The children's collector need not scan (and copy, page by page) what they inherit.

@@ -79,7 +79,7 @@ def build(
 
 def model_of(net: TimeExpandedNetwork, objective: str) -> tuple[Any, CpSatIndex]:
     """The CP-SAT model and index of an already built network."""
-    from ortools.sat.python import cp_model
+    from ortools.sat.python import cp_model  # heavy module: OR-Tools
 
     m = cp_model.CpModel()
     k, u, v, t = (a.tolist() for a in (net.arc_k, net.arc_u, net.arc_v, net.arc_t))
@@ -186,7 +186,7 @@ class CpSatBackend:
         hint: Plan | None,
         seed: int,
     ) -> Outcome:
-        from ortools.sat.python import cp_model
+        from ortools.sat.python import cp_model  # heavy module: OR-Tools
 
         t0 = time.perf_counter()
         model, index = model_of(net, objective)
@@ -245,7 +245,7 @@ def _reporter(cp_model: Any, objective: str) -> Any:
 
 def _status(code: Any) -> Status:
     """CP-SAT's solve status in the project's vocabulary (UNKNOWN: stopped undecided)."""
-    from ortools.sat.python import cp_model
+    from ortools.sat.python import cp_model  # heavy module: OR-Tools
 
     table = {
         cp_model.OPTIMAL: Status.OPTIMAL,

@@ -68,8 +68,8 @@ def build(
 
 def model_of(net: TimeExpandedNetwork, objective: str) -> Any:
     """The Pyomo model of an already built network."""
-    import pyomo.environ as pyo
-    from pyomo.core.expr.numeric_expr import LinearExpression
+    import pyomo.environ as pyo  # heavy module: Pyomo
+    from pyomo.core.expr.numeric_expr import LinearExpression  # heavy module: Pyomo
 
     m: Any = pyo.ConcreteModel(name=f"mapf_te_T{net.horizon}")  # components as attributes
     # x[i] = 1 iff arc i (commodity arc_k[i], arc_u[i] -> arc_v[i] at arc_t[i]) is used.
@@ -136,7 +136,7 @@ def extract(values: Sequence[float] | np.ndarray, index: TimeExpandedNetwork) ->
 
 
 def _highs(seed: int) -> Any:
-    from pyomo.contrib.appsi.solvers import Highs
+    from pyomo.contrib.appsi.solvers import Highs  # heavy module: Pyomo
 
     # only_child_vars: hand all variables to HiGHS in one batch (much faster set-up).
     opt = Highs(only_child_vars=True)
@@ -155,7 +155,7 @@ def _highs(seed: int) -> Any:
 
 
 def _set_domain(m: Any, relaxed: bool) -> None:
-    import pyomo.environ as pyo
+    import pyomo.environ as pyo  # heavy module: Pyomo
 
     dom = pyo.UnitInterval if relaxed else pyo.Binary
     for v in m.x.values():
@@ -243,7 +243,7 @@ def _status(tc: Any) -> Status:
     Conditions not in the table stopped the solve without a decision (time limit,
     interrupt, ...): TIME_LIMIT, or FEASIBLE when there is an incumbent.
     """
-    from pyomo.contrib.appsi.base import TerminationCondition as TC
+    from pyomo.contrib.appsi.base import TerminationCondition as TC  # heavy module: Pyomo
 
     table = {
         TC.optimal: Status.OPTIMAL,

@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
@@ -559,7 +560,6 @@ def save_schedule(path: str | Path, schedule: Any) -> None:
       a:
       - {x: 0, y: 0, t: 0.0}
     """
-    import yaml
 
     doc = schedule_document(schedule)
     stats = {"statistics": plain(doc["statistics"])}

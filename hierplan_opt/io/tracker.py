@@ -41,6 +41,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import yaml
+
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
@@ -258,8 +260,6 @@ def dumps(sub: Submission, fmt: str = "csv") -> str:
     if fmt == "json":
         return json.dumps(row, indent=1) + "\n"
     if fmt in ("yaml", "yml"):
-        import yaml
-
         row["solution_plan"] = list(sub.solution_plan)
         return yaml.safe_dump(row, sort_keys=False, width=10**9)
     raise InputError(f"unknown tracker file format {fmt!r} (use csv, json or yaml)")
@@ -457,7 +457,6 @@ def _rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
 
 
 def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-
     check_nesting(text, name)
     try:
         data = json.loads(text)
@@ -472,7 +471,6 @@ def _json_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any
 
 
 def _yaml_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-
     ctx = Ctx(name)
     docs = [d for d in re.split(r"(?m)^---[ \t]*$", text)]
     offset = 0
@@ -498,7 +496,6 @@ def _csv_field_limit(n: int) -> Iterator[None]:
 
 
 def _csv_rows(text: str, name: str) -> Iterator[tuple[int | None, dict[str, Any]]]:
-
     with _csv_field_limit(limits().max_bytes):
         reader = csv.DictReader(io.StringIO(text, newline=""))
         fields = [f.strip() for f in reader.fieldnames or []]

@@ -10,6 +10,7 @@ reader that meets null where a number belongs knows it is missing or unbounded.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from enum import Enum
@@ -17,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plain"]
+__all__ = ["plain", "to_json"]
 
 
 def plain(
@@ -52,6 +53,19 @@ def plain(
     (123457.0, True)
     """
     return _plain(value, digits, significant, integral, strict, max_depth, 0)
+
+
+def to_json(value: Any, **options: Any) -> str:
+    """``value`` as JSON text, through :func:`plain` (a non-finite float is null, never
+    ``Infinity``); ``options`` go to :func:`json.dumps` (``indent``, ``sort_keys``,
+    ``default`` for objects that are no file data).
+
+    Example
+    -------
+    >>> to_json({"lb": float("inf"), "n": np.int64(3), "xs": (1, 2)}, sort_keys=True)
+    '{"lb": null, "n": 3, "xs": [1, 2]}'
+    """
+    return json.dumps(plain(value), allow_nan=False, **options)
 
 
 def _plain(

@@ -20,6 +20,7 @@ import yaml
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.io.files import limits
 from hierplan_opt.io.files import read_text as _read
+from hierplan_opt.io.values import plain
 
 _Base = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -80,6 +81,20 @@ class _KeyProblem(Exception):
         super().__init__(message)
         self.line = line
         self.message = message
+
+
+def to_yaml(value: Any) -> str:
+    """``value`` as YAML text, through :func:`~hierplan_opt.io.values.plain` (a
+    non-finite float is null, never ``.inf``): keys in their order, flat lists in flow
+    style.
+
+    Example
+    -------
+    >>> print(to_yaml({"b": (1, float("nan")), "a": {"x": np.float64(0.5)}}), end="")
+    b: [1, null]
+    a: {x: 0.5}
+    """
+    return yaml.safe_dump(plain(value), sort_keys=False, default_flow_style=None)
 
 
 def one_line(text: str) -> str:

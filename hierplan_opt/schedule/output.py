@@ -37,8 +37,8 @@ from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.reprs import short_repr
 from hierplan_opt.io.files import read_text
-from hierplan_opt.io.values import plain
-from hierplan_opt.io.yaml import check_nesting, read_yaml
+from hierplan_opt.io.values import plain, to_json
+from hierplan_opt.io.yaml import check_nesting, read_yaml, to_yaml
 from hierplan_opt.schedule.clearance import PairClearance
 from hierplan_opt.schedule.stn import MOVE, PIECE, PRECEDENCE, STN
 from hierplan_opt.schedule.tpg import KIND_NAMES
@@ -362,17 +362,15 @@ FORMATS = (".yaml", ".yml", ".json", ".csv")
 def schedule_text(schedule: Schedule, fmt: str = "yaml") -> str:
     """The schedule as text: ``fmt`` is ``"yaml"``, ``"json"`` or ``"csv"``."""
     if fmt in ("yaml", "yml"):
-        import yaml
-
-        return yaml.safe_dump(schedule.to_dict(), sort_keys=False, default_flow_style=None)
+        return to_yaml(schedule.to_dict())
     if fmt == "json":
-        return json.dumps(schedule.to_dict(), indent=1) + "\n"
+        return to_json(schedule.to_dict(), indent=1) + "\n"
     if fmt == "csv":
         buf = io.StringIO()
         for k, v in schedule.statistics().items():
-            buf.write(f"# {k}: {json.dumps(v)}\n")
+            buf.write(f"# {k}: {to_json(v)}\n")
         for k, v in schedule.provenance().items():
-            buf.write(f"# {k}: {json.dumps(v, separators=(',', ':'))}\n")
+            buf.write(f"# {k}: {to_json(v, separators=(',', ':'))}\n")
         axes = ["x", "y", "z"][: schedule.dim]
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(

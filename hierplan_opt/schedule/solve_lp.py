@@ -127,7 +127,7 @@ def solve_lp(
 def _solve_pyomo(
     stn: STN, objective: str, time_limit: float | None, reduction: str = "auto"
 ) -> LPSolution:
-    import pyomo.environ as pyo
+    import pyomo.environ as pyo  # heavy module: Pyomo
 
     t_build = time.perf_counter()
     net = _reduce(stn, objective, reduction)
@@ -247,8 +247,8 @@ def _solve_highs(
     options: dict[str, Any],
     reduction: str = "auto",
 ) -> LPSolution:
-    import highspy
-    import scipy.sparse as sp
+    import highspy  # heavy module: highspy
+    import scipy.sparse as sp  # heavy module: scipy
 
     inf = highspy.kHighsInf
     t_build = time.perf_counter()

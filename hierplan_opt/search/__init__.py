@@ -17,10 +17,14 @@ The shared layer (what a new search solver builds on):
   :func:`.focal.focal_path` (bounded by ``w``, FOCAL by conflicts; ``avoid=True`` is
   prioritized planning), :func:`.highways.inflated_focal_path` (edge costs),
   :func:`.mdd.build_mdd` (all optimal paths).
-* High levels shaped alike: ``cbs._CBS``, ``ecbs._ECBS`` (``eecbs._EECBS`` subclasses
-  it), ``cbm._CBM``; ECBS and EECBS take their low level as a strategy object
-  (:class:`.focal.FocalLowLevel`, :class:`.highways.HighwayLowLevel`). Each solver's
-  ``solve`` is declared with its options by :func:`hierplan_opt.registry.solver` and
-  reaches other solvers through the registry (:func:`hierplan_opt.registry.run`,
-  :func:`hierplan_opt.registry.get`).
+* High levels shaped alike: ``cbs_engine._CBS``, ``ecbs_engine._ECBS``
+  (``eecbs._EECBS`` subclasses it), ``cbm._CBM``; ECBS and EECBS take their low level
+  as a strategy object (:class:`.focal.FocalLowLevel`, :class:`.highways.HighwayLowLevel`).
+* Solver modules and library modules: a solver module declares one solver's ``solve``
+  with its options (:func:`hierplan_opt.registry.solver`; the registry's table names
+  it) and reaches other solvers only through the registry
+  (:func:`hierplan_opt.registry.run`, :func:`hierplan_opt.registry.get`); the engines
+  two solvers share are library modules that register nothing (:mod:`.cbs_engine`,
+  :mod:`.ecbs_engine`, :mod:`.pibt_engine`, :mod:`.assignment`).
+  ``tests/test_layers.py`` checks that no solver module imports another.
 """

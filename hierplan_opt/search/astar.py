@@ -144,7 +144,7 @@ def space_time_astar(
     return found
 
 
-# The hot loop of space_time_astar (see the note above it): complexity 25 because the
+# The hot loop of space_time_astar (see the note above it): complexity 26 because the
 # successor rule of spacetime.Moves and the conflict counts are written out here;
 # tests/test_search_core.py and tests/test_jit_astar.py tie it to Moves and the kernel.
 def _search(

@@ -31,7 +31,7 @@ from hierplan_opt.core.options import Option
 from hierplan_opt.core.result import Result
 from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
-from hierplan_opt.search.ecbs import (
+from hierplan_opt.search.ecbs_engine import (
     _ECBS,
     LACAM_OPTION,
     POLISH_OPTION,

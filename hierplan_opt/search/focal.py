@@ -464,7 +464,7 @@ def _focal_loop(
 # ---------------------------------------------------------------- the low level as a strategy
 class LowLevelHost(Protocol):
     """What a low level reads of (and may set on) the high-level search that calls it
-    (:class:`~hierplan_opt.search.ecbs._ECBS` and its subclasses)."""
+    (:class:`~hierplan_opt.search.ecbs_engine._ECBS` and its subclasses)."""
 
     instance: Instance
     adj: list[list[int]]

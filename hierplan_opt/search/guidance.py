@@ -21,7 +21,7 @@ import random
 from heapq import heappop, heappush
 
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.pibt import Space
+from hierplan_opt.search.pibt_engine import Space
 
 #: Extra steps a guide path may take over a shortest path.
 MARGIN = 10

@@ -30,7 +30,7 @@ best-first order by cost, which on the 5 x 20 corridor ran out of 20 s where thi
 order takes 0.3 s (``docs/highways.md``).
 
 This module is a low level only: :class:`HighwayLowLevel` is the strategy object the
-high levels take (:func:`hierplan_opt.search.ecbs.run_with_highways`); it imports no
+high levels take (:func:`hierplan_opt.search.ecbs_engine.run_with_highways`); it imports no
 solver. The highway sets (generators, learned ones, by name) are in
 :mod:`hierplan_opt.core.highways` and :mod:`hierplan_opt.core.highways_learned`.
 """
@@ -112,7 +112,7 @@ class HighwayHeuristic:
 
 # ---------------------------------------------------------------- the edge-cost variant
 # The inner loop of the cost-mode low level, with its relax/push closures (complexity
-# 27): its successor rule, conflict counts and park count are focal.scored_moves and
+# 24): its successor rule, conflict counts and park count are focal.scored_moves and
 # focal.park_conflicts, the focal search's own; only the float-cost queues are its own.
 def inflated_focal_path(
     adj: Sequence[Sequence[int]],
@@ -239,7 +239,7 @@ def inflated_focal_path(
 class HighwayLowLevel(FocalLowLevel):
     """The highway low level and the factor ``W = w * w_hwy`` of an ECBS-family search.
 
-    A strategy given to :class:`~hierplan_opt.search.ecbs._ECBS` (or a subclass):
+    A strategy given to :class:`~hierplan_opt.search.ecbs_engine._ECBS` (or a subclass):
     replaces the search's distance tables by the highway heuristic (mode
     ``"heuristic"``) or the low level itself by :func:`inflated_focal_path` (mode
     ``"cost"``), and turns its ``f_min`` into the agent's lower bound (see the module

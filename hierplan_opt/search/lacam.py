@@ -4,7 +4,7 @@ LaCAM (Okumura, AAAI 2023) searches over *configurations* (one vertex per agent)
 A high-level node is a configuration; its successors are generated lazily, one per
 visit: a low-level search tree of *constraints* ("agent i goes to vertex v next",
 added breadth-first, agent by agent in priority order) says what the next successor
-must respect, and PIBT (:mod:`hierplan_opt.search.pibt`) completes it. A node is
+must respect, and PIBT (:mod:`hierplan_opt.search.pibt_engine`) completes it. A node is
 dropped only when its constraint tree is exhausted, i.e. when every successor
 configuration has been generated, so the search is complete: it finds a plan when
 one exists and otherwise proves that none does. Nodes are kept on a stack (depth
@@ -57,7 +57,7 @@ from hierplan_opt.core.timer import Deadline
 from hierplan_opt.registry import solver
 from hierplan_opt.search.guidance import guide_paths, guide_table
 from hierplan_opt.search.lns import Refiner
-from hierplan_opt.search.pibt import (
+from hierplan_opt.search.pibt_engine import (
     NIL,
     PIBT,
     SWAP_OPTION,

@@ -26,7 +26,7 @@ from bisect import insort
 from heapq import heappop, heappush
 
 from hierplan_opt.core.timer import Deadline
-from hierplan_opt.search.pibt import Space
+from hierplan_opt.search.pibt_engine import Space
 
 #: Largest neighbourhood (agents replanned together).
 MAX_NEIGHBOURHOOD = 30

@@ -164,7 +164,7 @@ def _watched(solver: str) -> bool:
 def _nlpsol(name: str, solver: str, nlp: dict, options: dict, watched: bool) -> tuple[Any, Any]:
     """``casadi.nlpsol``, with an iteration callback showing IPOPT's iteration and
     objective on the active progress (``nlp_iter``, ``nlp_obj``) when ``watched``."""
-    import casadi as ca
+    import casadi as ca  # heavy module: CasADi
 
     if not watched:
         return ca.nlpsol(name, solver, nlp, options), None
@@ -268,7 +268,7 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     with _LOCK:
         if key in _CACHE:
             return _CACHE[key]
-    import casadi as ca
+    import casadi as ca  # heavy module: CasADi
 
     t0 = time.perf_counter()
     # ---- variables: z = [x_0, u_0, x_1, u_1, ..., x_N], built as whole rows ----------
@@ -327,7 +327,7 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     with _LOCK:
         if key in _CACHE:
             return _CACHE[key]
-    import casadi as ca
+    import casadi as ca  # heavy module: CasADi
 
     t0 = time.perf_counter()
     nx, nu = 2 * dim + 1, dim + 1

@@ -42,8 +42,8 @@ def plot_trajectories(
     ...     os.path.getsize(os.path.join(d, "t.png")) > 0
     True
     """
-    from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
+    from matplotlib.figure import Figure  # heavy module: matplotlib
+    from matplotlib.lines import Line2D  # heavy module: matplotlib
 
     s = traj.sample(dt)
     K = min(traj.num_agents, max_agents)
@@ -57,7 +57,7 @@ def plot_trajectories(
     # distinct colours for up to 20 robots (tab20), every robot named in the legend
     palette: list[Any] = [f"C{j}" for j in range(10)]
     if K > 10:
-        import matplotlib
+        import matplotlib  # heavy module: matplotlib
 
         cmap = matplotlib.colormaps["tab20"]
         palette = [cmap(j) for j in range(20)]

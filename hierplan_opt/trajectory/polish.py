@@ -63,7 +63,7 @@ def _qp(N: int) -> tuple[Any, Any, Any, np.ndarray]:
     """The QP for ``N`` intervals, variables ``z = (s_0, v_0, a_0, s_1, ..., s_N, v_N)``:
     CasADi ``conic`` with HPIPM, the sparsity of ``A`` and ``H``, and the order of the
     ``A`` entries of :func:`_a_values` in CasADi's column-compressed storage."""
-    import casadi as ca
+    import casadi as ca  # heavy module: CasADi
 
     n = np.arange(N)
     r = 2 * n
@@ -149,7 +149,7 @@ def polish(pp: PathProblem, X: np.ndarray, U: np.ndarray, windows: Windows) -> P
     >>> r.ok, round(r.before, 4), round(r.after, 4), float(r.X[2][r.pp.knot_node[1]])
     (True, 0.963, 0.963, 3.0)
     """
-    import casadi as ca
+    import casadi as ca  # heavy module: CasADi
 
     pp, X, U = compress(pp, X, U)
     before = accel_energy(U)

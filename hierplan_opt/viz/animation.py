@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -77,7 +78,7 @@ def plot_distance(ex: Execution, instance: Instance, path: str | Path | None = N
     >>> plot_distance(ex, inst).axes[0].get_ylabel()
     'min distance (m)'
     """
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy module: matplotlib
 
     times, d = distance_over_time(ex)
     st = ex.statistics
@@ -118,7 +119,7 @@ def plot_layers(runs: Sequence[tuple[str, dict[str, int]]], path: str | Path | N
     >>> fig.axes[0].get_ylabel()
     'share of disturbances'
     """
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy module: matplotlib
 
     fig = Figure(figsize=(6, 3.5))
     ax = fig.add_subplot()
@@ -233,10 +234,10 @@ class _Drawer:
     def __init__(
         self, scene: Any, w: int, h: int, highlight: float, names: bool | None, faster: float
     ) -> None:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.collections import EllipseCollection
-        from matplotlib.figure import Figure
-        from matplotlib.lines import Line2D
+        from matplotlib.backends.backend_agg import FigureCanvasAgg  # heavy module: matplotlib
+        from matplotlib.collections import EllipseCollection  # heavy module: matplotlib
+        from matplotlib.figure import Figure  # heavy module: matplotlib
+        from matplotlib.lines import Line2D  # heavy module: matplotlib
 
         self.scene = scene
         self.highlight = highlight
@@ -369,16 +370,16 @@ class _Drawer:
         self.event_a = [index.get(e["agent"], -1) for e in self.events]
         self.rad_m = scene.radius * scene.scale
         self.end = scene.end
-        from matplotlib import font_manager
-        from PIL import ImageFont
+        from matplotlib import font_manager  # heavy module: matplotlib
+        from PIL import ImageFont  # heavy module: Pillow
 
         mono = font_manager.findfont("DejaVu Sans Mono")
         self.font = ImageFont.truetype(mono, 14)
         self.font_small = ImageFont.truetype(font_manager.findfont("DejaVu Sans"), self.fontsize)
 
     def frame(self, t: float) -> np.ndarray:
-        from PIL import Image, ImageDraw
-        from scipy.spatial import cKDTree
+        from PIL import Image, ImageDraw  # heavy module: Pillow
+        from scipy.spatial import cKDTree  # heavy module: scipy
 
         sc = self.scene
         p = scene_positions(sc, t)
@@ -455,7 +456,7 @@ def _auto_size(scene: Any) -> tuple[int, int]:
 
 
 def _rgba(color: str) -> tuple[float, float, float, float]:
-    from matplotlib.colors import to_rgba
+    from matplotlib.colors import to_rgba  # heavy module: matplotlib
 
     r, g, b, a = to_rgba(color)
     return (r, g, b, a)
@@ -485,7 +486,7 @@ def _draw_map(ax: Any, g: Any) -> None:
         ax.set_xlim(-0.5, W - 0.5)
         ax.set_ylim(H - 0.5, -0.5)
         return
-    from matplotlib.collections import LineCollection
+    from matplotlib.collections import LineCollection  # heavy module: matplotlib
 
     xy = g.coords[:, :2]
     segs = [(xy[u], xy[int(v)]) for u in range(g.n) for v in g.adj[u] if g.directed or u < v]
@@ -509,18 +510,16 @@ class _GifWriter:
         self.pool: Any = None
 
     def open(self, path: Path) -> None:
-        from concurrent.futures import ThreadPoolExecutor
-
         self.path = path
         self.pool = ThreadPoolExecutor(max_workers=1)
 
     def _quantize(self, rgb: np.ndarray) -> Any:
-        from PIL import Image
+        from PIL import Image  # heavy module: Pillow
 
         return Image.fromarray(rgb).quantize(palette=self.palette, dither=Image.Dither.NONE)
 
     def add(self, rgb: np.ndarray) -> None:
-        from PIL import Image
+        from PIL import Image  # heavy module: Pillow
 
         if self.palette is None:
             self.palette = Image.fromarray(rgb).quantize(

@@ -92,12 +92,12 @@ def plot_gantt(
     if ax is not None:
         fig = ax.figure
     elif path is not None:
-        from matplotlib.figure import Figure
+        from matplotlib.figure import Figure  # heavy module: matplotlib
 
         fig = Figure(figsize=size, layout="constrained")
         ax = fig.subplots()
     else:
-        import matplotlib.pyplot as plt
+        import matplotlib.pyplot as plt  # heavy module: matplotlib
 
         fig, ax = plt.subplots(figsize=size, layout="constrained")
     _draw(schedule, ax, first, stop, per)
@@ -108,9 +108,9 @@ def plot_gantt(
 
 
 def _draw(schedule: Schedule, ax: Any, first: int, stop: int, per: int) -> None:
-    from matplotlib.collections import PolyCollection
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch
+    from matplotlib.collections import PolyCollection  # heavy module: matplotlib
+    from matplotlib.lines import Line2D  # heavy module: matplotlib
+    from matplotlib.patches import Patch  # heavy module: matplotlib
 
     K = schedule.num_agents
     R = math.ceil((stop - first) / per)

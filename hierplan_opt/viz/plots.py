@@ -59,7 +59,7 @@ def _place_legend(ax: Any, handles: list[Any]) -> None:
 
 def _palette(n: int) -> list[tuple[float, float, float, float]]:
     """``n`` distinguishable colours (tab10 up to 10, tab20 up to 20, then hsv)."""
-    import matplotlib
+    import matplotlib  # heavy module: matplotlib
 
     if n <= 10:
         cmap = matplotlib.colormaps["tab10"]
@@ -178,7 +178,7 @@ def _draw_grid(instance: Instance, ax: Any, layer: int | None) -> None:
 
 
 def _draw_roadmap(instance: Instance, ax: Any) -> None:
-    from matplotlib.collections import LineCollection
+    from matplotlib.collections import LineCollection  # heavy module: matplotlib
 
     g = instance.graph
     xy = g.coords[:, :2]
@@ -253,7 +253,7 @@ def _draw_highways(instance: Instance, ax: Any, layer: int | None) -> None:
 
 
 def _draw_agents(instance: Instance, ax: Any, layer: int | None, legend: bool) -> None:
-    from matplotlib.lines import Line2D
+    from matplotlib.lines import Line2D  # heavy module: matplotlib
 
     colors = agent_colors(instance, "team")
     size = _marker_size(instance)
@@ -499,7 +499,7 @@ def plot_plan(
             xy[~_in_layer(instance, full, layer)] = np.nan
             segs.append(xy)
             cols.append(faint_col[i])
-        from matplotlib.collections import LineCollection
+        from matplotlib.collections import LineCollection  # heavy module: matplotlib
 
         ax.add_collection(LineCollection(segs, colors=cols, linewidths=0.6, alpha=0.3, zorder=3.5))
         colors = list(colors)
@@ -575,7 +575,7 @@ def plot_plan(
                     zorder=8,
                 )
     if legend:
-        from matplotlib.lines import Line2D
+        from matplotlib.lines import Line2D  # heavy module: matplotlib
 
         if instance.is_tapf and colors == agent_colors(instance, "team"):
             team_col = _palette(len(instance.teams))
@@ -822,7 +822,7 @@ def save_plan_figure(instance: Instance, plan: Plan, path: Any, **kwargs: Any) -
     >>> os.path.getsize(f) > 1000
     True
     """
-    from matplotlib.figure import Figure
+    from matplotlib.figure import Figure  # heavy module: matplotlib
 
     check_output(path, what="plan plot", suffixes=FIGURE_SUFFIXES)
     g = instance.graph

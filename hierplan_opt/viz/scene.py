@@ -632,7 +632,7 @@ def closest_pairs(scene: Scene, samples: int = 300) -> dict[str, list[float] | l
     >>> c["distance"], c["i"], c["j"]
     ([1.0, 1.0, 1.0], [0, 0, 0], [1, 1, 1])
     """
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree  # heavy module: scipy
 
     K = scene.num_agents
     out: dict[str, list[Any]] = {"time": [], "distance": [], "required": [], "i": [], "j": []}
