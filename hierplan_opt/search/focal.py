@@ -487,7 +487,7 @@ class FocalLowLevel:
     Example
     -------
     >>> from hierplan_opt.core.graph import Graph
-    >>> from hierplan_opt.search.ecbs import _ECBS
+    >>> from hierplan_opt.search.ecbs_engine import _ECBS
     >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> search = _ECBS(inst, Deadline(None), w=1.0, polish=False, bypass=False)
     >>> FocalLowLevel().plan(search, 0, AgentConstraints())

@@ -248,7 +248,7 @@ class HighwayLowLevel(FocalLowLevel):
     Example
     -------
     >>> from hierplan_opt.core.instance import Instance
-    >>> from hierplan_opt.search.ecbs import _ECBS
+    >>> from hierplan_opt.search.ecbs_engine import _ECBS
     >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
     >>> low = HighwayLowLevel(frozenset({(0, 1), (1, 2)}), 2.0, "cost")
     >>> search = _ECBS(inst, Deadline(None), w=1.0, polish=False, bypass=False, low=low)
