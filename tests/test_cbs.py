@@ -257,9 +257,12 @@ def _all_options_same_optimum(inst, objective):
         assert r.plan is not None and validate(inst, r.plan) == []
         solved += 1
     # Not every example is solved in time (see test_packed_dead_end_keeps_a_sound_bound:
-    # 3 agents on 9 cells, optimum 12 above the shortest paths), so none solved is a fact
-    # to report, not a failure; the bounds above were checked either way.
+    # 3 agents on 9 cells, optimum 12 above the shortest paths); the bounds above were
+    # checked either way. An optimum within 2 of the root's bound is solved by some set.
     event(f"option sets solved within 3 s: {solved} of {len(OPTION_SETS)}")
+    if solved == 0:
+        root = inst.soc_lower_bound() if objective == "soc" else inst.makespan_lower_bound()
+        assert expected - root > 2, (expected, root)
 
 
 def test_packed_dead_end_keeps_a_sound_bound():

@@ -220,7 +220,6 @@ def preload() -> list[str]:
         except Exception:  # (a missing optional part: the child imports it)
             continue
     versions()
-    import socket  # noqa: F401  (the child's report needs it)
 
     here = Path(__file__).resolve().parent.parent / "search" / "__pycache__"
     if not os.environ.get("NUMBA_CACHE_DIR") and any(here.glob("_astar_kernel.*.nbi")):
