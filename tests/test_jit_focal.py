@@ -353,3 +353,39 @@ def test_python_focal_admits_a_far_f_jump_from_its_buckets(monkeypatch: pytest.M
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
     assert out == ((0, 1, 2), UNREACHABLE + 1)
+
+
+def test_stale_cache_entries_of_the_focal_kernel_are_dropped(tmp_path):
+    # numba checks a cached function against its own file only; the focal kernel calls
+    # leaves of _astar_kernel.py, so jit.load drops its entries older than that file.
+    import os
+    import types
+
+    source = tmp_path / "_astar_kernel.py"
+    source.write_text("")
+    index = tmp_path / "_focal_kernel._loop.nbi"
+    index.write_text("")
+    os.utime(index, (1_000_000, 1_000_000))  # cached long before the source's edit
+    flushed = []
+
+    class Cache:
+        _cache_file = types.SimpleNamespace(_index_path=str(index))
+
+        def flush(self):
+            flushed.append(self)
+
+    def kernel(name, module):
+        py = types.FunctionType((lambda: None).__code__, {}, name)
+        py.__module__ = module
+        return types.SimpleNamespace(py_func=py, _cache=Cache())
+
+    fake = types.ModuleType("fake_focal")
+    loop = kernel("_loop", "fake_focal")
+    # _contains is imported from another file there: that file's cache decides
+    fake.__dict__.update(_loop=loop, _contains=kernel("_contains", "elsewhere"))
+    assert jit.drop_stale_cache(fake, str(source)) == 1
+    assert flushed == [loop._cache]
+    os.utime(index, None)  # compiled after the edit: kept
+    os.utime(source, (1_000_000, 1_000_000))
+    assert jit.drop_stale_cache(fake, str(source)) == 0
+    assert jit.drop_stale_cache(fake, str(tmp_path / "missing.py")) == 0

@@ -193,6 +193,7 @@ def load() -> ModuleType:
             from hierplan_opt.search import _astar_kernel as k  # heavy module: numba
             from hierplan_opt.search import _focal_kernel as fk  # heavy module: numba
 
+            drop_stale_cache(fk, k.__file__)
             _warm_up(k)
             _warm_up_focal(k, fk)
         except Exception:
@@ -203,6 +204,36 @@ def load() -> ModuleType:
         # The distance tables of later solves come from the compiled BFS too.
         core_graph.set_compiled_bfs(k.bfs_many)
         return k
+
+
+def drop_stale_cache(module: ModuleType, source: str) -> int:
+    """Drop the on-disk cache entries of ``module``'s kernels older than ``source``;
+    how many.
+
+    numba checks a cached function against the file that defines it only. The focal
+    kernel calls leaves of the A* kernel's file (``_contains``, ``_grow``,
+    ``_path_of``), so after an edit of ``_astar_kernel.py`` alone its cache would
+    still hold a loop compiled with the old leaves; :func:`load` drops those entries
+    first, and they are compiled again.
+    """
+    try:
+        newest = os.path.getmtime(source)
+    except OSError:
+        return 0
+    dropped = 0
+    for obj in list(vars(module).values()):
+        if getattr(getattr(obj, "py_func", None), "__module__", None) != module.__name__:
+            continue
+        cache = getattr(obj, "_cache", None)
+        index = getattr(getattr(cache, "_cache_file", None), "_index_path", None)
+        try:
+            stale = index is not None and os.path.getmtime(index) < newest
+        except OSError:  # nothing cached yet
+            continue
+        if stale and cache is not None:
+            cache.flush()
+            dropped += 1
+    return dropped
 
 
 def compile_to_cache() -> None:
