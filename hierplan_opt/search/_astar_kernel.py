@@ -144,6 +144,18 @@ _HMUL = 0x5851F42D4C957F2D
 
 
 @_leaf
+def _hslot(keys, key):
+    """The slot of ``key`` in the open-addressing table ``keys`` (``-1``: free; its size
+    a power of two), or the free slot where it goes: the A* kernel's ``best`` table and
+    the focal kernel's state table."""
+    mask = keys.shape[0] - 1
+    i = ((key * _HMUL) >> 17) & mask
+    while keys[i] != -1 and keys[i] != key:
+        i = (i + 1) & mask
+    return i
+
+
+@_leaf
 def _before(pf, pc, pn, a, b):
     """Entry ``a`` pops before entry ``b``: by ``f`` (``pf``), conflicts (``pc``), ``-t``
     (``pn``), then by number."""
@@ -160,10 +172,7 @@ def _before(pf, pc, pn, a, b):
 def _lower(bkeys, bvals, key, c):
     """``best[key] = c`` in the open-addressing table if ``c`` is below its value (or
     the key is absent): ``(done, 1 if the key is new else 0)``."""
-    bmask = bkeys.shape[0] - 1
-    slot = ((key * _HMUL) >> 17) & bmask
-    while bkeys[slot] != -1 and bkeys[slot] != key:
-        slot = (slot + 1) & bmask
+    slot = _hslot(bkeys, key)
     added = 0
     if bkeys[slot] == key:
         if bvals[slot] <= c:  # (_CLOSED, below every count, included)
@@ -305,19 +314,17 @@ def _astar_loop(
 
 
 @_njit
-def _rehash(bkeys, bvals, cap):
-    """The ``best`` table in ``cap`` slots."""
+def _rehash(keys, vals, cap):
+    """An open-addressing table (``keys`` and their ``vals``; see :func:`_hslot`) in
+    ``cap`` slots: the A* kernel's ``best`` and the focal kernel's state table."""
     nk = np.full(cap, -1, np.int64)
     nv = np.empty(cap, np.int64)
-    mask = cap - 1
-    for j in range(bkeys.shape[0]):
-        k = bkeys[j]
+    for j in range(keys.shape[0]):
+        k = keys[j]
         if k != -1:
-            m = ((k * _HMUL) >> 17) & mask
-            while nk[m] != -1:
-                m = (m + 1) & mask
+            m = _hslot(nk, k)
             nk[m] = k
-            nv[m] = bvals[j]
+            nv[m] = vals[j]
     return nk, nv
 
 
@@ -374,7 +381,7 @@ def astar(
     heap[0] = 0
     bkeys = np.full(1024, -1, np.int64)
     bvals = np.empty(1024, np.int64)
-    slot = ((start * _HMUL) >> 17) & 1023
+    slot = _hslot(bkeys, start)
     bkeys[slot] = start
     bvals[slot] = 0
     regs = np.zeros(_AREGS, np.int64)

@@ -40,7 +40,15 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from hierplan_opt.search._astar_kernel import _contains, _grow, _leaf, _njit, _path_of
+from hierplan_opt.search._astar_kernel import (
+    _contains,
+    _grow,
+    _hslot,
+    _leaf,
+    _njit,
+    _path_of,
+    _rehash,
+)
 
 #: As :data:`.focal._TIE` and :data:`.focal.PARTNER_WEIGHT` (tests check they agree).
 TIE = 1 << 20
@@ -85,33 +93,6 @@ _monotonic: Any = intrinsic(_clock)
 def monotonic():
     """Seconds of the clock ``time.perf_counter`` reads (for the tests)."""
     return _monotonic()
-
-
-# ---------------------------------------------------------------- the state table
-_HMUL = 0x5851F42D4C957F2D
-
-
-@_leaf
-def _hslot(hkeys, enc):
-    """The slot of ``enc`` in the table ``hkeys`` (or the free slot where it goes)."""
-    mask = hkeys.shape[0] - 1
-    i = ((enc * _HMUL) >> 17) & mask
-    while hkeys[i] != -1 and hkeys[i] != enc:
-        i = (i + 1) & mask
-    return i
-
-
-@_njit
-def _rehash_to(hkeys, hids, cap):
-    """The state table in ``cap`` slots."""
-    nk = np.full(cap, -1, np.int64)
-    ni = np.empty(cap, np.int64)
-    for j in range(hkeys.shape[0]):
-        if hkeys[j] != -1:
-            m = _hslot(nk, hkeys[j])
-            nk[m] = hkeys[j]
-            ni[m] = hids[j]
-    return nk, ni
 
 
 @_leaf
@@ -567,7 +548,7 @@ def focal(
         while 2 * (n_s + d) > cap:
             cap *= 2
         if cap > hkeys.shape[0]:
-            hkeys, hids = _rehash_to(hkeys, hids, cap)
+            hkeys, hids = _rehash(hkeys, hids, cap)
         cap = p0.shape[0]
         while n_e + d > cap:
             cap *= 2

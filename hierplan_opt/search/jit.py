@@ -211,10 +211,10 @@ def drop_stale_cache(module: ModuleType, source: str) -> int:
     how many.
 
     numba checks a cached function against the file that defines it only. The focal
-    kernel calls leaves of the A* kernel's file (``_contains``, ``_grow``,
-    ``_path_of``), so after an edit of ``_astar_kernel.py`` alone its cache would
-    still hold a loop compiled with the old leaves; :func:`load` drops those entries
-    first, and they are compiled again.
+    kernel calls functions of the A* kernel's file (``_contains``, ``_hslot``,
+    ``_rehash``, ``_grow``, ``_path_of``), so after an edit of ``_astar_kernel.py``
+    alone its cache would still hold a loop compiled with the old ones; :func:`load`
+    drops those entries first, and they are compiled again.
     """
     try:
         newest = os.path.getmtime(source)
