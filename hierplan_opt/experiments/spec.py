@@ -41,7 +41,7 @@ from hierplan_opt import registry
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.experiments.data import instances_dir
 from hierplan_opt.experiments.generators import GENERATORS
-from hierplan_opt.io.values import plain
+from hierplan_opt.io.values import plain, to_json
 from hierplan_opt.io.yaml import Ctx, read_text, read_yaml
 
 TOP_KEYS = (
@@ -215,7 +215,7 @@ def parse_spec(
     if "stop_on_failure" in top:
         stop = ctx.boolean(top["stop_on_failure"], "stop_on_failure", line("stop_on_failure"))
     if source == "":
-        source = json.dumps(plain(top), sort_keys=True)
+        source = to_json(top, sort_keys=True)
     return SweepSpec(
         name=name,
         solvers=solvers,

@@ -30,7 +30,7 @@ import numpy as np
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.reprs import short_repr
-from hierplan_opt.io.values import plain
+from hierplan_opt.io.values import plain, to_json
 
 #: Default sampling step of the output files (seconds).
 DEFAULT_DT = 0.1
@@ -289,7 +289,7 @@ def trajectories_csv(traj: Trajectories, dt: float = DEFAULT_DT) -> str:
     s = traj.sample(dt)
     buf = io.StringIO()
     for k, v in traj.statistics().items():
-        buf.write(f"# {k}: {json.dumps(plain(v))}\n")
+        buf.write(f"# {k}: {to_json(v)}\n")
     axes = ["x", "y", "z"][: traj.dim]
     head = ["agent", "t", *axes, *("v" + a for a in axes)]
     heading = traj.has_heading
@@ -326,7 +326,7 @@ def write_trajectories(traj: Trajectories, path: str | Path, dt: float = DEFAULT
                 acc=s["acc"],
                 theta=s["theta"],
                 agents=np.array(traj.agent_names),
-                meta=np.array(json.dumps({k: plain(v) for k, v in traj.statistics().items()})),
+                meta=np.array(to_json(traj.statistics())),
                 **_exact_arrays(traj),
             )
         os.replace(tmp, path)
