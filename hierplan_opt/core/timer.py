@@ -159,14 +159,16 @@ class Deadline:
         if memory_available() < MEMORY_MARGIN:
             return f"the machine's free memory (under {MEMORY_MARGIN >> 20} MB left)"
         limits = self._limits
+        first = limits is None
         if limits is None:  # read once (``hierplan`` sets them before any solve)
             limits = self._limits = memory_limits()
-            if min(limits) != math.inf:
-                room = [max(0.0, x - u) for x, u in zip(limits, memory_use(), strict=True)]
-                self._margins = (min(MEMORY_MARGIN, room[0] / 4), min(MEMORY_MARGIN, room[1] / 4))
         if min(limits) == math.inf:
             return ""
-        for i, use in enumerate(memory_use()):
+        uses = memory_use()
+        if first:
+            room = [max(0.0, x - u) for x, u in zip(limits, uses, strict=True)]
+            self._margins = (min(MEMORY_MARGIN, room[0] / 4), min(MEMORY_MARGIN, room[1] / 4))
+        for i, use in enumerate(uses):
             if use > limits[i] - self._margins[i]:
                 # RLIMIT_DATA is what ``hierplan solve --memory-limit`` sets
                 hint = ", --memory-limit GB raises it" if i == 0 else ""
