@@ -351,7 +351,6 @@ class PebbleStructure:
 
     def subtree_holes(self, occupied: Sequence[bool]) -> list[int]:
         """Empty vertices in each bridge-tree subtree for one arrangement."""
-
         empty = ~np.asarray(occupied, dtype=bool)[self._free]
         holes = np.bincount(
             self._ecc_array[self._free], weights=empty, minlength=len(self.ecc_members)
@@ -919,7 +918,6 @@ def _dfs_order(adj: Sequence[Sequence[int]], root: int):
     >>> order.tolist(), pred.tolist()
     ([0, 1, 2], [-9999, 0, 1, -9999])
     """
-
     pred = [-9999] * len(adj)
     seen = [False] * len(adj)
     seen[root] = True

@@ -278,7 +278,6 @@ def _estimate(
     trajectories: Any = None,
 ) -> MonteCarloResult:
     """The Monte Carlo batch itself (no threshold)."""
-
     delay_model = per_run_seeds(delay_model)
 
     assert schedule.stn is not None

@@ -88,7 +88,6 @@ def watchdog(hard_limit: float | None, poll: float = 0.2) -> None:
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages in :data:`VERSIONED` that are installed
     (looked up once a process: 10-35 ms; a warm worker's children inherit them)."""
-
     out = {"python": sys.version.split()[0]}
     for name in VERSIONED:
         try:
@@ -201,7 +200,6 @@ def address_space_mb() -> float:
 def preload() -> list[str]:
     """Import what runs need (solvers, scipy's graph routines) and, if numba's on-disk
     cache holds them, load the compiled kernels; the names of what was loaded."""
-
     done = []
     for mod in (
         "numpy",
@@ -235,7 +233,6 @@ def preload() -> list[str]:
 
 def serve() -> int:
     """The fork server (see the module doc); returns when stdin closes."""
-
     preload()
     # The children's collector need not scan (and copy, page by page) what they inherit.
     gc.collect()

@@ -560,7 +560,6 @@ def save_schedule(path: str | Path, schedule: Any) -> None:
       a:
       - {x: 0, y: 0, t: 0.0}
     """
-
     doc = schedule_document(schedule)
     stats = {"statistics": plain(doc["statistics"])}
     lines = [yaml.safe_dump(stats, sort_keys=False).rstrip()]
