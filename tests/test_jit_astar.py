@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from spacetime_cases import walk
 
-from hierplan_opt.core.graph import Graph
+from hierplan_opt.core.graph import UNREACHABLE, Graph
 from hierplan_opt.search import astar, jit
 from hierplan_opt.search.constraints import (
     LEN_GT,
@@ -24,6 +24,7 @@ from hierplan_opt.search.constraints import (
     add_derived,
 )
 from hierplan_opt.search.reservations import Reservations
+from hierplan_opt.search.symmetry import travel_time
 
 
 @pytest.fixture
@@ -104,6 +105,52 @@ def test_random_calls_identical(both, seed):
         res.remove(a)
         if rng.random() < 0.7:
             res.add(a, walk(g, rng, free, rng.randint(0, 14)))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_random_travel_times_identical(seed):
+    # Corridor reasoning's earliest arrivals (symmetry.travel_time): the same value from
+    # the Python search and the kernel's, under random constraints of every kind, a
+    # random blocked edge and random upper bounds, and against a plain BFS over
+    # (vertex, time) that never prunes (so neither search's pruning hides a time).
+    rng = random.Random(seed)
+    g, free = random_grid(rng)
+    if len(free) < 3:
+        return
+    k = jit.load()
+    for _ in range(10):
+        s, target = rng.sample(free, 2)
+        c = random_cons(g, rng, free, rng.choice(free))
+        v = rng.choice(free)
+        blocked = rng.choice([None, (v, rng.choice(g.adj[v]))]) if g.adj[v] else None
+        upper = rng.choice([UNREACHABLE, rng.randint(1, 16)])
+        h = g.dist_list(target)
+        py = travel_time(g.adj, s, target, h, c, blocked, upper)
+        jt = travel_time(g.adj, s, target, h, c, blocked, upper, kernel=k)
+        assert py == jt, (seed, s, target, blocked, upper)
+        assert py == min(upper, earliest(g, s, target, c, blocked, upper)), (seed, s, target)
+
+
+def earliest(g: Graph, s: int, target: int, c: AgentConstraints, blocked, upper: int) -> int:
+    """The earliest time at ``target`` by a breadth-first sweep of the time steps."""
+    now = {s}
+    for t in range(min(upper, 4 * g.n + c.tmax + 2)):
+        if target in now:
+            return t
+        nxt = set()
+        for v in now:
+            for u in (*g.adj[v], v):
+                if blocked is not None and {v, u} == set(blocked):
+                    continue
+                if (t + 1) * g.n + u in c.vertex:
+                    continue
+                if u != v and ((t + 1) * g.n + v) * g.n + u in c.edge:
+                    continue
+                if u in c.forbid_from and t + 1 >= c.forbid_from[u]:
+                    continue
+                nxt.add(u)
+        now = nxt
+    return UNREACHABLE
 
 
 @pytest.mark.parametrize("seed", range(30))

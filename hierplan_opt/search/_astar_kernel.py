@@ -23,6 +23,7 @@ Data layout (all ``int64`` unless said otherwise):
 
 from __future__ import annotations
 
+import heapq
 from typing import Any
 
 import numba
@@ -424,6 +425,43 @@ def _grow(a: np.ndarray, cap: int) -> np.ndarray:
     out = np.empty(cap, a.dtype)
     out[: a.shape[0]] = a
     return out
+
+
+@_njit
+def travel(ptr, idx, start, target, h, vkeys, ekeys, ff, tcap, bx, by, upper, seen, stamp):
+    """The search of :func:`.symmetry.travel_time` (after its early exits): the earliest
+    time at ``target``, or ``upper``. ``seen[(min(t, tcap)) * n + v] == stamp`` marks a
+    closed state (the caller's buffer of at least ``(tcap + 1) * n`` entries, a new
+    ``stamp`` per call); ``(bx, by)`` the blocked edge (-1, -1 for none)."""
+    n = ptr.shape[0] - 1
+    heap = [(h[start], 0, start)]  # (f, -t, v): among equal f the deepest first
+    while len(heap) > 0:
+        _, negt, v = heapq.heappop(heap)
+        t = -negt
+        if v == target:
+            return t
+        key = (t if t < tcap else tcap) * n + v
+        if seen[key] == stamp:
+            continue
+        seen[key] = stamp
+        t1 = t + 1
+        base = t1 * n
+        row = (t1 if t1 < tcap else tcap) * n
+        for j in range(ptr[v], ptr[v + 1]):
+            u = idx[j]
+            if (v == bx and u == by) or (v == by and u == bx):
+                continue
+            if _contains(vkeys, base + u):
+                continue
+            if u != v and ekeys.shape[0] and _contains(ekeys, (base + v) * n + u):
+                continue
+            if t1 >= ff[u]:
+                continue
+            hu = h[u]
+            if t1 + hu >= upper or seen[row + u] == stamp:
+                continue
+            heapq.heappush(heap, (t1 + hu, -t1, u))
+    return upper
 
 
 @_njit

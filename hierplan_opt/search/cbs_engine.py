@@ -556,8 +556,9 @@ class _CBS:
         if hit is not None and (hit[0] < hit[1] or upper <= hit[1]):
             return min(hit[0], upper)
         val = travel_time(
-            self.adj, self.starts[a], target, self.dist_of(target), cons, blocked, upper
-        )
+            self.adj, self.starts[a], target, self.dist_of(target), cons, blocked, upper,
+            jit.kernel(self.n),
+        )  # fmt: skip
         if len(cache) > MDD_CACHE_SIZE:
             cache.clear()
         cache[key] = (val, upper)

@@ -1,11 +1,13 @@
 """Which low level runs: the pure-Python searches or their compiled (numba) twins.
 
-Two searches have a twin: CBS's space-time A* (:func:`.astar.space_time_astar`, kernel
-module ``_astar_kernel``) and the focal search of ECBS / EECBS (:func:`.focal.focal_path`,
-``_focal_kernel``; :func:`run_focal`). Each pair gives identical results (same path,
-same bound, same expansion count, same tie-breaking), so the choice only changes the
-speed. Both kernels are loaded, compiled and cached together, and one policy picks for
-both. ``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
+Three searches have a twin: CBS's space-time A* (:func:`.astar.space_time_astar`, kernel
+module ``_astar_kernel``), the earliest-arrival search of its corridor reasoning
+(:func:`.symmetry.travel_time`, the same module; :func:`travel`) and the focal search of
+ECBS / EECBS (:func:`.focal.focal_path`, ``_focal_kernel``; :func:`run_focal`). Each pair
+gives identical results (same path, same bound, same expansion count, same
+tie-breaking; the same earliest time), so the choice only changes the speed. Both kernel
+modules are loaded, compiled and cached together, and one policy picks for all three.
+``HIERPLAN_LOW_LEVEL`` (or :func:`set_low_level`) picks:
 
 ``auto`` (default)
     Python first. Once the Python low level (A* and focal calls together) has spent
@@ -298,6 +300,7 @@ def _warm_up(k: ModuleType) -> None:
     mdd_restrict(raw, 2, 2, [None, {0}, None], [None, None, 2], {(0, 0, 1)}, k)
     mdd_dependent(raw, 2, 2, raw, 2, 2, k)
     k.bfs_many(g.indptr, g.indices, np.array([0, 2], np.int64), UNREACHABLE)
+    travel(k, g.adj, 0, 2, g.dist_list(2), root, (0, 1), UNREACHABLE)
 
 
 def _warm_up_focal(k: ModuleType, fk: ModuleType) -> None:
@@ -399,12 +402,7 @@ def _cons_arrays(
             _CONS.clear()
         _CONS[cons.ver] = hit
     _, _, vkeys, ekeys, lm_need, nxt_tl, nxt_hb, nxt_row, tables, off = hit
-    if cons.forbid_from:
-        ff = np.full(n, NEVER, np.int64)
-        for v, t in cons.forbid_from.items():
-            ff[v] = t
-    else:
-        ff = _never(n)
+    ff = _forbid_array(cons, n)
     if tables:
         lmd = np.stack([_array(dl) for dl in tables])
     else:
@@ -439,6 +437,16 @@ def _search_args(
 
 _NEVER: dict[int, Any] = {}
 _NO_ROWS: dict[int, Any] = {}
+
+
+def _forbid_array(cons: AgentConstraints, n: int) -> np.ndarray:
+    """``cons.forbid_from`` per vertex (NEVER where absent)."""
+    if not cons.forbid_from:
+        return _never(n)
+    ff = np.full(n, NEVER, np.int64)
+    for v, t in cons.forbid_from.items():
+        ff[v] = t
+    return ff
 
 
 def _never(n: int) -> np.ndarray:
@@ -777,12 +785,55 @@ def mdd_levels(raw: tuple[Any, ...], cost: int, goal: int) -> list[dict[int, lis
     return levels
 
 
+# ---------------------------------------------------------------------- travel times
+_SEEN = [np.zeros(0, np.int64), 0]  # the closed marks of :func:`travel` and their stamp
+
+
+def travel(
+    k: ModuleType,
+    adj: Sequence[Sequence[int]],
+    start: int,
+    target: int,
+    h: Sequence[int],
+    cons: AgentConstraints,
+    blocked: tuple[int, int] | None,
+    upper: int,
+) -> int:
+    """The search of :func:`.symmetry.travel_time` (after its early exits) in ``k``.
+
+    Example
+    -------
+    >>> from hierplan_opt.search.constraints import NEG_V
+    >>> k = load()
+    >>> g = Graph.grid(3, 1)
+    >>> c = AgentConstraints.root(g.n, 2).add((NEG_V, 0, 1, -1, 1), n=g.n, goal=2)
+    >>> travel(k, g.adj, 0, 2, g.dist_list(2), c, None, UNREACHABLE)
+    3
+    """
+    g = _graph(adj)
+    n = len(adj)
+    tcap = cons.tmax + 1
+    seen, stamp = _SEEN
+    if seen.shape[0] < (tcap + 1) * n:
+        seen = np.zeros(max((tcap + 1) * n, 2 * seen.shape[0]), np.int64)
+        stamp = 0
+    _SEEN[0], _SEEN[1] = seen, stamp + 1
+    vk, ek = _sorted_keys(cons)
+    ff = _forbid_array(cons, n)
+    bx, by = blocked if blocked is not None else (-1, -1)
+    return int(
+        k.travel(
+            g.ptr, g.idx, start, target, _array(h), vk, ek, ff, tcap, bx, by, upper, seen, stamp + 1
+        )
+    )
+
+
 # ---------------------------------------------------------------------- focal search
 _FCONS: dict[int, tuple[AgentConstraints, np.ndarray, np.ndarray]] = {}
 _NO_KEYS = np.zeros(0, np.int64)
 
 
-def _focal_cons(cons: AgentConstraints) -> tuple[np.ndarray, np.ndarray]:
+def _sorted_keys(cons: AgentConstraints) -> tuple[np.ndarray, np.ndarray]:
     """The vertex and edge constraint keys of ``cons``, sorted (cached per object)."""
     hit = _FCONS.get(cons.ver)
     if hit is None or hit[0] is not cons:
@@ -825,7 +876,7 @@ def run_focal(
     assert k is not None and res.moves
     g = _graph(adj)
     m = _mirror(k, g, res)
-    vkeys, ekeys = _focal_cons(cons)
+    vkeys, ekeys = _sorted_keys(cons)
     pp = res.paths[partner] if 0 <= partner < len(res.paths) else None
     end = math.inf if deadline is None else perf_counter() + deadline.remaining()
     status, expanded, fmin, path = fk.focal(

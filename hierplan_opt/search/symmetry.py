@@ -104,8 +104,10 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Sequence
 from heapq import heappop, heappush
+from types import ModuleType
 
 from hierplan_opt.core.graph import UNREACHABLE, Graph
+from hierplan_opt.search import jit
 from hierplan_opt.search.constraints import (
     LEN_GT,
     LEN_LE,
@@ -215,6 +217,7 @@ def travel_time(
     cons: AgentConstraints,
     blocked: tuple[int, int] | None = None,
     upper: int = UNREACHABLE,
+    kernel: ModuleType | None = None,
 ) -> int:
     """A lower bound on the earliest time an agent under ``cons`` can be at ``target``.
 
@@ -222,7 +225,8 @@ def travel_time(
     and forbidden-from constraints of ``cons`` (landmarks and finish bounds are
     ignored, so the value is a lower bound); ``blocked`` is an edge the agent may not
     use in either direction. Returns ``upper`` when the target cannot be reached
-    before ``upper``.
+    before ``upper``. ``kernel``: the loaded compiled low level
+    (:func:`.jit.kernel`), which runs the same search (:func:`.jit.travel`).
 
     Example
     -------
@@ -242,6 +246,8 @@ def travel_time(
     vc, ec, ff = cons.vertex, cons.edge, cons.forbid_from
     if blocked is None and not vc and not ec and not ff:
         return h[start]
+    if kernel is not None:
+        return jit.travel(kernel, adj, start, target, h, cons, blocked, upper)
     tcap = cons.tmax + 1
     bx, by = blocked if blocked is not None else (-1, -1)
     # Entries (f, -t, v): among equal f the deepest first reaches the target soonest.
