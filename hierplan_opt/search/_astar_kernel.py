@@ -510,6 +510,21 @@ def dense_apply(cat_vt, cat_et, ptr, idx, path, delta, pos, plen, stamp, park_a,
 
 
 @_njit
+def dense_remove(cat_vt, cat_et, ptr, idx, pos, plen, park_a, park_t, agent):
+    """The remove of :func:`dense_apply`, the path read from ``agent``'s row of ``pos``
+    (where the add put it), so the caller converts nothing."""
+    last = plen[agent] - 1
+    if last < 0:
+        return
+    cat_apply(cat_vt, cat_et, ptr, idx, pos[agent, : last + 1], -1)
+    g = pos[agent, last]
+    plen[agent] = 0
+    if park_a[g] == agent:
+        park_a[g] = -1
+        park_t[g] = NEVER
+
+
+@_njit
 def _emit(out, m, t, kind, a, b, u, v):
     if m >= out.shape[0]:
         grown = np.empty((2 * out.shape[0], 6), np.int64)

@@ -589,8 +589,12 @@ class DenseMirror(CatMirror):
         self._apply(agent, path, 1, stamp)
 
     def remove(self, agent: int, path: Sequence[int]) -> None:
-        """Release ``agent``'s ``path`` (see ``Reservations.remove``)."""
-        self._apply(agent, path, -1, 0)
+        """Release ``agent``'s ``path`` (see ``Reservations.remove``): the one its
+        :meth:`add` wrote into the agent's row, which the kernel reads."""
+        g = self.graph
+        self.k.dense_remove(
+            self.vt, self.et, g.ptr, g.idx, self.pos, self.plen, self.park_a, self.park_t, agent
+        )
 
     def conflicts_of(
         self, r: int, path: Sequence[int], skip: set[int] | frozenset[int]

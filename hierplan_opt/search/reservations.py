@@ -211,7 +211,7 @@ class Reservations:
                 # Same reservations as after the last update: ``horizon`` (at least the
                 # last step of each of them) is still valid.
                 return
-        self.horizon = max((len(p) - 1 for p in paths if p is not None), default=0)
+        self.horizon = max(map(len, filter(None, paths)), default=1) - 1  # paths are not empty
 
     # ------------------------------------------------------------------ queries
     def visits(self, v: int) -> list[int]:
