@@ -34,6 +34,22 @@ def test_reference_row_checks_the_optimum(capsys) -> None:
     assert "optima differing from the known ones: 0" in out
 
 
+def test_reference_prints_the_bound_of_an_unsolved_instance(capsys) -> None:
+    # Stopped after one CT node: TIME_LIMIT with a proven bound, printed on the closing
+    # line beside CBSH2-RTC's recorded cost (it solved the instance).
+    argv = ["--reference", "--instance", "empty-8-8-even-1:16", "--option", "node_limit=1"]
+    assert bench.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "solved ours 0/1, CBSH2-RTC 1/1 (recorded)" in out
+    line = out.strip().splitlines()[-1]
+    assert line.startswith("unsolved by a side (bound proved; cost if solved), ours/C++: ")
+    name, sides = line.split(": ", 1)[1].split()
+    ours, cpp = sides.split("/")
+    assert name == "empty-8-8-even-1:16" and cpp == "74"
+    _, inst = scenario(name)
+    assert inst.soc_lower_bound() <= int(ours) <= 74
+
+
 def test_reference_refuses_unknown_instance() -> None:
     with pytest.raises(InputError, match="not a reference instance"):
         bench.main(["--reference", "--instance", "empty-8-8-even-1:3"])
@@ -100,6 +116,7 @@ def test_unsolved_side_runs_once(tmp_path, capsys) -> None:
     assert count.read_text().strip() == "1"
     assert cols[4] == "inf" and cols[5] == "-" and cols[6].endswith("/1")
     assert "CBSH2-RTC 0/1;" in out
+    assert out.strip().splitlines()[-1].endswith("ours/C++: empty-8-8-even-1:16 74/-")
 
 
 def _fake_peer(tmp_path, script: str):
@@ -128,6 +145,23 @@ def test_per_process_runs_hierplan_solve_beside_the_peer(tmp_path, capsys) -> No
     assert float(cols[7]) > float(cols[4])  # the process takes longer than its solve
     assert "solved ours 1/1, C++ 1/1" in out
     assert "optima differing from the known ones: 0" in out
+    assert "unsolved by a side" not in out
+
+
+def test_per_process_prints_the_bound_the_peer_proved(tmp_path, capsys) -> None:
+    # The peer gives up (cost -1) with its bound 70: the closing line has our cost and it.
+    if os.name != "posix":  # pragma: no cover
+        pytest.skip("shell script stand-in")
+    fake = _fake_peer(
+        tmp_path,
+        'while [ "$1" != "-o" ]; do shift; done\n'
+        f"printf '{HEADER},min f value\\n0.02,7,13,99,-1,70\\n' > \"$2\"\n",
+    )
+    argv = ["--per-process", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
+    assert bench.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "solved ours 1/1, C++ 0/1" in out
+    assert out.strip().splitlines()[-1].endswith("ours/C++: empty-8-8-even-1:16 74/70")
 
 
 def test_per_process_ecbs_counts_bounded_plans(tmp_path, capsys) -> None:

@@ -40,6 +40,12 @@ test, lazy imports and kernel loading on its path; the C++'s: ``runtime`` plus
 ``preprocessing runtime``, CPU) and the whole process (wall-clock from start to exit,
 and the CPU seconds of user and system time from the kernel's accounting). The summary
 gives the geometric means of the three ratios over the instances both solve.
+
+Both tables end, when a side left an instance unsolved, with a line of the bounds each
+side proved there (``unsolved by a side (...), ours/C++: NAME LB/LB, ...``; a side that
+solved it shows its cost): on the instances neither solves, the bound reached in the time is
+the measure of progress. The C++'s is its ``min f value``; without ``--anchor``, the
+bound recorded in the reference file.
 """
 
 from __future__ import annotations
@@ -216,6 +222,7 @@ def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
                 "hl": "-",
                 "ll": "-",
                 "rect": "-",
+                "lb": "-",
             }
         except OSError as exc:
             raise InputError(f"--anchor {binary}: {exc}") from None
@@ -233,6 +240,7 @@ def run_anchor(binary: str, spec: str, time_limit: float) -> dict[str, Any]:
         "hl": f"{hl_exp}/{hl_gen}",
         "ll": int(float(row["#low-level expanded"])),
         "rect": int(float(row.get("rectangle conflicts") or 0)),
+        "lb": row.get("min f value", "-"),
     }
 
 
@@ -376,6 +384,7 @@ def per_process(
     print(head)
     print("-" * len(head))
     rows: list[dict[str, Any]] = []
+    unsolved: list[str] = []
     with tempfile.TemporaryDirectory(prefix="hierplan-bench-") as tmp_dir:
         tmp = Path(tmp_dir)
         for name in names:
@@ -423,6 +432,11 @@ def per_process(
             cratio = o["pcpu"] / max(c["pcpu"], 1e-3) if both else math.nan
             rows.append({"name": name, "ours": o, "cpp": c, "wrong": wrong, "both": both,
                          "ratio": ratio, "pratio": pratio, "cratio": cratio})  # fmt: skip
+            if not both and (anchor is not None or not o["solved"]):
+                unsolved.append(
+                    f"{name} {_side(o['solved'], o['cost'], o.get('lb'))}"
+                    f"/{_side(c['solved'], c['cost'], c.get('lb'))}"
+                )
             print(
                 f"{name:34} {status:9} {o['cost'] if o['solved'] else '-':>6} "
                 f"{c['cost'] if c['solved'] else '-':>6} "
@@ -445,6 +459,9 @@ def per_process(
         f"solve, proc_s: process wall s, pcpu_s: process user+system CPU s), medians of the "
         f"runs (ours/C++), time limit {tl:g} s"
     )
+    line = bounds_line(unsolved)
+    if line:
+        print(line)
     return rows
 
 
@@ -460,6 +477,34 @@ def _num(text: Any) -> float:
         return float(text)
     except (TypeError, ValueError):
         return 0.0
+
+
+def _side(solved: bool, cost: Any, lb: Any) -> str:
+    """A side's entry on the bounds line: its cost if it solved the instance, else the
+    lower bound it proved (``-`` for none).
+
+    Example
+    -------
+    >>> _side(True, 74, "70"), _side(False, -1, "1443.0"), _side(False, -1, None)
+    ('74', '1443', '-')
+    """
+    if solved:
+        return str(cost)
+    x = _num(lb)
+    return f"{x:g}" if x else "-"
+
+
+def bounds_line(entries: list[str]) -> str | None:
+    """The closing line over the instances a side left unsolved (None if there are none).
+
+    Example
+    -------
+    >>> print(bounds_line(["den312d-even-1:100 6209/6205"]))
+    unsolved by a side (bound proved; cost if solved), ours/C++: den312d-even-1:100 6209/6205
+    """
+    if not entries:
+        return None
+    return "unsolved by a side (bound proved; cost if solved), ours/C++: " + ", ".join(entries)
 
 
 def _x(ratio: float) -> str:
@@ -524,6 +569,7 @@ def reference(
     print(head)
     print("-" * len(head))
     ratios: list[tuple[float, str]] = []
+    unsolved: list[str] = []
     ours_solved = cpp_solved = wrong = 0
     for name in names:
         known = ref[name]["optimal_soc"]
@@ -560,8 +606,14 @@ def reference(
             cpp["solved"] = all(c["solved"] for c in cpps)
         else:
             t = ref[name]["cbsh2_rtc_runtime_s"]
-            cpp = {"solved": t < tl, "time": t, "hl": "-", "ll": "-", "rect": "-"}
+            cpp = {"solved": t < tl, "time": t, "hl": "-", "ll": "-", "rect": "-",
+                   "cost": known, "lb": ref[name]["lower_bound"]}  # fmt: skip
         cpp_solved += cpp["solved"]
+        if not (ok and cpp["solved"]):
+            unsolved.append(
+                f"{name} {_side(ok, r.cost, r.lower_bound)}"
+                f"/{_side(cpp['solved'], cpp.get('cost'), cpp.get('lb'))}"
+            )
         ratio = "-"
         if ok and cpp["solved"]:
             x = cpu / max(cpp["time"], 1e-4)
@@ -588,6 +640,9 @@ def reference(
         f"of the runs (each side repeats while under {REPEAT_BUDGET:g} s in all, "
         f"at most {REPEAT_MAX})"
     )
+    line = bounds_line(unsolved)
+    if line:
+        print(line)
     return 1 if wrong else 0
 
 
