@@ -119,26 +119,26 @@ def test_unsolved_side_runs_once(tmp_path, capsys) -> None:
     assert out.strip().splitlines()[-1].endswith("ours/C++: empty-8-8-even-1:16 74/-")
 
 
-def _fake_peer(tmp_path, script: str):
+def _per_process(tmp_path, capsys, stats_row: str) -> str:
+    """Run the per-process bench on empty-8-8 k16 (ours a real `hierplan solve` process)
+    beside a stand-in peer that writes ``stats_row`` under CBSH2-RTC's statistics header
+    with ``min f value``: the output."""
+    if os.name != "posix":  # pragma: no cover
+        pytest.skip("shell script stand-in")
     fake = tmp_path / "peer"
-    fake.write_text("#!/bin/sh\n" + script)
+    fake.write_text(
+        '#!/bin/sh\nwhile [ "$1" != "-o" ]; do shift; done\n'
+        f"printf '{HEADER},min f value\\n{stats_row}\\n' > \"$2\"\n"
+    )
     fake.chmod(fake.stat().st_mode | stat.S_IEXEC)
-    return fake
+    argv = ["--per-process", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
+    assert bench.main(argv) == 0
+    return capsys.readouterr().out
 
 
 def test_per_process_runs_hierplan_solve_beside_the_peer(tmp_path, capsys) -> None:
-    # Our side is a real `hierplan solve` process; the peer a stand-in that writes the
-    # statistics (0.02 s runtime) and a paths file, as CBSH2-RTC does.
-    if os.name != "posix":  # pragma: no cover
-        pytest.skip("shell script stand-in")
-    fake = _fake_peer(
-        tmp_path,
-        'while [ "$1" != "-o" ]; do shift; done\n'
-        f"printf '{HEADER},min f value\\n0.02,7,13,99,74,74\\n' > \"$2\"\n",
-    )
-    argv = ["--per-process", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
-    assert bench.main(argv) == 0
-    out = capsys.readouterr().out
+    # The peer solves in 0.02 s (its runtime) with cost and bound 74, as CBSH2-RTC does.
+    out = _per_process(tmp_path, capsys, "0.02,7,13,99,74,74")
     cols = next(ln for ln in out.splitlines() if ln.startswith("empty-8-8-even-1:16")).split()
     assert cols[1:4] == ["OPTIMAL", "74", "74"]
     assert cols[5] == "0.0200" and float(cols[4]) > 0  # the solve's own CPU seconds
@@ -150,16 +150,7 @@ def test_per_process_runs_hierplan_solve_beside_the_peer(tmp_path, capsys) -> No
 
 def test_per_process_prints_the_bound_the_peer_proved(tmp_path, capsys) -> None:
     # The peer gives up (cost -1) with its bound 70: the closing line has our cost and it.
-    if os.name != "posix":  # pragma: no cover
-        pytest.skip("shell script stand-in")
-    fake = _fake_peer(
-        tmp_path,
-        'while [ "$1" != "-o" ]; do shift; done\n'
-        f"printf '{HEADER},min f value\\n0.02,7,13,99,-1,70\\n' > \"$2\"\n",
-    )
-    argv = ["--per-process", "--instance", "empty-8-8-even-1:16", "--anchor", str(fake)]
-    assert bench.main(argv) == 0
-    out = capsys.readouterr().out
+    out = _per_process(tmp_path, capsys, "0.02,7,13,99,-1,70")
     assert "solved ours 1/1, C++ 0/1" in out
     assert out.strip().splitlines()[-1].endswith("ours/C++: empty-8-8-even-1:16 74/70")
 

@@ -486,33 +486,24 @@ def cat_apply(cat_vt, cat_et, ptr, idx, path, delta):
 
 
 @_njit
-def dense_apply(cat_vt, cat_et, ptr, idx, path, delta, pos, plen, stamp, park_a, park_t, agent, st):
-    """:func:`cat_apply`, and ``agent``'s row of the paths, stamp and parking.
-
-    The rules of ``Reservations.add`` / ``remove``: an add parks its agent at its last
-    vertex; a remove unparks it there only if it is the one parked.
-    """
-    cat_apply(cat_vt, cat_et, ptr, idx, path, delta)
+def dense_add(cat_vt, cat_et, ptr, idx, path, pos, plen, stamp, park_a, park_t, agent, st):
+    """:func:`cat_apply` of ``path`` (+1), and ``agent``'s row of the paths, stamp and
+    parking: as ``Reservations.add``, the agent is parked at its last vertex."""
+    cat_apply(cat_vt, cat_et, ptr, idx, path, 1)
     last = path.shape[0] - 1
-    g = path[last]
-    if delta > 0:
-        for t in range(last + 1):
-            pos[agent, t] = path[t]
-        plen[agent] = last + 1
-        stamp[agent] = st
-        park_a[g] = agent
-        park_t[g] = last
-    else:
-        plen[agent] = 0
-        if park_a[g] == agent:
-            park_a[g] = -1
-            park_t[g] = NEVER
+    for t in range(last + 1):
+        pos[agent, t] = path[t]
+    plen[agent] = last + 1
+    stamp[agent] = st
+    park_a[path[last]] = agent
+    park_t[path[last]] = last
 
 
 @_njit
 def dense_remove(cat_vt, cat_et, ptr, idx, pos, plen, park_a, park_t, agent):
-    """The remove of :func:`dense_apply`, the path read from ``agent``'s row of ``pos``
-    (where the add put it), so the caller converts nothing."""
+    """Undo :func:`dense_add` of ``agent``, its path read from its row of ``pos`` (so the
+    caller converts nothing): as ``Reservations.remove``, the agent is unparked at its
+    last vertex only if it is the one parked there."""
     last = plen[agent] - 1
     if last < 0:
         return
@@ -541,7 +532,7 @@ def _emit(out, m, t, kind, a, b, u, v):
 
 @_njit
 def dense_conflicts(pos, plen, stamp, park_a, park_t, path, r, skip):
-    """The loop of ``Reservations.conflicts_of`` on :func:`dense_apply`'s arrays.
+    """The loop of ``Reservations.conflicts_of`` on :func:`dense_add`'s arrays.
 
     Rows ``(t, kind, a, b, u, v)`` in the same order: per timestep the vertex conflicts,
     the target one, the edge ones, each agent list in stamp order (the order in which

@@ -563,7 +563,8 @@ class DenseMirror(CatMirror):
         # it), which then pauses a warm process: warehouse-10-20-10-2-1-even-1 k10
         # under the kernel took 11-55 ms a solve with the cycle, 15 ms without.
 
-    def _apply(self, agent: int, path: Sequence[int], delta: int, stamp: int) -> None:
+    def add(self, agent: int, path: Sequence[int], stamp: int) -> None:
+        """Reserve ``path`` for ``agent``, added at ``stamp`` (see ``Reservations.add``)."""
         n_t = len(path)
         if n_t > self.h:
             self._grow(n_t)
@@ -579,14 +580,10 @@ class DenseMirror(CatMirror):
                 grown[: old.shape[0]] = old
                 setattr(self, name, grown)
         g = self.graph
-        self.k.dense_apply(
-            self.vt, self.et, g.ptr, g.idx, np.array(path, np.int64), delta, self.pos,
-            self.plen, self.stamp, self.park_a, self.park_t, agent, stamp,
+        self.k.dense_add(
+            self.vt, self.et, g.ptr, g.idx, np.array(path, np.int64), self.pos, self.plen,
+            self.stamp, self.park_a, self.park_t, agent, stamp,
         )  # fmt: skip
-
-    def add(self, agent: int, path: Sequence[int], stamp: int) -> None:
-        """Reserve ``path`` for ``agent``, added at ``stamp`` (see ``Reservations.add``)."""
-        self._apply(agent, path, 1, stamp)
 
     def remove(self, agent: int, path: Sequence[int]) -> None:
         """Release ``agent``'s ``path`` (see ``Reservations.remove``): the one its
