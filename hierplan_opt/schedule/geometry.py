@@ -16,6 +16,23 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     >>> segment_distance(a, b, np.array([[0.5, -1.0]]), np.array([[0.5, 1.0]])).tolist()
     [0.0]
     """
+    return segment_closest(p1, q1, p2, q2)[0]
+
+
+def segment_closest(
+    p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distances between segments ``p1q1`` and ``p2q2`` (row-wise, any dim) and the
+    fractions ``s``, ``t`` in [0, 1] of a closest pair of points ``p1 + s (q1 - p1)``,
+    ``p2 + t (q2 - p2)``.
+
+    Example
+    -------
+    >>> a = np.array([[0.0, 0.0]]); b = np.array([[2.0, 2.0]])
+    >>> d, s, t = segment_closest(a, b, np.array([[0.0, 2.0]]), np.array([[2.0, 0.0]]))
+    >>> d.tolist(), s.tolist(), t.tolist()
+    ([0.0], [0.5], [0.5])
+    """
     d1 = q1 - p1
     d2 = q2 - p2
     r = p1 - p2
@@ -40,4 +57,4 @@ def segment_distance(p1: np.ndarray, q1: np.ndarray, p2: np.ndarray, q2: np.ndar
     s = np.where(a > 0, s, 0.0)
     t = np.where((a <= 0) & (e > 0), np.clip(f / safe_e, 0, 1), t)
     diff = p1 + d1 * s[:, None] - p2 - d2 * t[:, None]
-    return np.sqrt(np.einsum("ij,ij->i", diff, diff))
+    return np.sqrt(np.einsum("ij,ij->i", diff, diff)), s, t

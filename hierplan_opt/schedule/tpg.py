@@ -406,12 +406,108 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
     keep[rot] = False
     coords = g.coords[vis.V].astype(float)
     names = tuple(a.name for a in instance.agents)
-    if not len(rot):
+    cross = _crossings(g, vis)
+    if not len(rot) and not len(cross[0]):
         t1 = np.flatnonzero(~vis.is_last)
         return _plain_tpg(
             vis, req, g, names, coords, t1, src, dst, vis.V[dst], np.zeros(nvis, np.int8)
         )
-    return _rotation_arcs(vis, req, g, names, coords, src[keep], dst[keep], src[rot], dst[rot])
+    return _rotation_arcs(
+        vis, req, g, names, coords, src[keep], dst[keep], src[rot], dst[rot], cross
+    )
+
+
+#: Crossing points closer than this fraction of a move to either end are left to the
+#: vertex arcs (the robots meet at a vertex there, not in the open).
+CROSS_END = 1e-9
+
+
+def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Plain-TPG arcs for roadmap edges that cross in the open (point robots).
+
+    Two moves of different robots along roadmap edges whose segments intersect away
+    from their ends pass the same point X without visiting a common vertex, so the
+    vertex arcs do not order them. The passages of every crossing point are ordered as
+    in the plan: by the time the plan's uniform motion is at X (the step of the move
+    plus the fraction of the move; ties by robot). Each later robot may reach X (a
+    marker on its move) only once the earlier one has reached the end of its move
+    or, when both cross in one step, once the earlier one is past X (a marker half way
+    to where the later one is at X in the plan's motion), so that every arc goes
+    forward in the plan's time. Returns the arcs as (source's move origin, its fraction
+    of that move: 1 for the visit the move ends at; target's move origin, fraction).
+    Grids join axis neighbours only: no crossings.
+
+    Example
+    -------
+    >>> from hierplan_opt.core.graph import Graph
+    >>> g = Graph.roadmap({"A": (0, 0), "B": (2, 2), "C": (0, 2), "D": (2, 0)},
+    ...                   [("A", "B"), ("C", "D")])
+    >>> inst = Instance.mapf(g, ["A", "C"], ["B", "D"])
+    >>> plan = Plan.from_paths([[g.vertex("A"), g.vertex("B")],
+    ...                         [g.vertex("C"), g.vertex("C"), g.vertex("D")]])
+    >>> [a.tolist() for a in _crossings(g, _visits(inst, plan))]  # r1 once r0 is at B
+    [[0], [1.0], [2], [0.5]]
+    """
+    none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), np.zeros(0))
+    mv = vis.mv
+    if g.kind == "grid" or len(mv) < 2 or len(np.unique(vis.A[mv])) < 2:
+        return none
+    # not at the top: the geometry is only needed for roadmaps
+    from hierplan_opt.schedule.geometry import segment_closest
+
+    a, b = vis.V[mv], vis.V[mv + 1]
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    edges, inv = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
+    inv = inv.ravel()
+    P = g.coords[edges[:, 0]].astype(float) * g.scale
+    Q = g.coords[edges[:, 1]].astype(float) * g.scale
+    box_lo, box_hi = np.minimum(P, Q), np.maximum(P, Q)
+    tol = 1e-9 * max(1.0, float(np.abs(np.concatenate([P, Q])).max(initial=0.0)))
+    ne = len(edges)
+    pairs: list[tuple[int, int, float, float]] = []
+    chunk = max(1, 2_000_000 // max(ne, 1))
+    for i0 in range(0, ne, chunk):
+        i = np.arange(i0, min(ne, i0 + chunk))[:, None]
+        j = np.arange(ne)[None, :]
+        ii, jj = np.broadcast_arrays(i, j)
+        sel = (jj > ii) & np.all(box_lo[ii] <= box_hi[jj] + tol, axis=2)
+        sel &= np.all(box_lo[jj] <= box_hi[ii] + tol, axis=2)
+        ii, jj = ii[sel], jj[sel]
+        share = (edges[ii, 0] == edges[jj, 0]) | (edges[ii, 0] == edges[jj, 1])
+        share |= (edges[ii, 1] == edges[jj, 0]) | (edges[ii, 1] == edges[jj, 1])
+        ii, jj = ii[~share], jj[~share]
+        if not len(ii):
+            continue
+        d, s, t = segment_closest(P[ii], Q[ii], P[jj], Q[jj])
+        hit = (d <= tol) & (s > CROSS_END) & (s < 1 - CROSS_END)
+        hit &= (t > CROSS_END) & (t < 1 - CROSS_END)
+        pairs += zip(
+            ii[hit].tolist(), jj[hit].tolist(), s[hit].tolist(), t[hit].tolist(), strict=True
+        )
+    if not pairs:
+        return none
+    by_edge: dict[int, list[int]] = {}
+    for k, e in enumerate(inv.tolist()):
+        by_edge.setdefault(e, []).append(k)
+    arcs: list[tuple[int, float, int, float]] = []
+    for e1, e2, s1, s2 in pairs:
+        passes = []  # (plan time at X, robot, move origin, fraction of the move)
+        for e, f in ((e1, s1), (e2, s2)):
+            for k in by_edge.get(e, ()):
+                o = int(mv[k])
+                fk = f if vis.V[o] == edges[e, 0] else 1.0 - f
+                passes.append((float(vis.T[o + 1] - 1) + fk, int(vis.A[o]), o, fk))
+        passes.sort()
+        for (ta, ra, oa, fa), (tb, rb, ob, fb) in zip(passes[:-1], passes[1:], strict=True):
+            if ra == rb:
+                continue
+            if vis.T[oa + 1] <= vis.T[ob + 1] - 1:  # A's move ends before B's starts
+                arcs.append((oa, 1.0, ob, fb))
+            else:  # one step: A past X, half way to B's time at X (ties: half way on)
+                past = fa + (tb - ta) / 2 if tb > ta else (1.0 + fa) / 2
+                arcs.append((oa, past, ob, fb))
+    so, sf, do, df = zip(*arcs, strict=True) if arcs else ((), (), (), ())
+    return np.array(so, np.int64), np.array(sf), np.array(do, np.int64), np.array(df)
 
 
 def _rotation_arcs(
@@ -424,26 +520,38 @@ def _rotation_arcs(
     dst: np.ndarray,
     rot_src: np.ndarray,
     rot_dst: np.ndarray,
+    cross: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> TPG:
     """The plain TPG with rotations: for each rotation arc (A enters w in the step B
     enters v, the vertex A leaves) two arcs through markers ``ROTATION_MARK`` of the
     move past a vertex: B may reach v once A is that far past v (it has left v), and B
     may pass that far past v on its next move once A has reached w (so B never catches
     A on the edge v -> w). Both go forward in the plan's steps: acyclic. Point robots
-    are then never on one point (docs/post.md)."""
+    are then never on one point (docs/post.md). ``cross`` adds the arcs of edges that
+    cross in the open (:func:`_crossings`): from a visit or a marker past the crossing
+    point to a marker at it, lock -2 (no vertex; never switched at run time)."""
     f = ROTATION_MARK
+    cs_origin, cs_frac, c_origin, c_frac = cross if cross is not None else _crossings(g, vis)
+    c_visit = cs_frac >= 1.0  # from the visit the move ends at
+    cm_origin, cm_frac = cs_origin[~c_visit], cs_frac[~c_visit]  # from a marker past X
     a_origin = rot_src - 1  # A's visit of v: its move v -> w carries A's marker
     b_next = ~vis.is_last[rot_dst]  # B moves on after v: its marker on that move
     b_origin = rot_dst[b_next]
-    origins, inv = np.unique(np.concatenate([a_origin, b_origin]), return_inverse=True)
+    na, nb, nc = len(a_origin), len(b_origin), len(c_origin)
+    m_origin = np.concatenate([a_origin, b_origin, c_origin, cm_origin])
+    m_frac = np.concatenate([np.full(na + nb, f), c_frac, cm_frac])
+    pair = np.stack([m_origin.astype(float), m_frac], axis=1)
+    uniq, inv = np.unique(pair, axis=0, return_inverse=True)
     inv = inv.ravel()
+    origins, fr = uniq[:, 0].astype(np.int64), uniq[:, 1]
     role = np.zeros(len(origins), dtype=np.int8)
-    np.bitwise_or.at(role, inv[: len(a_origin)], np.int8(LEAVE))
-    np.bitwise_or.at(role, inv[len(a_origin) :], np.int8(ENTER))
+    np.bitwise_or.at(role, inv[:na], np.int8(LEAVE))
+    np.bitwise_or.at(role, inv[na : na + nb + nc], np.int8(ENTER))
+    np.bitwise_or.at(role, inv[na + nb + nc :], np.int8(LEAVE))
     m_kind = np.where(role == LEAVE | ENTER, MARKER, role).astype(np.int8)
     nvis = len(vis.V)
     nm = len(origins)
-    key = np.concatenate([np.arange(nvis, dtype=float), origins + f])
+    key = np.concatenate([np.arange(nvis, dtype=float), origins + fr])
     order = np.argsort(key, kind="stable")
     newid = np.empty(nvis + nm, dtype=np.int64)
     newid[order] = np.arange(nvis + nm)
@@ -459,11 +567,22 @@ def _rotation_arcs(
     agent_ptr[1:] = np.cumsum(np.bincount(node_agent, minlength=len(vis.ptr) - 1))
     last = np.zeros(nvis + nm, dtype=bool)
     last[agent_ptr[1:] - 1] = True
-    arc_src = np.concatenate(
-        [vis_node[src], mark_node[inv[: len(a_origin)]], vis_node[rot_src[b_next]]]
+    c_src = np.empty(nc, dtype=np.int64)
+    c_src[c_visit] = vis_node[cs_origin[c_visit] + 1]
+    c_src[~c_visit] = mark_node[inv[na + nb + nc :]]
+    arc_src = np.concatenate([vis_node[src], mark_node[inv[:na]], vis_node[rot_src[b_next]], c_src])
+    arc_dst = np.concatenate(
+        [
+            vis_node[dst],
+            vis_node[rot_dst],
+            mark_node[inv[na : na + nb]],
+            mark_node[inv[na + nb : na + nb + nc]],
+        ]
     )
-    arc_dst = np.concatenate([vis_node[dst], vis_node[rot_dst], mark_node[inv[len(a_origin) :]]])
-    lock = np.concatenate([vis.V[dst], vis.V[rot_dst], vis.V[rot_dst[b_next]]])
+    lock = np.concatenate(
+        [vis.V[dst], vis.V[rot_dst], vis.V[rot_dst[b_next]], np.full(nc, -2, np.int64)]
+    )
+    fc = fr[:, None]
     t1 = np.flatnonzero(~last)
     kinds = arrange(np.zeros(nvis, np.int8), m_kind)
     tpg = TPG(
@@ -472,9 +591,11 @@ def _rotation_arcs(
         node_kind=kinds,
         node_vertex=arrange(vis.V, vis.V[origins]),
         node_step=arrange(vis.T, vis.T[origins + 1] - 1),
-        node_pos=arrange(vis.pos, vis.pos[origins] + f * (vis.pos[origins + 1] - vis.pos[origins])),
-        node_coord=arrange(coords, coords[origins] + f * (coords[origins + 1] - coords[origins])),
-        node_s=arrange(vis.s, vis.s[origins] + f * step_len),
+        node_pos=arrange(
+            vis.pos, vis.pos[origins] + fc * (vis.pos[origins + 1] - vis.pos[origins])
+        ),
+        node_coord=arrange(coords, coords[origins] + fc * (coords[origins + 1] - coords[origins])),
+        node_s=arrange(vis.s, vis.s[origins] + fr * step_len),
         node_turn=arrange(vis.turn, np.zeros(nm)),
         node_heading=arrange(vis.heading, vis.head[move]),
         arc_src=np.concatenate([t1, arc_src]),
@@ -824,11 +945,18 @@ def _check_acyclic(tpg: TPG, g, room: str) -> None:
         a, b = int(tpg.node_agent[u]), int(tpg.node_agent[w])
         robots.append(a)
         need = max(need, req.required(a, b))
-        locs.append(tpg.location_names[int(tpg.arc_lock[k])])
+        lock = int(tpg.arc_lock[k])
+        locs.append(tpg.location_names[lock] if lock >= 0 else "crossing edges")
         steps.add(int(tpg.node_step[w]))
     names = [tpg.agent_names[a] for a in robots]
     ring = " -> ".join([*names, names[0]]) if names else "?"
     where = ", ".join(dict.fromkeys(locs))
+    if tpg.regime == "none" and "crossing edges" in locs:
+        raise ClearanceError(
+            f"robots {ring} wait for each other around {where}: each would have to pass "
+            "a point where roadmap edges cross only after the next one has; MAPF-POST "
+            "cannot order them without two robots meeting, replan"
+        )
     if tpg.regime == "none":
         at = f" at step {min(steps) - 1}" if steps else ""
         raise ClearanceError(
@@ -838,8 +966,16 @@ def _check_acyclic(tpg: TPG, g, room: str) -> None:
             "robots meeting, replan without rotations"
         )
     why = (
-        f"they rotate at step {steps.pop()}: each enters the cell that the next one leaves, "
-        "so with any clearance > 0 one of them would have to move first"
+        (
+            f"they rotate at step {steps.pop()}: each enters the cell that the next one "
+            "leaves, so with any clearance > 0 one of them would have to move first"
+        )
+        if g.kind == "grid"
+        else (
+            f"at step {steps.pop()} each moves into room that the next one leaves or "
+            "crosses in the same step (a rotation, or edges that cross), so with any "
+            "clearance > 0 one of them would have to move first"
+        )
         if len(steps) == 1
         else "each holds the surroundings of a cell that the next one needs"
     )
