@@ -350,8 +350,9 @@ def run(
             None,
             lower_bound=lb,
             stats={
+                "stopped_by": "time_limit",
                 "reason": f"time limit ({time_limit:g} s) reached during the cheap checks "
-                "(distance tables, feasibility test), before the solver started"
+                "(distance tables, feasibility test), before the solver started",
             },
         )
     else:

@@ -43,6 +43,32 @@ INTERNAL = 70  # EX_SOFTWARE: a bug in hierplan, never a user error
 SOLVER_LOGGERS = ("hierplan_opt.search", "hierplan_opt.formulations", "hierplan_opt.registry")
 
 
+#: A result's stats that say why its solver stopped (``stopped_by``: the limit's name,
+#: e.g. ``time_limit``, ``node_limit``, ``memory_limit``, ``max_horizon``), where its
+#: plan comes from (``plan_from``: ``lacam`` for ECBS/EECBS's fallback) and whether it
+#: is within the bound asked (``bound_met``): every summary line shows them.
+RESULT_FACTS = ("stopped_by", "plan_from", "bound_met")
+
+
+def result_facts(stats: dict) -> str:
+    """``key=value`` for each of :data:`RESULT_FACTS` in ``stats`` (booleans in lower
+    case), separated by spaces; "" when there is none.
+
+    Example
+    -------
+    >>> result_facts({"stopped_by": "time_limit", "bound_met": False, "runtime": 2.0})
+    'stopped_by=time_limit bound_met=false'
+    >>> result_facts({})
+    ''
+    """
+    parts = []
+    for key in RESULT_FACTS:
+        if key in stats:
+            value = stats[key]
+            parts.append(f"{key}={str(value).lower() if isinstance(value, bool) else value}")
+    return " ".join(parts)
+
+
 def configure_logging(*, verbose: bool = False, quiet: bool = False) -> None:
     """The command line's logging: INFO (``-v``: DEBUG, ``-q``: WARNING) on stderr, the
     solvers' narration (:data:`SOLVER_LOGGERS`) at WARNING unless ``-v``.

@@ -13,6 +13,7 @@ from hierplan_opt.cli.common import (
     cost_of,
     load_instance_from_args,
     positive_float,
+    result_facts,
 )
 from hierplan_opt.cli.simulate import (
     add_execution_arguments,
@@ -99,8 +100,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"refinement: infeasible: {exc}")
         return INFEASIBLE
     res = out.result
+    facts = result_facts(res.stats)  # stopped_by, plan_from, bound_met (as on solve's line)
     if res.plan is None:
-        print(f"planning: {res.solver} found no plan ({res.status.value}) in {res.runtime:.3g} s")
+        why = f"{res.status.value}{', ' + facts if facts else ''}"
+        print(f"planning: {res.solver} found no plan ({why}) in {res.runtime:.3g} s")
         return INFEASIBLE if res.status.value == "INFEASIBLE" else LIMIT
     schedule = out.schedule
     if schedule is None or out.execution is None:
@@ -111,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     )
     title = (
         f"plan: {res.solver} {res.status.value} {res.objective} {res.cost} "
-        f"({res.runtime:.3g} s), {instance.num_agents} robots\n"
+        f"{facts + ' ' if facts else ''}({res.runtime:.3g} s), {instance.num_agents} robots\n"
         f"MAPF-POST ({args.post_objective}): makespan {schedule.makespan:.4g} s, clearance "
         f"{clear or 'none'}, {schedule.stats['tpg_nodes']} TPG nodes"
     )

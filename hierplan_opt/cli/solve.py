@@ -15,6 +15,7 @@ from hierplan_opt.cli.common import (
     LIMIT,
     OK,
     PLAN_SUFFIXES,
+    RESULT_FACTS,
     add_cost_argument,
     add_instance_arguments,
     add_memory_argument,
@@ -165,7 +166,7 @@ def summary(result: Any, instance: Any) -> str:
 
 
 #: Stats the summary line always shows when present, before the solver's others.
-_ALWAYS = ("stopped_by", "bound_met", "feasibility", "disappear_at_goal", "free_agents")
+_ALWAYS = (*RESULT_FACTS, "feasibility", "disappear_at_goal", "free_agents")
 
 
 def _fmt(x: Any) -> str:

@@ -209,6 +209,22 @@ class Deadline:
         )
         return {"stopped_by": self.stopped_by, "reason": reason}
 
+    def limit_stats(self, what: str) -> dict[str, str]:
+        """The entries a result's ``stats`` gets when this budget stopped ``what``: those
+        of :meth:`stop_stats` when memory ran short, else ``stopped_by="time_limit"``
+        (the name the summary line shows, as the formulations' ``stopped_by``).
+
+        Example
+        -------
+        >>> Deadline(0).limit_stats("ECBS")
+        {'stopped_by': 'time_limit'}
+        >>> d = Deadline(None)
+        >>> d.stop_for_memory()
+        >>> d.limit_stats("ECBS")["stopped_by"]
+        'memory_limit'
+        """
+        return self.stop_stats(what) or {"stopped_by": "time_limit"}
+
     def remaining(self) -> float:
         """Seconds left (``inf`` without a limit, never negative)."""
         return max(0.0, self._end - self._kept - time.perf_counter())

@@ -543,5 +543,7 @@ class _CBM:
         stats["max_network_arcs"] = low.max_arcs
         stats["flow_time"] = round(low.flow_time, 3)
         stats["runtime_internal"] = round(time.perf_counter() - self.started, 3)
+        if status is Status.TIME_LIMIT:  # only the deadline stops this search early
+            stats["stopped_by"] = "time_limit"
         cost = plan.makespan if plan is not None else None
         return Result(status, plan, cost=cost, lower_bound=bound, objective="makespan", stats=stats)

@@ -189,7 +189,7 @@ def _search(
             if cbs.exhausted:  # pragma: no cover - SOC CT never empties on a solvable tree
                 return Result(Status.INFEASIBLE, None, stats=stats)
             lb = max(cbs.lower_bound, instance.soc_lower_bound())
-            stats.update(deadline.stop_stats("CBS"))
+            stats.update(_limit_stats(cbs, deadline))
             return Result(Status.TIME_LIMIT, None, lower_bound=lb, stats=stats)
         plan = Plan.from_paths(node.paths)
         return Result(Status.OPTIMAL, plan, cost=plan.sum_of_costs, lower_bound=node.g, stats=stats)
@@ -208,10 +208,18 @@ def _search(
             plan = Plan.from_paths(node.paths)
             return Result(Status.OPTIMAL, plan, cost=plan.makespan, lower_bound=m, stats=total)
         if not cbs.exhausted:
-            total.update(deadline.stop_stats("CBS"))
+            total.update(_limit_stats(cbs, deadline))
             return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=total)
         log.info("CBS makespan: no plan with makespan %d", m)
         m += 1
         if m > NO_BOUND:  # pragma: no cover
             break
     return Result(Status.TIME_LIMIT, None, lower_bound=m, stats=total)  # pragma: no cover
+
+
+def _limit_stats(cbs: _CBS, deadline: Deadline) -> dict[str, str]:
+    """``stopped_by`` (and for memory the reason) of a search that a limit stopped:
+    ``"node_limit"`` (option ``node_limit``), ``"memory_limit"`` or ``"time_limit"``."""
+    if cbs.stopped_by is not None:
+        return {"stopped_by": cbs.stopped_by}
+    return deadline.limit_stats("CBS")

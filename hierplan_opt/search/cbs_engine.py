@@ -181,6 +181,8 @@ class _CBS:
         self.corridor_target = corridor_target
         self.greedy = greedy
         self.node_limit = node_limit
+        #: ``"node_limit"`` once :meth:`search` stopped at ``node_limit`` (else None).
+        self.stopped_by: str | None = None
         self.sub = sub
         self.stats = (
             stats
@@ -822,9 +824,10 @@ class _CBS:
         expanded = 0
         last_log = time.perf_counter()
         while openl:
-            if self.deadline.expired() or (
-                self.node_limit is not None and expanded >= self.node_limit
-            ):
+            at_limit = self.node_limit is not None and expanded >= self.node_limit
+            if at_limit or self.deadline.expired():
+                if at_limit:
+                    self.stopped_by = "node_limit"
                 if not self.greedy:  # OPEN is ordered by f: its head is the bound
                     self.lower_bound = max(self.lower_bound, openl[0][0])
                 return None

@@ -608,9 +608,12 @@ class _ECBS:
         return self.result(status, plan, cost, min(lb, cost))
 
     def timeout(self, lb: float) -> Result:
+        """The result when the limit (time or memory) stopped the search: LaCAM's plan
+        if there is one, else TIME_LIMIT; ``stats["stopped_by"]`` names the limit."""
         if self.infeasible_reason is not None:
             self.stats["reason"] = self.infeasible_reason
             return self.result(Status.INFEASIBLE, None)
+        self.stats.update(self.deadline.limit_stats(self.name.upper()))
         if self.inc_plan is not None:
             return self.from_lacam(lb)
         return self.result(Status.TIME_LIMIT, None, None, lb)

@@ -109,6 +109,7 @@ def solve(
     stats["max_flow_time"] = time.perf_counter() - t0
     if horizon is None:
         if deadline.expired():
+            stats["stopped_by"] = "time_limit"
             return Result(
                 Status.TIME_LIMIT, None, lower_bound=bound, objective=objective, stats=stats
             )

@@ -80,7 +80,13 @@ def solve(
     mapf = instance.with_goals(goals)
     remaining = deadline.remaining()
     if remaining <= 0:
-        return Result(Status.TIME_LIMIT, None, lower_bound=bound, objective=objective)
+        return Result(
+            Status.TIME_LIMIT,
+            None,
+            lower_bound=bound,
+            objective=objective,
+            stats={"stopped_by": "time_limit"},
+        )
     inner = registry.run(
         mapf_solver,
         mapf,

@@ -550,7 +550,7 @@ def solve(
     try:
         configs = search.first_solution(deadline)
     except Expired:
-        stats.update(iterations=search.iterations, nodes=search.nodes)
+        stats.update(iterations=search.iterations, nodes=search.nodes, stopped_by="time_limit")
         return Result(Status.TIME_LIMIT, None, lower_bound=lb, stats=stats)
     if configs is None:
         stats.update(iterations=search.iterations, nodes=search.nodes)
@@ -571,6 +571,11 @@ def solve(
     if cost == lb:
         proven = True
     stats.update(iterations=search.iterations, nodes=search.nodes, history=history)
+    if not proven and anytime != 0:  # the anytime phase ended at a limit, not a proof
+        if deadline.expired():
+            stats["stopped_by"] = "time_limit"
+        elif anytime is not None:
+            stats["stopped_by"] = "anytime"  # its own budget, option ``anytime``
     status = Status.OPTIMAL if proven else Status.FEASIBLE
     return Result(status, plan, cost=cost, lower_bound=cost if proven else lb, stats=stats)
 

@@ -109,12 +109,13 @@ def solve(
     prio = initial_priorities(space)
     steps = 0
     reason = ""
+    stopped_by = ""  # the limit that ended the run: "max_steps" or "time_limit"
     while tuple(q) != goal_t:
         if steps >= limit:
-            reason = f"step limit {limit} reached"
+            reason, stopped_by = f"step limit {limit} reached", "max_steps"
             break
         if deadline.expired():
-            reason = "time limit reached"
+            reason, stopped_by = "time limit reached", "time_limit"
             break
         q_to = [NIL] * space.n_agents
         if not pibt.step(q, q_to, priority_order(prio)):  # pragma: no cover - PIBT invariant
@@ -128,6 +129,8 @@ def solve(
     if reason:
         log.info("pibt: %s without reaching the goals", reason)
         stats["reason"] = reason
+        if stopped_by:
+            stats["stopped_by"] = stopped_by
         return Result(Status.TIME_LIMIT, None, lower_bound=lb, stats=stats)
     plan = space.plan(configs)
     cost = plan.sum_of_costs

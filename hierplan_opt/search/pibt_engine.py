@@ -428,7 +428,10 @@ def prepare(instance: Instance, deadline: Deadline, seed: int) -> tuple[Space, i
     except Expired:
         lb = registry.quick_lower_bound(instance)  # from the distance tables made so far
         return Result(
-            Status.TIME_LIMIT, None, lower_bound=lb, stats={"reason": "time limit while preparing"}
+            Status.TIME_LIMIT,
+            None,
+            lower_bound=lb,
+            stats={"stopped_by": "time_limit", "reason": "time limit while preparing"},
         )
     lb = space.lower_bound()
     why = space.infeasibility(instance)
