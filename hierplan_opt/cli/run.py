@@ -21,6 +21,7 @@ from hierplan_opt.cli.simulate import (
     disturbances_of,
     report_execution,
 )
+from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.options import parse_pairs
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
@@ -98,6 +99,11 @@ def run(args: argparse.Namespace) -> int:
     except infeasible as exc:
         print(f"refinement: infeasible: {exc}")
         return INFEASIBLE
+    except InputError as exc:
+        # A stop at a way-point the planned schedule does not have: name the file.
+        if args.disturbances and str(exc).startswith("disturbance "):
+            raise InputError(f"{args.disturbances}: {exc}") from None
+        raise
     res = out.result
     if res.plan is None:
         print(f"planning: {res.solver} found no plan ({res.status.value}) in {res.runtime:.3g} s")

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -131,6 +132,60 @@ def on_map(graph: Any, cell: tuple[int, ...]) -> bool:
     except InputError:
         return False
     return True
+
+
+def check_disturbances(
+    disturbances: Sequence[Disturbance], instance: Any, schedule: Any = None
+) -> None:
+    """Refuse disturbances that can never happen (one-line :class:`InputError` naming the
+    disturbance, counted from 1 as in its file): a robot not in ``instance``, a slow
+    region's cell or edge end outside the map (a region may cover obstacles), an edge
+    that is not one of the map's, and (with ``schedule``) a stop ``at_waypoint`` beyond the robot's
+    way-points.
+
+    Example
+    -------
+    >>> from hierplan_opt import Graph, Instance
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> check_disturbances([Slow(0.5, cells=((1, 0),))], inst)
+    >>> check_disturbances([Slow(0.5, cells=((9, 9),))], inst)
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: disturbance 1 (slow): cell (9, 9) is not on the map (location [9, 9] is outside the 3x1 map)
+    """
+    g = instance.graph
+    names = [a.name for a in instance.agents]
+    for i, d in enumerate(disturbances):
+        what = f"disturbance {i + 1} ({_kind(d)})"
+        if isinstance(d, (Stop, Breakdown)) and d.agent not in names:
+            raise InputError(f"{what}: no robot named {d.agent!r} in the instance")
+        if isinstance(d, Slow):
+            for c in d.cells:
+                _on_map(g, c, what, "cell")
+            for a, b in d.edges:
+                u, v = _on_map(g, a, what, "edge end"), _on_map(g, b, what, "edge end")
+                if not (g.has_edge(u, v) or g.has_edge(v, u)):
+                    raise InputError(f"{what}: {list(a)} - {list(b)} is not an edge of the map")
+        if isinstance(d, Stop) and d.at_waypoint is not None and schedule is not None:
+            k = list(schedule.agent_names).index(d.agent)
+            n = len(schedule.waypoints[k].arrival)
+            if d.at_waypoint >= n:
+                raise InputError(
+                    f"{what}: {d.agent} has {n} way-points (0..{n - 1}), no way-point "
+                    f"{d.at_waypoint}"
+                )
+
+
+def _kind(d: Disturbance) -> str:
+    return {Stop: "stop", Breakdown: "breakdown", Slow: "slow"}.get(type(d), "random")
+
+
+def _on_map(g: Any, c: tuple[int, ...], what: str, name: str) -> int:
+    try:
+        v = g.vertex(c)
+    except InputError as exc:
+        raise InputError(f"{what}: {name} {tuple(c)} is not on the map ({exc})") from None
+    return int(v)
 
 
 def _nonneg(what: str, x: float) -> None:

@@ -5,7 +5,8 @@ robots is exact (the closed form of :mod:`hierplan_opt.schedule.replay`, with it
 exact pruning of pairs that stay far apart). ``collisions`` counts pairs whose centres
 came closer than ``r_i + r_j`` (their footprints overlapped) or onto one point (any
 radius, 0 included): :func:`hierplan_opt.schedule.replay.collides`, the one
-definition; ``distance_kept`` says whether every pair kept the guaranteed ``r_i + r_j + margin``.
+definition; ``distance_kept`` says whether every pair kept the guaranteed ``r_i + r_j + margin``
+(never with a collision, also at radius 0 and margin 0).
 """
 
 from __future__ import annotations
@@ -110,7 +111,9 @@ def distances(
         worst = min(worst, float(d - need))
         if collides(d, body):
             collisions += 1
-    kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
+    # A collision is never a kept distance: at radius 0 and margin 0 two robots on one
+    # point have gap 0 >= 0, yet they collided (``collides``).
+    kept = collisions == 0 and bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
     return float(best), collisions, kept, float(worst)
 
 
