@@ -194,3 +194,28 @@ def test_library_refuses_impossible_disturbances() -> None:
     with pytest.raises(InputError, match="disturbance 2 \\(slow\\)"):
         simulate(inst, s, disturbances=[Slow(0.5, cells=((1, 0),)), Slow(0.5, cells=((4, 0),))])
     assert np.isfinite(s.makespan)
+
+
+def test_execution_min_distance_only_bounded_says_so(monkeypatch) -> None:
+    instance = load_instance_text(CORNERS)
+    sched = postprocess(instance, hp.solve(instance, "cbs").plan)
+    module = importlib.import_module("hierplan_opt.schedule.replay")
+    monkeypatch.setattr(module.skipped_minimum, "__defaults__", (0,))  # measure none
+    ex = simulate(instance, sched)
+    st = ex.statistics
+    assert st["min_distance"] == math.inf and st["min_distance_above"] is not None
+    assert all_pairs_min(ex.trajectories) > st["min_distance_above"]  # a true statement
+    from hierplan_opt.execution.report import text_report
+
+    assert f"min distance > {st['min_distance_above']:.4g} m" in text_report(ex)
+
+
+def test_delay_aware_replan_drops_stops_its_schedule_lacks() -> None:
+    from hierplan_opt.execution.montecarlo import _on_schedule
+
+    inst = hp.Instance.mapf(hp.Graph.grid(4, 1), [(0, 0)], [(3, 0)])
+    s = postprocess(inst, hp.Plan.from_paths([[0, 1, 2, 3]]))
+    n = len(s.waypoints[0].arrival)
+    kept, dropped = Stop("agent0", 1.0, at_waypoint=n - 1), Stop("agent0", 1.0, at_waypoint=n)
+    assert _on_schedule([kept, dropped, Slow(0.5, cells=((1, 0),))], s)[:1] == [kept]
+    assert dropped not in _on_schedule([kept, dropped], s)

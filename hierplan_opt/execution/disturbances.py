@@ -25,8 +25,8 @@ Bad files are refused with one line naming the file, the line and the problem.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -119,7 +119,8 @@ Disturbance = Stop | Breakdown | Slow | RandomDelays
 
 
 def on_map(graph: Any, cell: tuple[int, ...]) -> bool:
-    """Whether a disturbance's ``cell`` lies on ``graph`` (cells outside are ignored).
+    """Whether a disturbance's ``cell`` lies on ``graph`` (cells outside are ignored in a
+    phase; :func:`check_disturbances` refuses them up front).
 
     Example
     -------
@@ -137,11 +138,12 @@ def on_map(graph: Any, cell: tuple[int, ...]) -> bool:
 def check_disturbances(
     disturbances: Sequence[Disturbance], instance: Any, schedule: Any = None
 ) -> None:
-    """Refuse disturbances that can never happen (one-line :class:`InputError` naming the
-    disturbance, counted from 1 as in its file): a robot not in ``instance``, a slow
-    region's cell or edge end outside the map (a region may cover obstacles), an edge
-    that is not one of the map's, and (with ``schedule``) a stop ``at_waypoint`` beyond the robot's
-    way-points.
+    """Refuse disturbances that can never happen, with one line (:class:`InputError`)
+    naming the disturbance, counted from 1 as in its file: a slow region's cell or edge
+    end outside the map (a region may cover obstacles), an edge that is not one of the
+    map's, and (with ``schedule``) a stop ``at_waypoint`` beyond the robot's way-points.
+    Robot names are checked by the reader and by
+    :func:`~hierplan_opt.execution.simulate`.
 
     Example
     -------
@@ -151,14 +153,12 @@ def check_disturbances(
     >>> check_disturbances([Slow(0.5, cells=((9, 9),))], inst)
     Traceback (most recent call last):
     ...
-    hierplan_opt.core.errors.InputError: disturbance 1 (slow): cell (9, 9) is not on the map (location [9, 9] is outside the 3x1 map)
+    hierplan_opt.core.errors.InputError: disturbance 1 (slow): cell (9, 9) is not on the map ...
     """
     g = instance.graph
-    names = [a.name for a in instance.agents]
+    names = list(schedule.agent_names) if schedule is not None else []
     for i, d in enumerate(disturbances):
         what = f"disturbance {i + 1} ({_kind(d)})"
-        if isinstance(d, (Stop, Breakdown)) and d.agent not in names:
-            raise InputError(f"{what}: no robot named {d.agent!r} in the instance")
         if isinstance(d, Slow):
             for c in d.cells:
                 _on_map(g, c, what, "cell")
@@ -166,13 +166,15 @@ def check_disturbances(
                 u, v = _on_map(g, a, what, "edge end"), _on_map(g, b, what, "edge end")
                 if not (g.has_edge(u, v) or g.has_edge(v, u)):
                     raise InputError(f"{what}: {list(a)} - {list(b)} is not an edge of the map")
-        if isinstance(d, Stop) and d.at_waypoint is not None and schedule is not None:
-            k = list(schedule.agent_names).index(d.agent)
+        if not isinstance(d, Stop) or d.at_waypoint is None or schedule is None:
+            continue
+        wp = d.at_waypoint
+        if d.agent in names:
+            k = names.index(d.agent)
             n = len(schedule.waypoints[k].arrival)
-            if d.at_waypoint >= n:
+            if wp >= n:
                 raise InputError(
-                    f"{what}: {d.agent} has {n} way-points (0..{n - 1}), no way-point "
-                    f"{d.at_waypoint}"
+                    f"{what}: {d.agent} has {n} way-points (0..{n - 1}), no way-point {wp}"
                 )
 
 
