@@ -169,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
         ok = rep.ok and not bad
         gap = f"{rep.worst_gap:+.4g} m" if math.isfinite(rep.worst_gap) else "none close"
         line += (
-            f"; replay min distance {rep.min_distance:.4g} m, worst pair vs required {gap} "
+            f"; replay min distance {rep.min_distance_text()}, worst pair vs required {gap} "
             f"(margin {schedule.margin:.4g} m), {rep.violations} pairs too close or on one "
             f"point ({'ok' if ok else 'FAILED'})"
         )

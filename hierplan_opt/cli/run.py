@@ -22,6 +22,7 @@ from hierplan_opt.cli.simulate import (
     disturbances_of,
     report_execution,
 )
+from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.options import parse_pairs
 
 HELP = "plan, post-process and execute an instance (the whole hierarchy) with a report"
@@ -99,6 +100,11 @@ def run(args: argparse.Namespace) -> int:
     except infeasible as exc:
         print(f"refinement: infeasible: {exc}")
         return INFEASIBLE
+    except InputError as exc:
+        # A stop at a way-point the planned schedule does not have: name the file.
+        if args.disturbances and str(exc).startswith("disturbance "):
+            raise InputError(f"{args.disturbances}: {exc}") from None
+        raise
     res = out.result
     facts = result_facts(res.stats)  # stopped_by, plan_from, bound_met (as on solve's line)
     if res.plan is None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from typing import Any
 
 from hierplan_opt.cli.common import (
@@ -144,7 +145,7 @@ def execute(
     from hierplan_opt.execution import simulate
 
     check_monte_carlo(args)
-    dist = disturbances_of(args, instance)
+    dist = disturbances_of(args, instance, schedule)
     ex = simulate(
         instance,
         schedule,
@@ -166,13 +167,21 @@ def check_monte_carlo(args: argparse.Namespace) -> None:
         raise OptionError("--runs (Monte Carlo) has no physics mode: use agent, robot or replay")
 
 
-def disturbances_of(args: argparse.Namespace, instance: Any) -> list[Any]:
-    """The ``--disturbances`` file's disturbances (checked against the robots' names)."""
+def disturbances_of(args: argparse.Namespace, instance: Any, schedule: Any = None) -> list[Any]:
+    """The ``--disturbances`` file's disturbances, checked against the robots' names and
+    the map (and the way-points of ``schedule``): one that can never happen is refused
+    with one line naming the file and the disturbance, before any simulation."""
     from hierplan_opt.execution import load_disturbances
+    from hierplan_opt.execution.disturbances import check_disturbances
 
     if not args.disturbances:
         return []
-    return load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
+    dist = load_disturbances(args.disturbances, tuple(a.name for a in instance.agents))
+    try:
+        check_disturbances(dist, instance, schedule)
+    except InputError as exc:
+        raise InputError(f"{args.disturbances}: {exc}") from None
+    return dist
 
 
 def report_execution(
@@ -186,12 +195,16 @@ def report_execution(
     plan_solver: str | None = None,
 ) -> int:
     """Print the readable report of execution ``ex`` (and a Monte Carlo batch with
-    ``--runs``), write REPORT and pictures; the exit code: 0, 1 (collision or distance
-    not kept), 5 (a working robot not at its goal)."""
+    ``--runs``), write REPORT and pictures; the exit code over the base run and every
+    Monte Carlo run: 1 (a collision or the distance not kept in any), else 5 (a working
+    robot not at its goal in any), else 0."""
     from hierplan_opt.execution.report import text_report, write_report
 
     report: dict[str, Any] = ex.report()
     print(text_report(ex, title))
+    st = ex.statistics
+    unsafe = bool(st["collisions"]) or not st["distance_kept"]
+    stranded = bool(st["stranded"])
     if args.runs:
         from hierplan_opt.execution.montecarlo import monte_carlo
 
@@ -211,11 +224,23 @@ def report_execution(
         s = mc.summary()
         report = {"statistics": report["statistics"], "monte_carlo": s, **report}
         p5, p50, p95 = s["makespan_p5_p50_p95"]
+        makespan = (
+            f"makespan p5/p50/p95 {p5:.4g}/{p50:.4g}/{p95:.4g} s"
+            if math.isfinite(p50)
+            else "makespan not reached in any run"
+        )
         print(
             f"monte carlo: {mc.runs} runs ({s['runs_per_second']:.3g}/s), {mc.collisions} "
-            f"collisions, makespan p5/p50/p95 {p5:.4g}/{p50:.4g}/{p95:.4g} s, on time "
-            f"(min over locations) {s['on_time_min']:.2f}"
+            f"collisions, {makespan}, on time (min over locations) {s['on_time_min']:.2f}"
         )
+        if mc.failed_runs:
+            print(
+                f"monte carlo: FAILED: {mc.failed_runs}/{mc.runs} runs ({mc.unsafe_runs} with a "
+                f"collision or the guaranteed distance not kept, {mc.stranded_runs} with a "
+                "working robot not at its goal)"
+            )
+        unsafe = unsafe or mc.unsafe_runs > 0
+        stranded = stranded or mc.stranded_runs > 0
         if mc.below:
             print(f"{len(mc.below)} location(s) on time with less than {args.replan_below:g}")
         if mc.replanned is not None:
@@ -247,11 +272,11 @@ def report_execution(
             speed=args.animate_speed,
             progress=None if not args.quiet else False,
         )
-    st = ex.statistics
-    if st["collisions"] or not st["distance_kept"]:
+    # The base run and every Monte Carlo run: a safety failure wins over a robot away
+    # from its goal. Broken robots are listed apart and do not change the exit code.
+    if unsafe:
         return PLAN_INVALID
-    # Broken robots are listed apart and do not change the exit code.
-    return NOT_ARRIVED if st["stranded"] else OK
+    return NOT_ARRIVED if stranded else OK
 
 
 def check_execution_outputs(args: argparse.Namespace) -> None:

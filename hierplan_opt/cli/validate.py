@@ -67,7 +67,7 @@ def _schedule(args: argparse.Namespace, instance) -> int:
     line = (
         f"soc={plan.sum_of_costs} makespan={plan.makespan} agents={plan.num_agents}; "
         f"schedule makespan {schedule.makespan:.6g} s, replay min distance "
-        f"{rep.min_distance:.4g} m, margin {schedule.margin:.4g} m"
+        f"{rep.min_distance_text()}, margin {schedule.margin:.4g} m"
     )
     if not rep.ok:
         a, b = rep.worst_pair or ("?", "?")

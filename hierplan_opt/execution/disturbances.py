@@ -25,6 +25,7 @@ Bad files are refused with one line naming the file, the line and the problem.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -118,7 +119,8 @@ Disturbance = Stop | Breakdown | Slow | RandomDelays
 
 
 def on_map(graph: Any, cell: tuple[int, ...]) -> bool:
-    """Whether a disturbance's ``cell`` lies on ``graph`` (cells outside are ignored).
+    """Whether a disturbance's ``cell`` lies on ``graph`` (cells outside are ignored in a
+    phase; :func:`check_disturbances` refuses them up front).
 
     Example
     -------
@@ -131,6 +133,61 @@ def on_map(graph: Any, cell: tuple[int, ...]) -> bool:
     except InputError:
         return False
     return True
+
+
+def check_disturbances(
+    disturbances: Sequence[Disturbance], instance: Any, schedule: Any = None
+) -> None:
+    """Refuse disturbances that can never happen, with one line (:class:`InputError`)
+    naming the disturbance, counted from 1 as in its file: a slow region's cell or edge
+    end outside the map (a region may cover obstacles), an edge that is not one of the
+    map's, and (with ``schedule``) a stop ``at_waypoint`` beyond the robot's way-points.
+    Robot names are checked by the reader and by
+    :func:`~hierplan_opt.execution.simulate`.
+
+    Example
+    -------
+    >>> from hierplan_opt import Graph, Instance
+    >>> inst = Instance.mapf(Graph.grid(3, 1), [(0, 0)], [(2, 0)])
+    >>> check_disturbances([Slow(0.5, cells=((1, 0),))], inst)
+    >>> check_disturbances([Slow(0.5, cells=((9, 9),))], inst)
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: disturbance 1 (slow): cell (9, 9) is not on the map ...
+    """
+    g = instance.graph
+    names = list(schedule.agent_names) if schedule is not None else []
+    for i, d in enumerate(disturbances):
+        what = f"disturbance {i + 1} ({_kind(d)})"
+        if isinstance(d, Slow):
+            for c in d.cells:
+                _on_map(g, c, what, "cell")
+            for a, b in d.edges:
+                u, v = _on_map(g, a, what, "edge end"), _on_map(g, b, what, "edge end")
+                if not (g.has_edge(u, v) or g.has_edge(v, u)):
+                    raise InputError(f"{what}: {list(a)} - {list(b)} is not an edge of the map")
+        if not isinstance(d, Stop) or d.at_waypoint is None or schedule is None:
+            continue
+        wp = d.at_waypoint
+        if d.agent in names:
+            k = names.index(d.agent)
+            n = len(schedule.waypoints[k].arrival)
+            if wp >= n:
+                raise InputError(
+                    f"{what}: {d.agent} has {n} way-points (0..{n - 1}), no way-point {wp}"
+                )
+
+
+def _kind(d: Disturbance) -> str:
+    return {Stop: "stop", Breakdown: "breakdown", Slow: "slow"}.get(type(d), "random")
+
+
+def _on_map(g: Any, c: tuple[int, ...], what: str, name: str) -> int:
+    try:
+        v = g.vertex(c)
+    except InputError as exc:
+        raise InputError(f"{what}: {name} {tuple(c)} is not on the map ({exc})") from None
+    return int(v)
 
 
 def _nonneg(what: str, x: float) -> None:

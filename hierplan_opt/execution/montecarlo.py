@@ -38,7 +38,7 @@ from hierplan_opt.core.errors import HierplanError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.execution.chain import plan_and_post
-from hierplan_opt.execution.disturbances import Disturbance, RandomDelays
+from hierplan_opt.execution.disturbances import Disturbance, RandomDelays, Stop
 from hierplan_opt.execution.follow import check_trajectories
 from hierplan_opt.execution.replan import rescheduled
 from hierplan_opt.execution.simulate import simulate
@@ -114,20 +114,43 @@ class MonteCarloResult:
         return float(self.on_time[self.locations.index(location)])
 
     @property
+    def unsafe_runs(self) -> int:
+        """Runs with a collision or the guaranteed distance not kept."""
+        return sum(bool(s["collisions"]) or not s["distance_kept"] for s in self.runs_stats)
+
+    @property
+    def stranded_runs(self) -> int:
+        """Runs that left a working robot away from its goal (broken robots aside)."""
+        return sum(bool(s["stranded"]) for s in self.runs_stats)
+
+    @property
+    def failed_runs(self) -> int:
+        """Runs that are unsafe or left a working robot away from its goal."""
+        return sum(
+            bool(s["collisions"]) or not s["distance_kept"] or bool(s["stranded"])
+            for s in self.runs_stats
+        )
+
+    @property
     def runs_per_second(self) -> float:
         return self.runs / self.wall_time if self.wall_time > 0 else math.inf
 
     def summary(self) -> dict[str, Any]:
         """Plain values for reports."""
+        # Over the runs that reached a makespan (NaN, without a warning, when none did).
         mk = self.makespans[np.isfinite(self.makespans)]
         q = np.percentile(mk, [5, 50, 95]).tolist() if len(mk) else [math.nan] * 3
+        delays = self.delays[np.isfinite(self.delays)]
         return {
             "runs": self.runs,
             "policy": self.policy,
             "collisions": self.collisions,
+            "failed_runs": self.failed_runs,
+            "unsafe_runs": self.unsafe_runs,
+            "stranded_runs": self.stranded_runs,
             "makespan_mean": float(mk.mean()) if len(mk) else math.nan,
             "makespan_p5_p50_p95": q,
-            "delay_mean": float(np.nanmean(self.delays)) if len(self.delays) else math.nan,
+            "delay_mean": float(delays.mean()) if len(delays) else math.nan,
             "on_time_min": float(self.on_time.min()) if len(self.on_time) else 1.0,
             "on_time_mean": float(self.on_time.mean()) if len(self.on_time) else 1.0,
             "handled": dict(self.handled),
@@ -372,6 +395,7 @@ def delay_aware_replan(
         raise HierplanError(f"delay-aware re-plan: {planned.why}")
     res, sched = planned.result, planned.schedule
     assert res.plan is not None
+    delay_model = _on_schedule(delay_model, sched)
     q = threshold + (1.0 - threshold) / 2
     est = _estimate(instance, sched, delay_model, runs, workers, seed, policy, progress, mode)
     rounds = 0
@@ -399,6 +423,24 @@ def delay_aware_replan(
             mode,
         )
     return Replanned(res.plan, sched, est, rounds, solver, q)
+
+
+def _on_schedule(delay_model: Sequence[Disturbance], schedule: Schedule) -> list[Disturbance]:
+    """The delay model without the stops at way-points the new ``schedule`` does not have
+    (way-points are counted on the old schedule; the re-plan's robots may have fewer)."""
+    out: list[Disturbance] = []
+    for d in delay_model:
+        if isinstance(d, Stop) and d.at_waypoint is not None:
+            k = schedule.agent_names.index(d.agent)
+            if d.at_waypoint >= len(schedule.waypoints[k].arrival):
+                log.info(
+                    "delay-aware re-plan: %s has no way-point %d: its stop is dropped",
+                    d.agent,
+                    d.at_waypoint,
+                )
+                continue
+        out.append(d)
+    return out
 
 
 def median(xs: Sequence[float]) -> float:

@@ -13,7 +13,7 @@ from hierplan_opt.core.errors import OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.result import Result
 from hierplan_opt.execution.chain import plan_and_post
-from hierplan_opt.execution.disturbances import Disturbance
+from hierplan_opt.execution.disturbances import Disturbance, check_disturbances
 from hierplan_opt.execution.simulate import simulate
 from hierplan_opt.execution.state import MODES, Execution
 from hierplan_opt.registry import cost_keyword
@@ -93,6 +93,7 @@ def run(
     if planned.schedule is None:
         return Run(planned.result, None, None, why=planned.why, times=times)
     schedule = planned.schedule
+    check_disturbances(disturbances, instance, schedule)  # before refining or simulating
     traj = None
     if refine:
         from hierplan_opt.trajectory import refine as refine_schedule  # heavy module (CasADi)

@@ -27,7 +27,7 @@ def text_report(ex: Execution, title: str = "") -> str:
     )
     kept = "kept" if st["distance_kept"] else "NOT kept"
     lines.append(
-        f"safety: {st['collisions']} collisions, min distance {_f(st['min_distance'])} m "
+        f"safety: {st['collisions']} collisions, min distance {_min_distance(st)} m "
         f"vs guaranteed {_f(st['guaranteed_distance'])} m ({kept})"
     )
     if "acceleration_violations" in st:
@@ -64,6 +64,11 @@ def text_report(ex: Execution, title: str = "") -> str:
         lines.append(f"  not at its goal: {name}: {st['why_unfinished'][name]}")
     lines.append(outcome_line(ex))
     return "\n".join(lines)
+
+
+def _min_distance(st: dict) -> str:
+    above = st.get("min_distance_above")
+    return f"> {_f(above)}" if above is not None else _f(st["min_distance"])
 
 
 def outcome_line(ex: Execution) -> str:

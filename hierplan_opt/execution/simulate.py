@@ -49,7 +49,13 @@ from hierplan_opt.core.errors import HierplanError, InputError, OptionError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.execution import layers
 from hierplan_opt.execution.closed_loop import ClosedLoop
-from hierplan_opt.execution.disturbances import Breakdown, Disturbance, Stop, as_dict
+from hierplan_opt.execution.disturbances import (
+    Breakdown,
+    Disturbance,
+    Stop,
+    as_dict,
+    check_disturbances,
+)
 from hierplan_opt.execution.follow import check_trajectories, refined_position
 from hierplan_opt.execution.kinematic import kinematic_plant
 from hierplan_opt.execution.reorder import arc_locks, try_reorder
@@ -643,6 +649,7 @@ def simulate(
         raise InputError(
             f"the schedule has {schedule.num_agents} robots, the instance {instance.num_agents}"
         )
+    check_disturbances(disturbances, instance, schedule)
     if mode == "physics" and trajectories is not None:
         raise OptionError(
             "physics mode follows the schedule's way-points, not refined trajectories"

@@ -129,7 +129,8 @@ class Execution:
     robot_times : (N,) float or None
         Robot mode: when each robot passed each node of the first schedule's TPG.
     statistics : dict
-        ``collisions``, ``min_distance``, ``guaranteed_distance``, ``distance_kept``,
+        ``collisions``, ``min_distance`` (``inf`` only when ``min_distance_above``, a
+        bound every pair stayed above, is set), ``guaranteed_distance``, ``distance_kept``,
         ``makespan``, ``arrival_avg``, ``arrival_max``, ``arrival_sum``, ``finished``,
         ``unfinished``, ``stn_resolves``, ``reorders``, ``replans``, ``runtime`` per
         layer, ``handled`` (events per layer).

@@ -5,7 +5,8 @@ robots is exact (the closed form of :mod:`hierplan_opt.schedule.replay`, with it
 exact pruning of pairs that stay far apart). ``collisions`` counts pairs whose centres
 came closer than ``r_i + r_j`` (their footprints overlapped) or onto one point (any
 radius, 0 included): :func:`hierplan_opt.schedule.replay.collides`, the one
-definition; ``distance_kept`` says whether every pair kept the guaranteed ``r_i + r_j + margin``.
+definition; ``distance_kept`` says whether every pair kept the guaranteed ``r_i + r_j + margin``
+(never with a collision, also at radius 0 and margin 0).
 """
 
 from __future__ import annotations
@@ -22,7 +23,13 @@ from hierplan_opt.execution.follow import follow_run, required_distance
 from hierplan_opt.execution.robot import robot_run
 from hierplan_opt.execution.state import DISTURBANCE_KINDS, ExecState, Execution
 from hierplan_opt.schedule.output import Schedule, Waypoints
-from hierplan_opt.schedule.replay import _boxes, _candidate_pairs, _pair_min, collides
+from hierplan_opt.schedule.replay import (
+    _boxes,
+    _candidate_pairs,
+    _pair_min,
+    collides,
+    skipped_minimum,
+)
 
 #: Distance tolerance (metres, relative).
 TOL = 1e-9
@@ -79,7 +86,10 @@ def distances(
     """``(min distance, collisions, distance kept, worst gap)`` over every pair.
 
     ``required(i, j)`` (default ``r_i + r_j + margin``) is the distance a pair must
-    keep; ``slack`` is subtracted from every measured distance (a sampling bound).
+    keep; ``slack`` is subtracted from every measured distance (a sampling bound). The
+    minimum is over every pair (pairs pruned as far apart are measured when no pair
+    checked came as close, if at most ``EXACT_SKIPPED``); ``inf`` when it is only known
+    to exceed :func:`skipped_bound`.
 
     Example
     -------
@@ -110,8 +120,21 @@ def distances(
         worst = min(worst, float(d - need))
         if collides(d, body):
             collisions += 1
-    kept = bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
+    # A collision is never a kept distance: at radius 0 and margin 0 two robots on one
+    # point have gap 0 >= 0, yet they collided (``collides``).
+    if len(pairs) < K * (K - 1) // 2 and best > skipped_bound(instance, m, schedule.scale) - slack:
+        # No pair checked came as close as a skipped one may: measure those too (inf
+        # when there are too many: every pair stayed farther apart than the bound).
+        extra = skipped_minimum(times, pos, pairs)
+        best = math.inf if extra is None else min(best, extra[0] - slack)
+    kept = collisions == 0 and bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
     return float(best), collisions, kept, float(worst)
+
+
+def skipped_bound(instance: Instance, margin: float, scale: float) -> float:
+    """Every pair that :func:`distances` skips stays farther apart than this (metres)."""
+    r = sorted(a.kinematics.radius for a in instance.agents)
+    return float(r[0] + r[1] + margin + scale) if len(r) > 1 else math.inf
 
 
 def outcomes(
@@ -228,6 +251,12 @@ def finish(
         "mode": mode,
         "collisions": collisions,
         "min_distance": d_min,
+        # inf: every pair stayed farther apart than this (too many to measure exactly).
+        "min_distance_above": (
+            skipped_bound(instance, base.margin, schedule.scale)
+            if math.isinf(d_min) and sim.K > 1
+            else None
+        ),
         "guaranteed_distance": guaranteed,
         "trajectories": "refined" if sim.follow is not None else "constant velocity",
         "distance_bound": slack,

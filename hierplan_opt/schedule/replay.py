@@ -40,6 +40,9 @@ from hierplan_opt.schedule.stn import STN
 TOL = 1e-9
 #: Bound checks (seconds).
 BOUND_TOL = 1e-6
+#: When no pair checked came within the pruning bound, the minimum distance is completed
+#: exactly over the skipped pairs if there are at most this many (else only bounded).
+EXACT_SKIPPED = 4096
 
 
 def required_separation(r_i: float, r_j: float, margin: float = 0.0) -> float:
@@ -152,12 +155,51 @@ def pair_separations(
     return PairSeparations(pairs.astype(np.int64).reshape(-1, 2), dist, when, need, skipped, bound)
 
 
+def skipped_minimum(
+    times: list[np.ndarray],
+    positions: list[np.ndarray],
+    checked: np.ndarray,
+    limit: int = EXACT_SKIPPED,
+) -> tuple[float, int, int, float] | None:
+    """Exact ``(distance, i, j, time)`` of the closest pair among those not in
+    ``checked`` (pairs ``i < j``); None when there is none or more than ``limit``.
+
+    The pruning of :func:`pair_separations` skips pairs that stay far apart; when no
+    pair checked came closer than the skipped ones' bound, this gives the true minimum.
+
+    Example
+    -------
+    >>> t = [np.array([0.0, 1.0])] * 3
+    >>> p = [np.array([[0.0, 0.0], [0.0, 0.0]]), np.array([[5.0, 0.0], [3.0, 0.0]]),
+    ...      np.array([[9.0, 0.0], [9.0, 0.0]])]
+    >>> skipped_minimum(t, p, np.array([[0, 1]]))  # (0, 2) and (1, 2): 1 and 2 at t = 0
+    (4.0, 1, 2, 0.0)
+    """
+    K = len(times)
+    ii, jj = np.triu_indices(K, 1)
+    checked = np.asarray(checked, dtype=np.int64).reshape(-1, 2)
+    keep = ~np.isin(ii * K + jj, checked[:, 0] * K + checked[:, 1])
+    ii, jj = ii[keep], jj[keep]
+    if not 0 < len(ii) <= limit:
+        return None
+    best = (math.inf, -1, -1, math.nan)
+    for a, b in zip(ii.tolist(), jj.tolist(), strict=True):
+        d, t = _pair_min(times[a], positions[a], times[b], positions[b])
+        if d < best[0]:
+            best = (d, a, b, t)
+    return best
+
+
 @dataclass(frozen=True)
 class ReplayReport:
     """Result of :func:`replay`.
 
-    ``min_distance`` is the smallest centre distance over the pairs checked (``inf``
-    if none), reached by ``agents`` at ``time``. ``ok`` says whether every pair kept
+    ``min_distance`` is the smallest centre distance over all pairs, reached by
+    ``agents`` at ``time`` (``inf`` with fewer than two robots); ``min_distance_exact``
+    False: more than ``EXACT_SKIPPED`` pairs were skipped and none checked came within
+    ``skipped_bound``, so ``min_distance`` is the smallest over the pairs checked
+    (``inf`` if none) and the true one exceeds ``skipped_bound``
+    (:meth:`min_distance_text`). ``ok`` says whether every pair kept
     its required distance ``r_i + r_j + margin``; ``worst_gap`` is the smallest
     ``distance - required`` (for ``worst_pair``). ``by_type`` maps each pair of robot
     types to ``(smallest distance, required distance)`` over its pairs checked.
@@ -180,6 +222,14 @@ class ReplayReport:
     worst_pair: tuple[str, str] | None = None
     by_type: dict[tuple[str, str], tuple[float, float]] = field(default_factory=dict)
     violations: int = 0
+    min_distance_exact: bool = True
+
+    def min_distance_text(self) -> str:
+        """``"2 m"``, or ``"> 1.1 m"`` when only bounded (never ``inf`` for a real
+        pair of robots)."""
+        if self.min_distance_exact:
+            return f"{self.min_distance:.4g} m"
+        return f"> {self.skipped_bound:.4g} m"
 
 
 def _pair_min(ta: np.ndarray, pa: np.ndarray, tb: np.ndarray, pb: np.ndarray):
@@ -332,6 +382,15 @@ def replay(
         old = by_type.get(key, (math.inf, 0.0))
         by_type[key] = (min(old[0], d), max(old[1], need))
     ok = not bool(violated.any())
+    exact = True
+    if sep.pairs_skipped and best[0] > sep.skipped_bound:
+        # No pair checked came as close as a skipped one may: measure those too.
+        extra = skipped_minimum(times, pos, sep.pairs)
+        if extra is None:
+            exact = False
+        elif extra[0] < best[0]:
+            names = (schedule.agent_names[extra[1]], schedule.agent_names[extra[2]])
+            best = (extra[0], names, extra[3])
     return ReplayReport(
         best[0],
         best[1],
@@ -344,6 +403,7 @@ def replay(
         worst[1],
         by_type,
         int(np.count_nonzero(violated)),
+        exact,
     )
 
 
