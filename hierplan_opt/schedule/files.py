@@ -37,6 +37,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.validate import validate
+from hierplan_opt.io.files import read_head
 from hierplan_opt.schedule.output import Schedule, build_schedule, read_schedule
 from hierplan_opt.schedule.post import postprocess
 from hierplan_opt.schedule.replay import check_bounds
@@ -264,6 +265,10 @@ def is_schedule_file(path: str | Path) -> bool:
     and ``schedule`` in the first 64 kB (cheap: large YAML files take seconds to parse,
     and the reader parses them once).
 
+    Raises :class:`InputError` for what no reader reads (a missing file, a directory,
+    a FIFO, a device: :func:`~hierplan_opt.io.files.read_head`), at once: a FIFO is
+    never waited on.
+
     Example
     -------
     >>> import os, tempfile
@@ -273,11 +278,7 @@ def is_schedule_file(path: str | Path) -> bool:
     False
     """
     p = Path(path)
-    try:
-        with p.open("rb") as f:
-            head = f.read(1 << 16)
-    except OSError:
-        return False
+    head = read_head(p, 1 << 16)
     if p.suffix.lower() == ".csv":  # statistics lines first, makespan the first of them
         return head.lstrip().startswith(b"# makespan:")
     return b"arrival" in head and b"schedule" in head

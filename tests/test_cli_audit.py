@@ -1,0 +1,122 @@
+"""Defects of a user audit of the command line, each with its reproducer.
+
+A. special files (a FIFO) are refused at once by every command that reads them;
+B. any ``--seed`` works with every solver (CP-SAT and HiGHS take 32-bit seeds);
+C. ``view`` refuses a schedule or execution report of another instance;
+D. ``validate`` says a schedule whose times break its STN is invalid (exit 1);
+E. ``run``: MAPF-POST's refusal of a rotation is not "proven infeasible"; ``--a-max``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).parent.parent
+#: Two robots in a row (the audit's instance).
+TRAIN = """\
+map: {dimensions: [5, 1], obstacles: []}
+agents:
+  - {name: agent0, start: [0, 0], goal: [3, 0]}
+  - {name: agent1, start: [1, 0], goal: [4, 0]}
+"""
+TIMEOUT = 60
+
+
+def hierplan(cwd: Path, *argv: str) -> subprocess.CompletedProcess[str]:
+    """``hierplan ARGV`` as its own process (a hang ends in ``TimeoutExpired``)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.run(
+        [sys.executable, "-m", "hierplan_opt", *argv],
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT,
+        cwd=cwd,
+        env=env,
+        check=False,
+    )
+
+
+def one_line_error(err: str, command: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith(("INFO", "DEBUG"))]
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"hierplan {command}: error: "), lines[0]
+    return lines[0]
+
+
+@pytest.fixture
+def train(tmp_path: Path) -> Path:
+    p = tmp_path / "train.yaml"
+    p.write_text(TRAIN)
+    return p
+
+
+# ---------------------------------------------------------------- A: FIFOs
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["validate", "train.yaml", "fifo.yaml"],
+        ["simulate", "train.yaml", "fifo.yaml", "--out", "x.yaml"],
+        ["sweep", "fifo.yaml", "--dry-run"],
+        ["sweep", "report", "fifo.yaml"],
+        ["sweep", "export", "fifo.yaml", "o.csv"],
+        ["sweep", "--resume", "--db", "fifo.yaml"],
+    ],
+    ids=lambda a: " ".join(a[:2]),
+)
+def test_fifo_refused_at_once(train: Path, argv: list[str]) -> None:
+    d = train.parent
+    os.mkfifo(d / "fifo.yaml")
+    res = hierplan(d, *argv)
+    assert res.returncode == 2, res.stderr
+    line = one_line_error(res.stderr, argv[0])
+    assert "fifo.yaml: is a FIFO (named pipe), not a regular file" in line
+    assert not (d / "x.yaml").exists() and not (d / "o.csv").exists()
+
+
+def test_sweep_db_fifo_refused(tmp_path: Path) -> None:
+    """A FIFO given as the sweep's database is refused, not opened by SQLite."""
+    spec = tmp_path / "s.yaml"
+    spec.write_text(
+        "solvers: [{name: cbs}]\n"
+        "instances: [{generator: random_grid, params: {width: 8, height: 8}}]\n"
+        "agents: [2]\n"
+    )
+    os.mkfifo(tmp_path / "db.sqlite")
+    res = hierplan(tmp_path, "sweep", "s.yaml", "--db", "db.sqlite", "--no-progress")
+    assert res.returncode == 2, res.stderr
+    assert "db.sqlite: is a FIFO (named pipe), not a regular file" in one_line_error(
+        res.stderr, "sweep"
+    )
+
+
+def test_sniffers_refuse_a_fifo(tmp_path: Path) -> None:
+    """The format sniffers refuse a FIFO without opening it for a blocking read (a
+    watchdog turns a hang into a failure)."""
+    import signal
+
+    from hierplan_opt.core.errors import InputError
+    from hierplan_opt.experiments import store
+    from hierplan_opt.schedule.files import is_schedule_file
+
+    fifo = tmp_path / "f.yaml"
+    os.mkfifo(fifo)
+
+    def hang(signum: int, frame: object) -> None:
+        raise TimeoutError("blocked on a FIFO")
+
+    old = signal.signal(signal.SIGALRM, hang)
+    signal.alarm(20)
+    try:
+        with pytest.raises(InputError, match="is a FIFO"):
+            is_schedule_file(fifo)
+        assert store.is_database(fifo) is False
+        with pytest.raises(InputError, match="is a FIFO"):
+            store.open_existing(fifo)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
