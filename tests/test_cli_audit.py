@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from hierplan_opt.cli import main
+
 ROOT = Path(__file__).parent.parent
 #: Two robots in a row (the audit's instance).
 TRAIN = """\
@@ -120,3 +122,63 @@ def test_sniffers_refuse_a_fifo(tmp_path: Path) -> None:
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+
+
+# ---------------------------------------------------------------- B: seeds
+@pytest.mark.parametrize("seed", [2**31, 2**63 + 5, -(2**31) - 1])
+@pytest.mark.parametrize("solver", ["cpsat", "mip"])
+def test_any_seed_with_the_formulations(
+    train: Path, capsys: pytest.CaptureFixture[str], solver: str, seed: int
+) -> None:
+    """A seed outside the C library's 32-bit range solves (it was an internal error
+    with cpsat, and silently ignored by HiGHS)."""
+    out = train.parent / "p.yaml"
+    code = main(["solve", str(train), "--solver", solver, "--seed", str(seed), "--out", str(out)])
+    got, err = capsys.readouterr()
+    assert code == 0, err
+    assert got.startswith("OPTIMAL cost=6 ") and out.exists()
+    assert main(["validate", str(train), str(out)]) == 0
+
+
+def test_seeds_reach_the_c_libraries_in_range() -> None:
+    """What CP-SAT and HiGHS are given: the seed itself when it fits, else a value in
+    their range that differs between neighbouring seeds (a batch S, S+1, ... stays
+    distinct)."""
+    import highspy
+
+    from hierplan_opt.formulations.horizon import fold_seed
+    from hierplan_opt.formulations.mip import _highs
+
+    for seed in (0, 12345, 2**31 - 1):
+        assert _highs(seed).highs_options["random_seed"] == seed
+    h = highspy.Highs()
+    h.setOptionValue("output_flag", False)
+    folded = [_highs(s).highs_options["random_seed"] for s in (2**31, 2**31 + 1, -1, 2**70 + 7)]
+    assert len(set(folded)) == 4
+    for v in folded:
+        assert h.setOptionValue("random_seed", v) == highspy.HighsStatus.kOk
+        assert h.getOptionValue("random_seed")[1] == v
+    for seed in (-5, 2**31 - 1, -(2**31)):
+        assert fold_seed(seed, -(2**31), 2**31 - 1) == seed
+    assert fold_seed(2**31, -(2**31), 2**31 - 1) != fold_seed(2**31 + 1, -(2**31), 2**31 - 1)
+
+
+@pytest.mark.parametrize("command", ["simulate", "run"])
+def test_negative_execution_seed_refused(
+    train: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    """NumPy takes no negative seed: one line and exit 2, not an internal error."""
+    d = train.parent
+    dist = d / "d.yaml"
+    dist.write_text(
+        "disturbances:\n  - {kind: random, probability: 0.5, duration: {exponential: 2.0}}\n"
+    )
+    argv = [command, str(train)]
+    if command == "simulate":
+        argv += [str(train), "--out", str(d / "r.yaml")]  # refused before the plan is read
+    with pytest.raises(SystemExit) as info:  # a usage error: argparse exits
+        main([*argv, "--disturbances", str(dist), "--seed", "-1"])
+    _, err = capsys.readouterr()
+    assert info.value.code == 2, err
+    assert "--seed: expected an integer >= 0, got '-1'" in one_line_error(err, command)
+    assert not (d / "r.yaml").exists()
