@@ -182,3 +182,58 @@ def test_negative_execution_seed_refused(
     assert info.value.code == 2, err
     assert "--seed: expected an integer >= 0, got '-1'" in one_line_error(err, command)
     assert not (d / "r.yaml").exists()
+
+
+# ---------------------------------------------------------------- C: view of a foreign file
+MOVINGAI = ROOT / "instances" / "movingai"
+EIGHT = [str(MOVINGAI / "empty-8-8.map"), "--scen", str(MOVINGAI / "empty-8-8-even-1.scen")]
+
+
+def _schedule_and_report(d: Path, instance: list[str], tag: str) -> tuple[Path, Path]:
+    plan, sched, report = d / f"p{tag}.yaml", d / f"s{tag}.yaml", d / f"r{tag}.yaml"
+    assert main(["-q", "solve", *instance, "--out", str(plan)]) == 0
+    assert main(["-q", "post", *instance, str(plan), "--out", str(sched)]) == 0
+    assert main(["-q", "simulate", *instance, str(sched), "--out", str(report)]) == 0
+    return sched, report
+
+
+@pytest.mark.parametrize("which", ["schedule", "report"])
+def test_view_refuses_a_file_of_another_instance(
+    train: Path, capsys: pytest.CaptureFixture[str], which: str
+) -> None:
+    d = train.parent
+    sched, report = _schedule_and_report(d, [*EIGHT, "--agents", "8"], "8")
+    foreign = sched if which == "schedule" else report
+    capsys.readouterr()
+    # simulate refuses it ...
+    assert main(["simulate", str(train), str(foreign), "--out", str(d / "x.yaml")]) == 2
+    _, err = capsys.readouterr()
+    expected = one_line_error(err, "simulate").split("error: ", 1)[1]
+    assert "does not belong to this instance" in expected
+    # ... and view the same way, writing nothing
+    page = d / "y.html"
+    assert main(["view", str(train), str(foreign), "--out", str(page)]) == 2
+    out, err = capsys.readouterr()
+    line = one_line_error(err, "view")
+    assert f"{foreign}: schedule: unknown agent 'agent2'" in line
+    assert f"(the {which} does not belong to this instance)" in line
+    assert out == "" and not page.exists()
+
+
+def test_view_refuses_same_names_other_starts(
+    train: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Robots of the same names that start elsewhere: another instance too."""
+    d = train.parent
+    sched, report = _schedule_and_report(d, [str(train)], "t")
+    page = d / "ok.html"
+    assert main(["-q", "view", str(train), str(report), "--out", str(page)]) == 0
+    assert page.exists()
+    other = d / "other.yaml"
+    other.write_text(TRAIN.replace("start: [0, 0], goal: [3, 0]", "start: [2, 0], goal: [0, 0]"))
+    for f in (sched, report):
+        capsys.readouterr()
+        assert main(["view", str(other), str(f), "--out", str(d / "y.html")]) == 2
+        line = one_line_error(capsys.readouterr().err, "view")
+        assert f"{f}: the first way-point of 'agent0' is not its start" in line
+        assert not (d / "y.html").exists()

@@ -67,7 +67,7 @@ def plan_from_tree(instance: Instance, tree: Any, where: str) -> Plan:
     g = instance.graph
     if not isinstance(tree, dict):
         raise InputError(f"{where}: 'plan' must map agent names to visit lists")
-    _same_agents(where, "plan", tree, [a.name for a in instance.agents])
+    same_agents(where, "plan", tree, [a.name for a in instance.agents])
     paths: list[list[int]] = []
     for a in instance.agents:
         rows = tree[a.name]
@@ -97,14 +97,26 @@ def plan_from_tree(instance: Instance, tree: Any, where: str) -> Plan:
     return Plan.from_paths([p + [p[-1]] * (horizon - len(p)) for p in paths])
 
 
-def _same_agents(where: str, block: str, tree: dict, names: list[str]) -> None:
+def same_agents(
+    where: str, block: str, tree: dict, names: list[str], kind: str = "schedule"
+) -> None:
+    """Refuse (one line naming ``where`` and ``block``) a mapping ``tree`` whose agent
+    names are not exactly ``names``: a file of another instance (``kind``: what the
+    file is, for the message). The check every reader of schedule files and execution
+    reports makes (``simulate``, ``validate``, ``view``).
+
+    Example
+    -------
+    >>> same_agents("r.yaml", "schedule", {"agent0": [], "agent9": []}, ["agent0"], "report")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: r.yaml: schedule: unknown agent 'agent9' (the report ...)
+    """
     missing = [n for n in names if n not in tree]
     extra = [n for n in tree if n not in names]
     if missing or extra:
         what = f"no entry for {missing[0]!r}" if missing else f"unknown agent {extra[0]!r}"
-        raise InputError(
-            f"{where}: {block}: {what} (the schedule does not belong to this instance)"
-        )
+        raise InputError(f"{where}: {block}: {what} (the {kind} does not belong to this instance)")
 
 
 # ---------------------------------------------------------------------- way-points
@@ -114,7 +126,7 @@ def _read_rows(
     """Way-point coordinates and arrival times of every robot of the file."""
     if not isinstance(sched, dict):
         raise InputError(f"{where}: 'schedule' must map agent names to way-point lists")
-    _same_agents(where, "schedule", sched, names)
+    same_agents(where, "schedule", sched, names)
     axes = ("x", "y", "z")[:dim]
     rows: list[np.ndarray] = []
     arrivals: list[np.ndarray] = []
