@@ -237,3 +237,36 @@ def test_view_refuses_same_names_other_starts(
         line = one_line_error(capsys.readouterr().err, "view")
         assert f"{f}: the first way-point of 'agent0' is not its start" in line
         assert not (d / "y.html").exists()
+
+
+# ---------------------------------------------------------------- D: validate's exit code
+def test_validate_schedule_breaking_its_stn_is_invalid(
+    train: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """agent0 reaches (2, 0) while agent1 is still there: the schedule is invalid (exit
+    1, the broken bound on one line), not bad input (exit 2)."""
+    import yaml
+
+    d = train.parent
+    plan, sched = d / "p.yaml", d / "s.yaml"
+    assert main(["-q", "solve", str(train), "--out", str(plan)]) == 0
+    assert main(["-q", "post", str(train), str(plan), "--margin", "0", "--out", str(sched)]) == 0
+    assert main(["validate", str(train), str(sched)]) == 0
+    data = yaml.safe_load(sched.read_text())
+    rows = data["schedule"]["agent0"]
+    k = next(i for i, w in enumerate(rows) if (w["x"], w["y"]) == (2, 0))
+    leave = next(w["arrival"] for w in data["schedule"]["agent1"] if (w["x"], w["y"]) == (3, 0))
+    rows[k]["arrival"] = leave - 0.5  # agent1 still stands on (2, 0)
+    sched.write_text(yaml.safe_dump(data))
+    capsys.readouterr()
+    assert main(["validate", str(train), str(sched)]) == 1
+    out, err = capsys.readouterr()
+    lines = out.strip().splitlines()
+    assert len(lines) == 1 and err.strip() == "", (out, err)
+    assert lines[0].startswith(f"{sched}: the times break a bound of the plan's STN: ")
+    assert "-> agent0 at (2, 0): " in lines[0] and "< lower bound" in lines[0]
+    # a file of another instance stays bad input
+    other = d / "other.yaml"
+    other.write_text(TRAIN.replace("agent1", "agent9"))
+    assert main(["validate", str(other), str(sched)]) == 2
+    assert "does not belong to this instance" in one_line_error(capsys.readouterr().err, "validate")

@@ -51,6 +51,13 @@ MATCH_TOL = 1e-5
 ROUND_TOL = 1e-8
 
 
+class InvalidScheduleError(InputError):
+    """A schedule file that belongs to the instance and reads, but is invalid: its plan
+    breaks the rules, or its times break a bound of the plan's STN (or the timing of a
+    turn in place). ``hierplan validate`` reports it as invalid (exit code 1); every
+    other reader refuses it as bad input."""
+
+
 # ---------------------------------------------------------------------- the plan
 def plan_from_tree(instance: Instance, tree: Any, where: str) -> Plan:
     """The plan of a file's ``plan`` block (:func:`plan_tree`'s layout).
@@ -302,7 +309,8 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     The returned :class:`Schedule` has the file's times, their windows, the STN rebuilt
     from the file's plan and settings (``schedule.stn``), and ``schedule.plan`` /
     ``schedule.settings``. Raises :class:`InputError` with one line naming the file when
-    it does not belong to ``instance``, its plan is invalid, or its times break a bound.
+    it cannot be read or does not belong to ``instance``, and its subclass
+    :class:`InvalidScheduleError` when its plan is invalid or its times break a bound.
 
     Example
     -------
@@ -335,7 +343,7 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     bad = validate(instance, plan)
     if bad:
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise InputError(f"{where}: the schedule's plan is invalid: {bad[0]}{more}")
+        raise InvalidScheduleError(f"{where}: the schedule's plan is invalid: {bad[0]}{more}")
     try:
         rebuilt = postprocess(
             instance,
@@ -367,7 +375,10 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
         times = np.array(rebuilt.times)  # the earliest schedule: exact, not rounded
     broken = check_bounds(stn, times)
     if broken:
-        raise InputError(f"{where}: the times break a bound of the plan's STN: {broken[0]}")
+        more = f" (and {len(broken) - 1} more)" if len(broken) > 1 else ""
+        raise InvalidScheduleError(
+            f"{where}: the times break a bound of the plan's STN: {broken[0]}{more}"
+        )
     early, late = windows(stn, times)
     req = stn.tpg.requirement
     stats = data.get("statistics")
@@ -390,7 +401,7 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     for name, t, wp in zip(names, arrivals, out.waypoints, strict=True):
         if not np.allclose(t, wp.arrival, atol=MATCH_TOL):
             k = int(np.argmax(np.abs(t - wp.arrival)))
-            raise InputError(
+            raise InvalidScheduleError(
                 f"{where}: way-point {k} of {name!r} arrives at {t[k]:g} s but its turn in "
                 f"place makes it {wp.arrival[k]:g} s"
             )
