@@ -270,3 +270,55 @@ def test_validate_schedule_breaking_its_stn_is_invalid(
     other.write_text(TRAIN.replace("agent1", "agent9"))
     assert main(["validate", str(other), str(sched)]) == 2
     assert "does not belong to this instance" in one_line_error(capsys.readouterr().err, "validate")
+
+
+# ---------------------------------------------------------------- E: run's two messages
+#: Four robots on a 2x2 map, each to the next corner clockwise: the optimal plan rotates
+#: them all at once, which MAPF-POST refuses under a margin > 0.
+ROTATION = """\
+map: {dimensions: [2, 2], obstacles: []}
+agents:
+  - {name: agent0, start: [0, 0], goal: [0, 1]}
+  - {name: agent1, start: [0, 1], goal: [1, 1]}
+  - {name: agent2, start: [1, 1], goal: [1, 0]}
+  - {name: agent3, start: [1, 0], goal: [0, 0]}
+"""
+
+
+def test_run_rotation_is_not_proven_infeasible(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`run` refuses the rotation as `post` does (one line with post's advice, exit 2),
+    not as a proven infeasible instance (exit 3); with `--margin 0` it runs."""
+    rot = tmp_path / "rot.yaml"
+    rot.write_text(ROTATION)
+    plan = tmp_path / "p.yaml"
+    assert main(["-q", "solve", str(rot), "--out", str(plan)]) == 0
+    capsys.readouterr()
+    assert main(["post", str(rot), str(plan), "--out", str(tmp_path / "s.yaml")]) == 2
+    post_line = one_line_error(capsys.readouterr().err, "post")
+    reason = post_line.split("error: ", 1)[1]
+    assert "rotate" in reason and "use margin 0" in reason
+    report = tmp_path / "r.yaml"
+    code = main(["run", str(rot), "--out", str(report)])
+    out, err = capsys.readouterr()
+    assert code == 2, (out, err)
+    assert reason in one_line_error(err, "run") and out == ""
+    assert not report.exists()
+    assert main(["-q", "run", str(rot), "--margin", "0", "--out", str(report)]) == 0
+    assert report.exists()
+
+
+def test_run_refine_takes_a_max(capsys: pytest.CaptureFixture[str]) -> None:
+    """The refinement asks for an acceleration limit: `run` takes `--a-max` as `refine`
+    does, and the message names that option."""
+    fig3 = str(ROOT / "instances" / "paper" / "figure3.yaml")
+    code = main(["run", fig3, "--solver", "cbm", "--refine"])
+    out, err = capsys.readouterr()
+    assert code == 2, (out, err)
+    assert "--a-max" in one_line_error(err, "run")
+    assert main(["run", fig3, "--solver", "cbm", "--refine", "--a-max", "1.5"]) == 0
+    out, _ = capsys.readouterr()
+    assert "refined (path mode)" in out and "3/3 robots at their own goals" in out
+    assert main(["run", fig3, "--solver", "cbm", "--a-max", "1.5"]) == 2
+    assert "--a-max" in one_line_error(capsys.readouterr().err, "run")
