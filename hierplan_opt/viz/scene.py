@@ -223,7 +223,7 @@ def _rows_to_keys(
     """Per robot its way-points as rows (arrival, x, y[, z]); a file of another
     instance (other robots, or a robot that does not start at its start) is refused
     as ``simulate`` refuses it."""
-    from hierplan_opt.schedule.files import same_agents
+    from hierplan_opt.schedule.files import same_agents  # loads MAPF-POST: only here
 
     same_agents(str(path), "schedule", dict(sched), [a.name for a in instance.agents], kind)
     axes = ("x", "y", "z")[: instance.graph.dim]
