@@ -64,6 +64,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="refine the schedule into smooth trajectories (CasADi) and follow them",
     )
+    p.add_argument(
+        "--a-max",
+        type=positive_float,
+        metavar="A",
+        help="with --refine: acceleration limit (m/s^2) for robots without one (as in "
+        "`hierplan refine --a-max`)",
+    )
     add_execution_arguments(p)
     p.add_argument("--out", metavar="REPORT", help="report YAML (statistics, events, schedule)")
 
@@ -73,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
 
     check_execution_outputs(args)
     check_monte_carlo(args)
+    if args.a_max is not None and not args.refine:
+        raise InputError("--a-max applies to the refinement: give it with --refine")
     options = registry.get(args.solver).load().options.parse(parse_pairs(args.set), args.solver)
     instance = load_instance_from_args(args)
     dist = disturbances_of(args, instance)
@@ -93,6 +102,7 @@ def run(args: argparse.Namespace) -> int:
             cost=cost_of(args),
             margin=args.margin,
             refine=args.refine,
+            a_max=args.a_max,
             seed=args.seed,
             replan_solver=args.replan_solver or "auto",
             solver_options=options,
@@ -113,8 +123,9 @@ def run(args: argparse.Namespace) -> int:
         return INFEASIBLE if res.status.value == "INFEASIBLE" else LIMIT
     schedule = out.schedule
     if schedule is None or out.execution is None:
-        print(f"MAPF-POST: {out.why}")
-        return INFEASIBLE
+        # as `hierplan post` refuses the plan (e.g. robots rotating through a cycle
+        # under a margin > 0, with its advice): bad input, exit 2; not "infeasible"
+        raise InputError(out.why)
     clear = ", ".join(
         f"{a}/{b} {c.required:.3g} m" for c in schedule.clearance for a, b in [c.types]
     )

@@ -14,6 +14,7 @@ from hierplan_opt.cli.common import (
     check_outputs,
     fraction,
     load_instance_from_args,
+    non_negative_int,
     positive_float,
     positive_int,
 )
@@ -43,7 +44,9 @@ def add_execution_arguments(p: argparse.ArgumentParser) -> None:
         "the same dynamics open loop on the agent run's event times; physics: the same "
         "closed loop over robots in MuJoCo (docs/physics.md)",
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed (default 0)")
+    p.add_argument(
+        "--seed", type=non_negative_int, default=0, metavar="S", help="random seed >= 0 (default 0)"
+    )
     p.add_argument("--runs", type=positive_int, metavar="N", help="Monte Carlo: N seeded runs")
     p.add_argument("--workers", type=positive_int, metavar="W", help="Monte Carlo processes")
     p.add_argument(

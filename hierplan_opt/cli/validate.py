@@ -15,7 +15,6 @@ from hierplan_opt.cli.common import (
     load_instance_from_args,
     tracker_y_note,
 )
-from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.validate import validate
 from hierplan_opt.search.libmrp import annotated_violations, checked_form
 
@@ -51,14 +50,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _schedule(args: argparse.Namespace, instance) -> int:
-    """A schedule file: its plan (validated by the reader), bounds and replay."""
+    """A schedule file: its plan (validated by the reader), bounds and replay. An
+    invalid plan or times that break a bound: one line, exit 1; a file that cannot be
+    read or belongs to another instance: bad input (exit 2)."""
     from hierplan_opt.schedule import load_schedule, replay
+    from hierplan_opt.schedule.files import InvalidScheduleError
 
     try:
         schedule = load_schedule(args.plan, instance)
-    except InputError as exc:
-        if "plan is invalid" not in str(exc):
-            raise
+    except InvalidScheduleError as exc:
         print(exc)
         return PLAN_INVALID
     plan = schedule.plan

@@ -58,6 +58,7 @@ def run(
     objective: str | None = None,
     margin: float | None = None,
     refine: bool = False,
+    a_max: float | None = None,
     seed: int = 0,
     dt: float = 0.1,
     replan_solver: str = "auto",
@@ -66,8 +67,10 @@ def run(
 ) -> Run:
     """Plan ``instance`` with ``solver`` (validated; ``cost``: ``"soc"`` or ``"makespan"``,
     ``objective=`` its deprecated name), MAPF-POST it (objective ``post``),
-    optionally refine it into smooth trajectories, and execute it under
-    ``disturbances`` with the execution ``policy`` (see :func:`.simulate`).
+    optionally refine it into smooth trajectories (``a_max``: the acceleration limit of
+    robots whose kinematics give none, as in :func:`~hierplan_opt.trajectory.refine`),
+    and execute it under ``disturbances`` with the execution ``policy`` (see
+    :func:`.simulate`).
 
     Example
     -------
@@ -99,7 +102,7 @@ def run(
         from hierplan_opt.trajectory import refine as refine_schedule  # heavy module (CasADi)
 
         t1 = time.perf_counter()
-        traj = refine_schedule(instance, schedule, stretch="auto")
+        traj = refine_schedule(instance, schedule, stretch="auto", a_max=a_max)
         times["refine"] = time.perf_counter() - t1
     if mode not in MODES:
         raise OptionError(f"unknown mode {mode!r} (use {', '.join(MODES)})")

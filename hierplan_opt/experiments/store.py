@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.io.files import read_head
 from hierplan_opt.io.values import to_json
 
 #: Columns of ``runs`` in order, with their SQLite types.
@@ -55,11 +56,10 @@ _SQLITE_MAGIC = b"SQLite format 3\x00"
 
 
 def is_database(path: str | Path) -> bool:
-    """True when ``path`` is an SQLite file."""
+    """True when ``path`` is an SQLite file (a regular file: a FIFO is never waited on)."""
     try:
-        with open(path, "rb") as f:
-            return f.read(16) == _SQLITE_MAGIC
-    except OSError:
+        return read_head(path, 16) == _SQLITE_MAGIC
+    except InputError:
         return False
 
 
@@ -74,7 +74,8 @@ def connect(path: str | Path) -> sqlite3.Connection:
     set()
     """
     p = Path(path)
-    if p.exists() and p.stat().st_size > 0 and not is_database(p):
+    # an existing FIFO or device is refused at once (read_head), never opened by SQLite
+    if p.exists() and read_head(p, 16) not in (b"", _SQLITE_MAGIC):
         raise InputError(f"{p}: not an SQLite database")
     p.parent.mkdir(parents=True, exist_ok=True)
     con = sqlite3.connect(p, timeout=30.0)
@@ -91,9 +92,7 @@ def connect(path: str | Path) -> sqlite3.Connection:
 def open_existing(path: str | Path) -> sqlite3.Connection:
     """Open a sweep database that must exist and hold a ``runs`` table."""
     p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{p}: no such file")
-    if not is_database(p):
+    if read_head(p, 16) != _SQLITE_MAGIC:  # refuses a missing file, a FIFO, a device
         raise InputError(f"{p}: not an SQLite database")
     con = sqlite3.connect(p, timeout=30.0)
     if con.execute("SELECT name FROM sqlite_master WHERE name='runs'").fetchone() is None:

@@ -38,7 +38,7 @@ from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import active
 from hierplan_opt.core.result import Result, Status
 from hierplan_opt.core.validate import validate
-from hierplan_opt.formulations.horizon import Outcome, solve_with
+from hierplan_opt.formulations.horizon import Outcome, fold_seed, solve_with
 from hierplan_opt.formulations.memory import memory_budget
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 from hierplan_opt.registry import solver
@@ -196,7 +196,7 @@ class CpSatBackend:
         cp = cp_model.CpSolver()
         p = cp.parameters
         p.num_workers = self.workers
-        p.random_seed = int(seed)
+        p.random_seed = fold_seed(seed, -(2**31), 2**31 - 1)  # an int32 in CP-SAT
         p.log_search_progress = False
         # Measured on random-32-32-20 (10 agents): probing in presolve costs far more than
         # it saves on these models (SOC network at slack 4: 31 s at probing level 1, 2 s

@@ -90,6 +90,24 @@ class Backend(Protocol):
     ) -> Outcome: ...
 
 
+def fold_seed(seed: int, low: int, high: int) -> int:
+    """``seed`` folded into the range ``[low, high]`` of a C library's seed (CP-SAT:
+    a signed 32-bit integer; HiGHS: 0 .. 2**31 - 1), so every integer seed works.
+
+    Seeds in the range are kept; the others are taken modulo the range's size, which
+    is deterministic (one seed, one run) and keeps the seeds ``S, S+1, ...`` of a
+    batch distinct.
+
+    Example
+    -------
+    >>> fold_seed(7, 0, 2**31 - 1), fold_seed(2**31, 0, 2**31 - 1), fold_seed(-1, 0, 2**31 - 1)
+    (7, 0, 2147483647)
+    >>> fold_seed(-5, -(2**31), 2**31 - 1), fold_seed(2**31, -(2**31), 2**31 - 1)
+    (-5, -2147483648)
+    """
+    return low + (int(seed) - low) % (high - low + 1)
+
+
 def detours(instance: Instance, horizon: int) -> list[int]:
     """Per commodity, the detour budget of the small first network at ``horizon``.
 

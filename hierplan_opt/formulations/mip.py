@@ -34,7 +34,7 @@ from hierplan_opt.core.options import Option
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import watching_highs
 from hierplan_opt.core.result import Result, Status
-from hierplan_opt.formulations.horizon import Outcome, solve_with
+from hierplan_opt.formulations.horizon import Outcome, fold_seed, solve_with
 from hierplan_opt.formulations.time_expanded import TimeExpandedNetwork
 from hierplan_opt.registry import solver
 
@@ -144,7 +144,8 @@ def _highs(seed: int) -> Any:
     opt.config.stream_solver = False
     opt.config.log_level = logging.DEBUG  # HiGHS' banner and log go to DEBUG, not INFO
     opt.highs_options = {
-        "random_seed": int(seed),
+        # HiGHS ignores (with a log line) a seed outside 0 .. 2**31 - 1
+        "random_seed": fold_seed(seed, 0, 2**31 - 1),
         "mip_rel_gap": 0.0,
         # Objectives are integers: a gap below 1 already proves the incumbent optimal.
         "mip_abs_gap": 1.0 - 1e-6,

@@ -166,24 +166,12 @@ def _kind(mode: int) -> str:
 
 
 # ---------------------------------------------------------------------- reading
-def read_bytes(path: str | Path) -> bytes:
-    """The bytes of the regular file ``path``, at most ``limits().max_bytes`` of them.
-
-    Refuses, with one line naming the file: a missing file, a directory, a FIFO, a
-    socket, a device (``/dev/zero``, ``/dev/urandom``, also behind a symbolic link), an
-    unreadable file and a file over the size limit. Never blocks: the file is opened
-    non-blocking and checked with ``fstat`` before anything is read.
-
-    Example
-    -------
-    >>> read_bytes("/dev/zero")
-    Traceback (most recent call last):
-    ...
-    hierplan_opt.core.errors.InputError: /dev/zero: is a character device, not a regular file
-    """
-    p = Path(path)
+def _open_regular(path: str | Path) -> tuple[int, os.stat_result]:
+    """A descriptor of the regular file ``path`` and its ``fstat``, opened non-blocking
+    (a FIFO is never waited on); anything else is refused with one line naming the file."""
     if str(path) == "":
         raise InputError("an input file name is empty")
+    p = Path(path)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
     flags |= getattr(os, "O_BINARY", 0)
     try:
@@ -203,6 +191,52 @@ def read_bytes(path: str | Path) -> bytes:
     except BaseException:
         os.close(fd)
         raise
+    return fd, st
+
+
+def read_head(path: str | Path, size: int) -> bytes:
+    """The first ``size`` bytes (fewer if the file is shorter) of the regular file
+    ``path``: what a reader sniffs to tell formats apart. Refuses exactly what
+    :func:`read_bytes` refuses (a FIFO, a device, a directory, a missing file) and, like
+    it, never blocks.
+
+    Example
+    -------
+    >>> import os, tempfile
+    >>> d = tempfile.mkdtemp()
+    >>> read_head(write_text(os.path.join(d, "h.txt"), "hello"), 2)
+    b'he'
+    >>> os.mkfifo(os.path.join(d, "f"))
+    >>> read_head(os.path.join(d, "f"), 2)
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: ...f: is a FIFO (named pipe), not a regular file
+    """
+    fd, _ = _open_regular(path)
+    with os.fdopen(fd, "rb", buffering=0) as f:
+        try:
+            return f.read(size) or b""
+        except OSError as exc:
+            raise InputError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
+def read_bytes(path: str | Path) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limits().max_bytes`` of them.
+
+    Refuses, with one line naming the file: a missing file, a directory, a FIFO, a
+    socket, a device (``/dev/zero``, ``/dev/urandom``, also behind a symbolic link), an
+    unreadable file and a file over the size limit. Never blocks: the file is opened
+    non-blocking and checked with ``fstat`` before anything is read.
+
+    Example
+    -------
+    >>> read_bytes("/dev/zero")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: /dev/zero: is a character device, not a regular file
+    """
+    p = Path(path)
+    fd, st = _open_regular(path)
     with os.fdopen(fd, "rb", buffering=0) as f:
         cap = limits().max_bytes
         if st.st_size > cap:
@@ -462,6 +496,7 @@ __all__ = [
     "input_limits",
     "limits",
     "read_bytes",
+    "read_head",
     "read_text",
     "set_limits",
     "size_text",

@@ -37,6 +37,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.validate import validate
+from hierplan_opt.io.files import read_head
 from hierplan_opt.schedule.output import Schedule, build_schedule, read_schedule
 from hierplan_opt.schedule.post import postprocess
 from hierplan_opt.schedule.replay import check_bounds
@@ -48,6 +49,13 @@ log = logging.getLogger(__name__)
 MATCH_TOL = 1e-5
 #: File times within this of the earliest schedule are that schedule (files round to 1e-9).
 ROUND_TOL = 1e-8
+
+
+class InvalidScheduleError(InputError):
+    """A schedule file that belongs to the instance and reads, but is invalid: its plan
+    breaks the rules, or its times break a bound of the plan's STN (or the timing of a
+    turn in place). ``hierplan validate`` reports it as invalid (exit code 1); every
+    other reader refuses it as bad input."""
 
 
 # ---------------------------------------------------------------------- the plan
@@ -66,7 +74,7 @@ def plan_from_tree(instance: Instance, tree: Any, where: str) -> Plan:
     g = instance.graph
     if not isinstance(tree, dict):
         raise InputError(f"{where}: 'plan' must map agent names to visit lists")
-    _same_agents(where, "plan", tree, [a.name for a in instance.agents])
+    same_agents(where, "plan", tree, [a.name for a in instance.agents])
     paths: list[list[int]] = []
     for a in instance.agents:
         rows = tree[a.name]
@@ -96,14 +104,26 @@ def plan_from_tree(instance: Instance, tree: Any, where: str) -> Plan:
     return Plan.from_paths([p + [p[-1]] * (horizon - len(p)) for p in paths])
 
 
-def _same_agents(where: str, block: str, tree: dict, names: list[str]) -> None:
+def same_agents(
+    where: str, block: str, tree: dict, names: list[str], kind: str = "schedule"
+) -> None:
+    """Refuse (one line naming ``where`` and ``block``) a mapping ``tree`` whose agent
+    names are not exactly ``names``: a file of another instance (``kind``: what the
+    file is, for the message). The check every reader of schedule files and execution
+    reports makes (``simulate``, ``validate``, ``view``).
+
+    Example
+    -------
+    >>> same_agents("r.yaml", "schedule", {"agent0": [], "agent9": []}, ["agent0"], "report")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: r.yaml: schedule: unknown agent 'agent9' (the report ...)
+    """
     missing = [n for n in names if n not in tree]
     extra = [n for n in tree if n not in names]
     if missing or extra:
         what = f"no entry for {missing[0]!r}" if missing else f"unknown agent {extra[0]!r}"
-        raise InputError(
-            f"{where}: {block}: {what} (the schedule does not belong to this instance)"
-        )
+        raise InputError(f"{where}: {block}: {what} (the {kind} does not belong to this instance)")
 
 
 # ---------------------------------------------------------------------- way-points
@@ -113,7 +133,7 @@ def _read_rows(
     """Way-point coordinates and arrival times of every robot of the file."""
     if not isinstance(sched, dict):
         raise InputError(f"{where}: 'schedule' must map agent names to way-point lists")
-    _same_agents(where, "schedule", sched, names)
+    same_agents(where, "schedule", sched, names)
     axes = ("x", "y", "z")[:dim]
     rows: list[np.ndarray] = []
     arrivals: list[np.ndarray] = []
@@ -264,6 +284,10 @@ def is_schedule_file(path: str | Path) -> bool:
     and ``schedule`` in the first 64 kB (cheap: large YAML files take seconds to parse,
     and the reader parses them once).
 
+    Raises :class:`InputError` for what no reader reads (a missing file, a directory,
+    a FIFO, a device: :func:`~hierplan_opt.io.files.read_head`), at once: a FIFO is
+    never waited on.
+
     Example
     -------
     >>> import os, tempfile
@@ -273,11 +297,7 @@ def is_schedule_file(path: str | Path) -> bool:
     False
     """
     p = Path(path)
-    try:
-        with p.open("rb") as f:
-            head = f.read(1 << 16)
-    except OSError:
-        return False
+    head = read_head(p, 1 << 16)
     if p.suffix.lower() == ".csv":  # statistics lines first, makespan the first of them
         return head.lstrip().startswith(b"# makespan:")
     return b"arrival" in head and b"schedule" in head
@@ -289,7 +309,8 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     The returned :class:`Schedule` has the file's times, their windows, the STN rebuilt
     from the file's plan and settings (``schedule.stn``), and ``schedule.plan`` /
     ``schedule.settings``. Raises :class:`InputError` with one line naming the file when
-    it does not belong to ``instance``, its plan is invalid, or its times break a bound.
+    it cannot be read or does not belong to ``instance``, and its subclass
+    :class:`InvalidScheduleError` when its plan is invalid or its times break a bound.
 
     Example
     -------
@@ -322,7 +343,7 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     bad = validate(instance, plan)
     if bad:
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
-        raise InputError(f"{where}: the schedule's plan is invalid: {bad[0]}{more}")
+        raise InvalidScheduleError(f"{where}: the schedule's plan is invalid: {bad[0]}{more}")
     try:
         rebuilt = postprocess(
             instance,
@@ -354,7 +375,10 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
         times = np.array(rebuilt.times)  # the earliest schedule: exact, not rounded
     broken = check_bounds(stn, times)
     if broken:
-        raise InputError(f"{where}: the times break a bound of the plan's STN: {broken[0]}")
+        more = f" (and {len(broken) - 1} more)" if len(broken) > 1 else ""
+        raise InvalidScheduleError(
+            f"{where}: the times break a bound of the plan's STN: {broken[0]}{more}"
+        )
     early, late = windows(stn, times)
     req = stn.tpg.requirement
     stats = data.get("statistics")
@@ -377,7 +401,7 @@ def load_schedule(path: str | Path, instance: Instance) -> Schedule:
     for name, t, wp in zip(names, arrivals, out.waypoints, strict=True):
         if not np.allclose(t, wp.arrival, atol=MATCH_TOL):
             k = int(np.argmax(np.abs(t - wp.arrival)))
-            raise InputError(
+            raise InvalidScheduleError(
                 f"{where}: way-point {k} of {name!r} arrives at {t[k]:g} s but its turn in "
                 f"place makes it {wp.arrival[k]:g} s"
             )

@@ -292,7 +292,7 @@ def _limits(
         raise InputError(
             f"robot type {k.robot_type!r} of {instance.agents[j].name!r} has no a_max; "
             "refinement needs an acceleration limit (give one in the instance's robot "
-            "types, or a_max= for robots without one)"
+            "types, or a_max= (the command line's --a-max) for robots without one)"
         )
     omega = float(k.omega_max) if k.omega_max else inf
     if model == "unicycle" and not math.isfinite(omega):

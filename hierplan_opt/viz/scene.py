@@ -218,9 +218,16 @@ def scene_from_schedule(instance: Instance, schedule: Any, title: str = "") -> S
 
 
 def _rows_to_keys(
-    path: str | Path, sched: Mapping[str, Any], instance: Instance
+    path: str | Path, sched: Mapping[str, Any], instance: Instance, kind: str
 ) -> list[np.ndarray]:
+    """Per robot its way-points as rows (arrival, x, y[, z]); a file of another
+    instance (other robots, or a robot that does not start at its start) is refused
+    as ``simulate`` refuses it."""
+    from hierplan_opt.schedule.files import same_agents  # loads MAPF-POST: only here
+
+    same_agents(str(path), "schedule", dict(sched), [a.name for a in instance.agents], kind)
     axes = ("x", "y", "z")[: instance.graph.dim]
+    g = instance.graph
     keys = []
     for a in instance.agents:
         rows = sched.get(a.name)
@@ -234,6 +241,11 @@ def _rows_to_keys(
             ) from None
         if not np.isfinite(arr).all() or (np.diff(arr[:, 0]) < -1e-9).any():
             raise InputError(f"{path}: the way-points of {a.name!r} are not in time order")
+        if not np.allclose(arr[0, 1:], g.coords[a.start], atol=1e-6):
+            raise InputError(
+                f"{path}: the first way-point of {a.name!r} is not its start "
+                f"{g.label(a.start)} (the {kind} does not belong to this instance)"
+            )
         keys.append(arr)
     return keys
 
@@ -259,7 +271,7 @@ def _scene_from_rows(
     stats = data.get("statistics") or {}
     if not isinstance(stats, dict):
         stats = {}
-    keys = _rows_to_keys(path, sched, instance)
+    keys = _rows_to_keys(path, sched, instance, "report" if source == "execution" else source)
     g = stats.get(guarantee_key)
     return _instance_scene(
         instance,
