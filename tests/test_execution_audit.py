@@ -219,3 +219,26 @@ def test_delay_aware_replan_drops_stops_its_schedule_lacks() -> None:
     kept, dropped = Stop("agent0", 1.0, at_waypoint=n - 1), Stop("agent0", 1.0, at_waypoint=n)
     assert _on_schedule([kept, dropped, Slow(0.5, cells=((1, 0),))], s)[:1] == [kept]
     assert dropped not in _on_schedule([kept, dropped], s)
+
+
+def test_no_arrival_is_said_not_averaged(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Audit: when no robot arrives, the first line printed "arrivals avg nan s max nan s".
+    one = TRAIN.split("  - {name: agent1")[0].replace("agent0", "a")
+    inst, plan, d = files(tmp_path, one, bd="{kind: breakdown, agent: a, at_time: 0.5}")
+    sched = str(tmp_path / "s.yaml")
+    assert main(["post", inst, plan, "--out", sched]) == 0
+    capsys.readouterr()
+    code, out, _ = cli(capsys, "simulate", inst, sched, "--disturbances", d["bd"],
+                       "--out", str(tmp_path / "r.yaml"))  # fmt: skip
+    assert "no robot arrived at its goal" in out and "nan" not in out
+    assert code == 0  # the only robot broke down: no working robot left unfinished
+
+
+def test_cbs_with_highways_refuses_a_node_limit(tmp_path: Path) -> None:
+    # Audit: cbs with highways hands the solve to ECBS, which has no node_limit: the
+    # limit was dropped without a word.
+    inst = load_instance_text(TRAIN)
+    with pytest.raises(hp.OptionError, match="no node_limit"):
+        hp.solve(inst, "cbs", highways="crisscross", node_limit=5)

@@ -22,8 +22,7 @@ def text_report(ex: Execution, title: str = "") -> str:
         lines.append(title)
     lines.append(
         f"execution ({ex.policy}, {ex.mode} mode): makespan {_makespan(st)} "
-        f"(planned {_f(st['planned_makespan'])} s), arrivals avg {_f(st['arrival_avg'])} s "
-        f"max {_f(st['arrival_max'])} s"
+        f"(planned {_f(st['planned_makespan'])} s), {_arrivals(st)}"
     )
     kept = "kept" if st["distance_kept"] else "NOT kept"
     lines.append(
@@ -91,6 +90,14 @@ def _makespan(st: dict[str, Any]) -> str:
     if isinstance(m, (int, float)) and math.isfinite(m):
         return f"{m:.4g} s"
     return f"not reached ({len(st['stranded'])} working robot(s) never at their goals)"
+
+
+def _arrivals(st: dict[str, Any]) -> str:
+    """``arrivals avg A s max M s``, or that no robot arrived (no mean of nothing)."""
+    avg, top = st["arrival_avg"], st["arrival_max"]
+    if isinstance(avg, (int, float)) and math.isfinite(avg):
+        return f"arrivals avg {_f(avg)} s max {_f(top)} s"
+    return "no robot arrived at its goal"
 
 
 def _f(x: Any) -> str:

@@ -150,6 +150,10 @@ def solve(
         if objective != "soc":
             raise OptionError("cbs with highways optimises the sum of costs only (objective soc)")
         check_spec(instance, highways, "cbs")
+        if node_limit is not None:
+            raise OptionError(
+                "cbs with highways runs ECBS(1)+HWY, which has no node_limit; drop one of them"
+            )
         # CBS+HWY(w_hwy) is ECBS(1)+HWY(w_hwy) (search.highways), reached through the
         # registry: solvers do not import each other.
         ecbs = registry.get("ecbs").load()
