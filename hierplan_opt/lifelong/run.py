@@ -2,7 +2,10 @@
 
 :func:`run_lifelong` simulates a LoRR problem for ``ticks`` execution ticks with the
 Start-Kit's rules: ``numTasksReveal * teamSize`` tasks are revealed at all times, an
-errand is done when its robot stands on it, a task is done after its last errand, and
+errand is done when its robot stands on it at the end of a tick, one errand per tick
+(:func:`~hierplan_opt.search.windowed.errand_done`, the planner's rule too: a robot
+that stands on its next errand when it gets the task stays there a tick), a task is
+done after its last errand, and
 the action model is :func:`~hierplan_opt.lifelong.model.step_state` with the delays of
 the problem's ``delayConfig`` (:mod:`~hierplan_opt.lifelong.delays`). Every ``period``
 ticks (the Start-Kit's ``planCommTimeLimit / actionMoveTimeLimit``, 10 by default) the
@@ -51,7 +54,7 @@ from hierplan_opt.lifelong.model import (
     W,
     step_state,
 )
-from hierplan_opt.lifelong.planner import PLANNERS, WindowedLaCAM, WindowedPIBT
+from hierplan_opt.lifelong.planner import PLANNERS, WindowedLaCAM, WindowedPIBT, errand_done
 from hierplan_opt.lifelong.scheduler import SCHEDULERS, assign, chain_length
 
 log = logging.getLogger(__name__)
@@ -345,6 +348,8 @@ def run_lifelong(
             step_state(s, a, grid.moves, k)
             if a != W and not in_progress:
                 ex.started(i)
+            elif not in_progress and not delayed[i]:
+                ex.waited(i)  # a staged wait (held on an errand) is done
             if s.loc != prev_loc:
                 ex.left(i, prev_loc)
             letters[i].append(codes[a])
@@ -355,7 +360,7 @@ def run_lifelong(
             if tid < 0:
                 continue
             tk = tasks[tid]
-            if robots[i].loc == tk.errands[tk.next]:
+            if errand_done(robots[i].loc, tk.errands, tk.next):  # the planner's rule too
                 tk.next += 1
                 prio[i] = rng.random()
                 if tk.next == len(tk.errands):
