@@ -533,3 +533,14 @@ def test_cli_credits_the_errand_a_robot_starts_on(tmp_path: Path, capsys, schedu
     assert log["events"][:2] == [[1, 0, 0, 1], [6, 0, 0, 2]]  # errand 1 at once, then 2
     assert finished >= 1 and finished == sum(e[3] == 2 for e in log["events"])
     assert f"tasks finished {finished}, throughput {finished / 30:.4f}" in text
+
+
+@pytest.mark.parametrize("planner", ["pibt", "lacam"])
+def test_no_extra_tick_for_an_errand_a_move_in_progress_ends_on(planner: str) -> None:
+    # agentCounter 2: at the planning call of tick 3 the robot is half-way into cell 2,
+    # its first errand; the move ends there at tick 4 (errand 1 done by the same rule),
+    # so the window plans no wait on it: errand 2 four ticks later (two moves), not five
+    p = line_problem(6, [0], [(2, 4)], k=2)
+    r = run_lifelong(p, ticks=12, period=3, planner=planner)
+    assert r.log["events"] == [[4, 0, 0, 1], [4 + 2 * 2, 0, 0, 2]]
+    assert check_log(p, r.log).ok

@@ -292,7 +292,7 @@ def run_lifelong(
                     locs.append(loc)
                     oris.append(ori)
                     tk = tasks.get(current[i])
-                    errands.append(tk.errands[tk.next :] if tk is not None else ())
+                    errands.append(_to_plan(robots[i], loc, tk) if tk is not None else ())
                 dist.prefetch([e[0] for e in errands if e])
                 paths = guide.paths(locs, errands, prio) if guide is not None else None
                 limit = None if budget is None else c0 + budget - BUDGET_MARGIN
@@ -435,6 +435,19 @@ def run_lifelong(
         stn_pushed=ex.stn_pushed,
         log=out_log,
     )
+
+
+def _to_plan(s: RobotState, loc: int, tk: Task) -> tuple[int, ...]:
+    """The errands of ``tk`` left for the planner, from the robot's committed cell ``loc``.
+
+    A robot with an action in progress stands on ``loc`` at the end of that action (a
+    rotation: at the end of every tick), where :func:`errand_done` credits the next
+    errand if it is there: that one is not planned again (the planner would hold the
+    robot a tick for it)."""
+    rest = tk.errands[tk.next :]
+    if s.count > 0 and s.cur != NA and errand_done(loc, rest, 0):
+        return rest[1:]
+    return rest
 
 
 def _committed(s: RobotState, moves: tuple[int, int, int, int]) -> tuple[int, int]:
