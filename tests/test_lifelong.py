@@ -452,3 +452,95 @@ def test_random_400_is_collision_free_and_keeps_finishing_tasks() -> None:
     assert rep.ok, rep.problems
     late = [e for e in res.log["events"] if e[0] > 300]
     assert res.tasks_finished > 150 and late  # no gridlock: tasks still finish late on
+
+
+# ---------------------------------------------------------------- start on an errand
+def _write_line_problem(d: Path, cols: int, starts, tasks) -> Path:
+    """A 1 x cols LoRR problem in the Start-Kit's file formats (no delays)."""
+    (d / "c.map").write_text(f"type octile\nheight 1\nwidth {cols}\nmap\n{'.' * cols}\n")
+    (d / "c.agents").write_text(f"{len(starts)}\n" + "".join(f"{s}\n" for s in starts))
+    (d / "c.tasks").write_text(
+        f"{len(tasks)}\n" + "".join(",".join(map(str, t)) + "\n" for t in tasks)
+    )
+    cfg = {
+        "mapFile": "c.map",
+        "agentFile": "c.agents",
+        "teamSize": len(starts),
+        "taskFile": "c.tasks",
+        "numTasksReveal": 1,
+        "agentCounter": 1,
+        "agentSize": 1.0,
+        "delayConfig": {
+            "seed": 0,
+            "minDelay": 1,
+            "maxDelay": 2,
+            "eventModel": "bernoulli",
+            "pDelay": 0.0,
+            "durationModel": "uniform",
+        },
+    }
+    path = d / "c.json"
+    path.write_text(json.dumps(cfg))
+    return path
+
+
+@pytest.mark.parametrize("planner", ["pibt", "lacam"])
+@pytest.mark.parametrize("scheduler", ["greedy", "hungarian"])
+def test_robot_starting_on_its_first_errand_does_it_first(scheduler: str, planner: str) -> None:
+    # The Start-Kit credits an errand when its robot stands on it at the end of a tick
+    # (TaskManager::check_finished_tasks). A robot assigned a task at tick 0 while on
+    # its first errand stays one tick (errand 1 at tick 1), then drives to errand 2.
+    p = line_problem(6, [0], [(0, 5)])
+    r = run_lifelong(p, ticks=30, scheduler=scheduler, planner=planner)
+    ev = r.log["events"]
+    assert ev[0] == [1, 0, 0, 1]
+    assert ev[1] == [1 + 5, 0, 0, 2]  # then five moves east (it faces east)
+    assert r.tasks_finished >= 1 and r.tasks_finished == sum(e[3] == 2 for e in ev)
+    assert check_log(p, r.log).ok
+
+
+@pytest.mark.parametrize("planner", ["pibt", "lacam"])
+def test_new_task_on_the_cell_where_the_last_one_ended(planner: str) -> None:
+    # Task 0 ends on cell 3 at tick 3; task 1 (errands 3 then 5) is assigned at the
+    # next planning call (tick 10) while the robot stands on cell 3: errand 1 at tick
+    # 11, errand 2 two moves later.
+    p = line_problem(6, [0], [(3,), (3, 5)])
+    r = run_lifelong(p, ticks=20, planner=planner, period=10)
+    ev = r.log["events"]
+    assert ev[:3] == [[3, 0, 0, 1], [11, 0, 1, 1], [13, 0, 1, 2]]
+    assert check_log(p, r.log).ok
+
+
+def test_planner_holds_a_robot_on_the_errand_it_stands_on() -> None:
+    # the planner's stay that does an errand is an action (W) the executor carries out
+    g = Grid(1, 6, np.zeros(6, dtype=bool))
+    for kind in (WindowedPIBT, WindowedLaCAM):
+        plan = kind(g, Distances(g), window=6).plan([0], [0], [(0, 5)], [0.5])
+        assert plan.actions[0] == [W, FW, FW, FW, FW, FW] and plan.enters[0] == [1, 2, 3, 4, 5]
+
+
+@pytest.mark.parametrize("scheduler", ["greedy", "hungarian"])
+def test_cli_credits_the_errand_a_robot_starts_on(tmp_path: Path, capsys, scheduler: str) -> None:
+    from hierplan_opt.cli import main
+
+    cfg = _write_line_problem(tmp_path, 6, [0], [(0, 5)])
+    out = tmp_path / "c.json.log.json"
+    args = ["lifelong", str(cfg), "--ticks", "30", "--scheduler", scheduler, "--out", str(out)]
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    log = json.loads(out.read_text())
+    finished = log["numTaskFinished"]
+    assert log["events"][:2] == [[1, 0, 0, 1], [6, 0, 0, 2]]  # errand 1 at once, then 2
+    assert finished >= 1 and finished == sum(e[3] == 2 for e in log["events"])
+    assert f"tasks finished {finished}, throughput {finished / 30:.4f}" in text
+
+
+@pytest.mark.parametrize("planner", ["pibt", "lacam"])
+def test_no_extra_tick_for_an_errand_a_move_in_progress_ends_on(planner: str) -> None:
+    # agentCounter 2: at the planning call of tick 3 the robot is half-way into cell 2,
+    # its first errand; the move ends there at tick 4 (errand 1 done by the same rule),
+    # so the window plans no wait on it: errand 2 four ticks later (two moves), not five
+    p = line_problem(6, [0], [(2, 4)], k=2)
+    r = run_lifelong(p, ticks=12, period=3, planner=planner)
+    assert r.log["events"] == [[4, 0, 0, 1], [4 + 2 * 2, 0, 0, 2]]
+    assert check_log(p, r.log).ok

@@ -6,7 +6,8 @@ action dependency graph of Hönig et al., RA-L 2019, reduced to cells). Every ti
 robot that is not delayed either continues the action in progress, starts its next
 staged action, or waits:
 
-* a rotation may always start (the footprint stays in its cell);
+* a rotation, or a staged wait (the planner holds the robot on an errand for a tick),
+  may always start (the footprint stays in its cell);
 * a forward move into cell ``c`` may start only when the robot is first in ``c``'s
   queue, i.e. every robot that the plan sends through ``c`` earlier has left it.
 
@@ -171,6 +172,15 @@ class ADGExecutor:
         """Robot ``i`` began its next staged action this tick."""
         self.staged[i].popleft()
         self.started_n[i] += 1
+
+    def waited(self, i: int) -> None:
+        """Robot ``i`` waited this tick, not delayed and with no action in progress: a
+        staged wait at the head of its queue (the planner holding it on an errand, see
+        :func:`~hierplan_opt.search.windowed.errand_done`) is done."""
+        st = self.staged[i]
+        if st and st[0] == W:
+            st.popleft()
+            self.started_n[i] += 1
 
     def left(self, i: int, cell: int) -> None:
         """Robot ``i`` finished moving out of ``cell``: the next robot may enter it."""

@@ -25,11 +25,11 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from hierplan_opt.search.windowed import CCR, CR, FW
+from hierplan_opt.search.windowed import CCR, CR, FW, W
 
 log = logging.getLogger(__name__)
 
-W, NA = 3, 4  # wait, and no action in progress (FW, CR, CCR: search.windowed)
+NA = 4  # no action in progress (FW, CR, CCR, W: search.windowed)
 #: One letter per action in the compressed path strings.
 LETTERS = "FRCWT"
 CODES = {c: i for i, c in enumerate(LETTERS)}

@@ -10,8 +10,14 @@ congestion guidance and a deadline per call.
 
 from __future__ import annotations
 
-from hierplan_opt.search.windowed import WindowedLaCAM, WindowedPIBT, WindowPlan, turns
+from hierplan_opt.search.windowed import (
+    WindowedLaCAM,
+    WindowedPIBT,
+    WindowPlan,
+    errand_done,
+    turns,
+)
 
 PLANNERS = ("pibt", "lacam", "pibt-guided", "lacam-guided")
 
-__all__ = ["PLANNERS", "WindowPlan", "WindowedLaCAM", "WindowedPIBT", "turns"]
+__all__ = ["PLANNERS", "WindowPlan", "WindowedLaCAM", "WindowedPIBT", "errand_done", "turns"]

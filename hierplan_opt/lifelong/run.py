@@ -2,7 +2,10 @@
 
 :func:`run_lifelong` simulates a LoRR problem for ``ticks`` execution ticks with the
 Start-Kit's rules: ``numTasksReveal * teamSize`` tasks are revealed at all times, an
-errand is done when its robot stands on it, a task is done after its last errand, and
+errand is done when its robot stands on it at the end of a tick, one errand per tick
+(:func:`~hierplan_opt.search.windowed.errand_done`, the planner's rule too: a robot
+that stands on its next errand when it gets the task stays there a tick), a task is
+done after its last errand, and
 the action model is :func:`~hierplan_opt.lifelong.model.step_state` with the delays of
 the problem's ``delayConfig`` (:mod:`~hierplan_opt.lifelong.delays`). Every ``period``
 ticks (the Start-Kit's ``planCommTimeLimit / actionMoveTimeLimit``, 10 by default) the
@@ -51,7 +54,7 @@ from hierplan_opt.lifelong.model import (
     W,
     step_state,
 )
-from hierplan_opt.lifelong.planner import PLANNERS, WindowedLaCAM, WindowedPIBT
+from hierplan_opt.lifelong.planner import PLANNERS, WindowedLaCAM, WindowedPIBT, errand_done
 from hierplan_opt.lifelong.scheduler import SCHEDULERS, assign, chain_length
 
 log = logging.getLogger(__name__)
@@ -289,7 +292,7 @@ def run_lifelong(
                     locs.append(loc)
                     oris.append(ori)
                     tk = tasks.get(current[i])
-                    errands.append(tk.errands[tk.next :] if tk is not None else ())
+                    errands.append(_to_plan(robots[i], loc, tk) if tk is not None else ())
                 dist.prefetch([e[0] for e in errands if e])
                 paths = guide.paths(locs, errands, prio) if guide is not None else None
                 limit = None if budget is None else c0 + budget - BUDGET_MARGIN
@@ -345,6 +348,8 @@ def run_lifelong(
             step_state(s, a, grid.moves, k)
             if a != W and not in_progress:
                 ex.started(i)
+            elif not in_progress and not delayed[i]:
+                ex.waited(i)  # a staged wait (held on an errand) is done
             if s.loc != prev_loc:
                 ex.left(i, prev_loc)
             letters[i].append(codes[a])
@@ -355,7 +360,7 @@ def run_lifelong(
             if tid < 0:
                 continue
             tk = tasks[tid]
-            if robots[i].loc == tk.errands[tk.next]:
+            if errand_done(robots[i].loc, tk.errands, tk.next):  # the planner's rule too
                 tk.next += 1
                 prio[i] = rng.random()
                 if tk.next == len(tk.errands):
@@ -430,6 +435,19 @@ def run_lifelong(
         stn_pushed=ex.stn_pushed,
         log=out_log,
     )
+
+
+def _to_plan(s: RobotState, loc: int, tk: Task) -> tuple[int, ...]:
+    """The errands of ``tk`` left for the planner, from the robot's committed cell ``loc``.
+
+    A robot with an action in progress stands on ``loc`` at the end of that action (a
+    rotation: at the end of every tick), where :func:`errand_done` credits the next
+    errand if it is there: that one is not planned again (the planner would hold the
+    robot a tick for it)."""
+    rest = tk.errands[tk.next :]
+    if s.count > 0 and s.cur != NA and errand_done(loc, rest, 0):
+        return rest[1:]
+    return rest
 
 
 def _committed(s: RobotState, moves: tuple[int, int, int, int]) -> tuple[int, int]:

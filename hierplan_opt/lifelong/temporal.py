@@ -10,7 +10,7 @@ project's own :class:`~hierplan_opt.schedule.stn.STN` over a
 * per robot a *ready* node (its action in progress ends: released at the window's
   first tick plus the ticks that action still needs), one node per staged action (its
   start) and a *final* node (its last action ends); Type-1 arcs of ``agentCounter``
-  ticks between consecutive actions;
+  ticks between consecutive actions (one tick after a staged wait);
 * Type-2 arcs from the action by which a robot leaves a cell to the forward move by
   which the next robot of that cell's visit order enters it (``agentCounter`` ticks:
   the cell is free once the move out has ended), i.e. the executor's dependency graph.
@@ -39,7 +39,7 @@ from hierplan_opt.schedule.tpg import TPG, TYPE1, TYPE2, VERTEX, WAIT, _Location
 
 log = logging.getLogger(__name__)
 
-FW = 0  # the forward action (hierplan_opt.lifelong.model.FW)
+FW, W = 0, 3  # the forward and wait actions (hierplan_opt.lifelong.model.FW, W)
 
 
 class _Cells:
@@ -105,7 +105,8 @@ class WindowSTN:
             for j in range(len(acts) + 1):  # ready -> a1 (0), a_j -> a_j+1 (k), ... final
                 src.append(base + j)
                 dst.append(base + j + 1)
-                lb.append(0.0 if j == 0 else float(k))
+                # an action takes k ticks, a staged wait one
+                lb.append(0.0 if j == 0 else 1.0 if acts[j - 1] == W else float(k))
             here = locs[i]
             vertex[base : base + len(acts) + 2] = here
             if moving_into[i] >= 0:  # the move in progress leaves `here` when it ends

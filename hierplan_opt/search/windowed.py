@@ -20,7 +20,10 @@ An agent may not take the cell of an agent that is pushing it (directly or throu
 chain), and rotation cycles become waits, so a step has neither swaps nor cycles,
 which robots with footprints could not execute one cell at a time. An agent whose
 chosen cell is not ahead turns towards it this step and stays. When an agent reaches a
-goal inside the window its next goal takes over.
+goal inside the window its next goal takes over. A goal is reached by the one rule of
+:func:`errand_done` (the end of a step on it, one goal per step); a step on which an
+agent stays (neither moves nor turns) and reaches a goal is recorded as a wait action
+``W``, so that the executor keeps the robot there for that tick too.
 
 **LaCAM** (:class:`WindowedLaCAM`; Okumura, AAAI 2023): a depth-first search over
 configurations down to depth ``w`` whose successors are PIBT steps under *constraints*
@@ -46,8 +49,9 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 NIL = -1
-#: The action codes (the League of Robot Runners' forward, clockwise, counter-clockwise).
-FW, CR, CCR = 0, 1, 2
+#: The action codes (the League of Robot Runners' forward, clockwise, counter-clockwise,
+#: wait).
+FW, CR, CCR, W = 0, 1, 2, 3
 #: How much a guide path's next cell is preferred (in steps).
 GUIDE_BONUS = 0.5
 #: Quarter turns between two orientations, by (want - have) mod 4.
@@ -92,6 +96,25 @@ class WindowPlan:
     steps: int = 0
     cut: bool = False
     nodes: int = 0
+
+
+def errand_done(loc: int, errands: Sequence[int], done: int) -> bool:
+    """Whether an agent that stands on ``loc`` at the end of a step (a tick) does its
+    next errand, ``errands[done]`` (``done``: the errands it has done so far).
+
+    The one definition of "errand done", the Start-Kit's
+    (``TaskManager::check_finished_tasks``): an errand is done when its robot stands on
+    it at the end of a timestep -- having moved in, waited or turned there -- and at
+    most one errand per timestep. Standing on it when the task comes is not enough: the
+    robot must still be there at the end of the next tick. The windowed planners
+    advance their goals by it and the lifelong loop credits errands by it.
+
+    Example
+    -------
+    >>> errand_done(4, (4, 9), 0), errand_done(4, (4, 9), 1), errand_done(9, (4, 9), 2)
+    (True, False, False)
+    """
+    return done < len(errands) and loc == errands[done]
 
 
 def turns(ori: int, want: int) -> list[int]:
@@ -200,7 +223,7 @@ class WindowedPIBT:
             assert res is not None  # no constraints: every step is complete
             new, moved, turned, b, partial = res
             broken += b
-            self._record(st.q, new.q, moved, turned, acts, enters, order)
+            self._record(st, new, moved, turned, acts, enters, order)
             st = new
             steps += 1
             if partial:
@@ -227,9 +250,15 @@ class WindowedPIBT:
         if self.traffic:  # forget old traffic slowly
             self.traffic = {v: t * 0.5 for v, t in self.traffic.items() if t > 0.25}
 
-    def _record(self, q, q_to, moved, turned, acts, enters, order) -> None:
+    def _record(self, st: _Search, new: _Search, moved, turned, acts, enters, order) -> None:
+        """Append the step ``st -> new`` to the plan: rotations, forward moves, and a
+        wait ``W`` for an agent that stays in place and does an errand by staying."""
+        q, q_to = st.q, new.q
         for i, a in turned.items():
             acts[i].append(a)
+        for i, (g0, g1) in enumerate(zip(st.goal_idx, new.goal_idx, strict=True)):
+            if g1 > g0 and q_to[i] == q[i] and i not in turned:
+                acts[i].append(W)
         for i in moved:
             v = q_to[i]
             acts[i].append(FW)
@@ -259,7 +288,7 @@ class WindowedPIBT:
         prio = list(prio)
         for i in range(n):
             e = errands[i]
-            if goal_idx[i] < len(e) and q_to[i] == e[goal_idx[i]]:
+            if errand_done(q_to[i], e, goal_idx[i]):
                 goal_idx[i] += 1
                 tables[i] = self._table(e, goal_idx[i], q_to[i])
                 prio[i] = self.rng.random()  # arrived: back to a low priority
@@ -543,7 +572,7 @@ class WindowedLaCAM(WindowedPIBT):
         order: dict[int, list[int]] = {}
         prev = root
         for nd in reversed(chain):
-            self._record(prev.st.q, nd.st.q, nd.moved, nd.turned, acts, enters, order)
+            self._record(prev.st, nd.st, nd.moved, nd.turned, acts, enters, order)
             prev = nd
         return WindowPlan(acts, enters, order, best.broken, best.depth, cut, expanded)
 
@@ -584,10 +613,12 @@ __all__ = [
     "CCR",
     "CR",
     "FW",
+    "W",
     "DistanceTables",
     "GridLike",
     "WindowPlan",
     "WindowedLaCAM",
     "WindowedPIBT",
+    "errand_done",
     "turns",
 ]
