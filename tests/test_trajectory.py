@@ -122,19 +122,22 @@ def goal_reached(r, dt: float = 1e-3) -> float:
     return float(t[np.flatnonzero(off)[-1] + 1]) if off.any() else 0.0
 
 
-@pytest.mark.parametrize("a_max_in_schedule", [False, True])
+@pytest.mark.parametrize(
+    ("mode", "a_max_in_schedule"), [("path", False), ("path", True), ("corridor", True)]
+)
 def test_a_robot_that_finishes_early_is_not_dragged_to_the_makespan(
-    a_max_in_schedule: bool,
+    mode: str, a_max_in_schedule: bool
 ) -> None:
     # The audit's g1: "short" has 1 m to go, "long" 7 m. With IPOPT (the default for
     # two robots) "short" used to creep to its goal at up to 0.2 m/s and arrive at the
     # refined makespan (7.67 s), where the profile solver has it at 1.9 s: its last
-    # window reaches the makespan and the objective rewarded taking all of it.
+    # window reaches the makespan and the objective rewarded taking all of it (corridor
+    # mode, also IPOPT, did the same).
     g = Graph.grid(8, 2)
     kin = Kinematics(v_max=1.0, a_max=1.5 if a_max_in_schedule else None)
     inst = Instance.mapf(g, [(0, 1), (0, 0)], [(1, 1), (7, 0)], kinematics=kin)
     sched = postprocess(inst, hp.solve(inst, "cbs").plan)
-    tr = refine(inst, sched, stretch="auto", a_max=1.5)
+    tr = refine(inst, sched, stretch="auto", a_max=1.5, mode=mode)
     assert tr.stats["solver"] == "ipopt"
     short = tr.robots[0]
     scheduled = float(sched.arrival_times(0)[-1])
@@ -252,6 +255,7 @@ def test_robot_without_acceleration_limit_is_refused() -> None:
         ({"solver": "snopt"}, "unknown solver"),
         ({"stretch": 0.5}, "stretch must be"),
         ({"accel_weight": -1.0}, "accel_weight must be"),
+        ({"arrival_weight": float("nan")}, "arrival_weight must be"),
         ({"intervals_per_piece": 0}, "intervals_per_piece must be"),
         ({"workers": 0}, "workers must be"),
     ],
