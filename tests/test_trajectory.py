@@ -115,6 +115,48 @@ def test_windows_and_limits_are_kept() -> None:
     assert tw - tu >= net.arc_lb[0] - 1e-6
 
 
+def goal_reached(r, dt: float = 1e-3) -> float:
+    """First time (within ``dt``) a refined robot is at its goal and stays there."""
+    t = np.arange(0.0, r.arrival + dt, dt)
+    off = np.linalg.norm(r.state(t)["p"] - r.p[-1], axis=1) > 1e-6
+    return float(t[np.flatnonzero(off)[-1] + 1]) if off.any() else 0.0
+
+
+@pytest.mark.parametrize(
+    ("mode", "a_max_in_schedule"), [("path", False), ("path", True), ("corridor", True)]
+)
+def test_a_robot_that_finishes_early_is_not_dragged_to_the_makespan(
+    mode: str, a_max_in_schedule: bool
+) -> None:
+    # The audit's g1: "short" has 1 m to go, "long" 7 m. With IPOPT (the default for
+    # two robots) "short" used to creep to its goal at up to 0.2 m/s and arrive at the
+    # refined makespan (7.67 s), where the profile solver has it at 1.9 s: its last
+    # window reaches the makespan and the objective rewarded taking all of it (corridor
+    # mode, also IPOPT, did the same).
+    g = Graph.grid(8, 2)
+    kin = Kinematics(v_max=1.0, a_max=1.5 if a_max_in_schedule else None)
+    inst = Instance.mapf(g, [(0, 1), (0, 0)], [(1, 1), (7, 0)], kinematics=kin)
+    sched = postprocess(inst, hp.solve(inst, "cbs").plan)
+    tr = refine(inst, sched, stretch="auto", a_max=1.5, mode=mode)
+    assert tr.stats["solver"] == "ipopt"
+    short = tr.robots[0]
+    scheduled = float(sched.arrival_times(0)[-1])
+    # Its scheduled arrival stretched by the fleet's factor, or (the schedule without
+    # a_max asks for 1 m in 1 s) the least time its limits allow, with 25 % room.
+    least = accel_time(1.0, 1.0, 1.5)
+    expected = max(tr.stretch * scheduled, least)
+    arrived = goal_reached(short)
+    assert arrived <= 1.25 * expected, (arrived, expected)
+    assert short.arrival <= 1.25 * expected
+    assert arrived < 0.5 * tr.makespan
+    # The makespan is the stretched schedule's, the limits and the distances hold.
+    assert tr.makespan == pytest.approx(tr.stretch * sched.makespan, rel=1e-6)
+    vmax, amax = fd_limits(tr)
+    assert vmax <= 1.0 + 1e-5 and amax <= 1.5 + 1e-3
+    rep = verify(tr, inst)
+    assert rep.ok, rep.message()
+
+
 def random_schedules(count: int):
     rng = np.random.default_rng(7)
     made = 0
@@ -213,6 +255,7 @@ def test_robot_without_acceleration_limit_is_refused() -> None:
         ({"solver": "snopt"}, "unknown solver"),
         ({"stretch": 0.5}, "stretch must be"),
         ({"accel_weight": -1.0}, "accel_weight must be"),
+        ({"arrival_weight": float("nan")}, "arrival_weight must be"),
         ({"intervals_per_piece": 0}, "intervals_per_piece must be"),
         ({"workers": 0}, "workers must be"),
     ],

@@ -81,7 +81,7 @@ def _resolve_all(instance, traj, solver: str) -> list[tuple[bool, float, int]]:
         "mode": traj.mode,
         "corridor": traj.corridor,
         "solvers": (solver,),
-        "weights": (1.0, 0.01, 1e-3),
+        "weights": (1.0, 0.01, 1e-3, R.ARRIVAL_WEIGHT),
         "base": 2,
     }
     out = []

@@ -15,7 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from hierplan_opt.trajectory.model import corridor_ocp
-from hierplan_opt.trajectory.paths import path_bounds, path_problem, path_warm_start
+from hierplan_opt.trajectory.paths import (
+    arrival_term,
+    path_bounds,
+    path_problem,
+    path_warm_start,
+)
 
 #: Radius of the cylinders the optimiser uses, as a share of the corridor half-width.
 INNER = 1.0 / np.sqrt(2.0)
@@ -88,7 +93,9 @@ def solve_corridor(path, windows, opts: dict, warm=None) -> dict:
             [start[node_piece].T + dirs[node_piece].T * ds, dirs[node_piece].T * X1[1], X1[2]]
         )
         U0 = np.vstack([dirs[ip].T * U1[0], U1[1]])
-    p = np.concatenate([par.ravel(order="F"), np.array(opts["weights"][:2], dtype=float)])
+    w_arr, T = arrival_term(path, windows.stretch, opts["weights"])
+    w = np.array([*opts["weights"][:2], w_arr, T], dtype=float)
+    p = np.concatenate([par.ravel(order="F"), w])
 
     tries = []
     res = None

@@ -239,7 +239,8 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
 
     Variables per stage: ``x_k = (sigma_k, v_k, t_k, f_k)``, ``u_k = (a_k, h_k)``;
     ``f`` is the stretch factor of the robot's windows (constant along the grid).
-    Parameters ``p = (w_acc, w_time, w_reg, w_stretch, lo_0..lo_N, hi_0..hi_N)``.
+    Parameters ``p = (w_acc, w_time, w_reg, w_stretch, w_arr, T_arr, lo_0..lo_N,
+    hi_0..hi_N)``.
     Dynamics (exact for constant ``a_k``)::
 
         sigma_{k+1} = sigma_k + h_k v_k + h_k^2 a_k / 2
@@ -252,9 +253,12 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     (its bounds ``[1, 1]``) the windows are plain bounds on ``t`` instead.
 
     Objective ``w_acc * sum_k a_k^2 h_k + w_time * t_N + w_reg * sum_k h_k^2 +
-    w_stretch * f_N``: the third term (small) removes the freedom of how a wait is
-    split between intervals, which otherwise costs IPOPT many iterations; the last one
-    (large, with ``f`` free) finds the smallest stretch factor of the robot in one solve.
+    w_stretch * f_N + w_arr * (t_N - T_arr)^2``: the third term (small) removes the
+    freedom of how a wait is split between intervals, which otherwise costs IPOPT many
+    iterations; the fourth (large, with ``f`` free) finds the smallest stretch factor of
+    the robot in one solve; the last holds the arrival near ``T_arr`` (the robot's
+    scheduled arrival, stretched), so that a robot whose last window reaches the
+    makespan does not creep there to save acceleration.
     Everything else (the path's pieces, stops, speed and acceleration limits, windows)
     is a bound on ``x`` or ``u`` or a constraint bound.
 
@@ -278,7 +282,7 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     sigma, v, t, f, a, h = (Z[i, :] for i in range(6))
     X = ca.horzcat(Z[:4, :], x_end)  # nodes 0..N
     nxt = X[:, 1:]  # x_{k+1}
-    w = ca.SX.sym("w", 4)  # w_acc, w_time, w_reg, w_stretch
+    w = ca.SX.sym("w", 6)  # w_acc, w_time, w_reg, w_stretch, w_arr, T_arr
     lo = ca.SX.sym("lo", 1, N + 1)
     hi = ca.SX.sym("hi", 1, N + 1)
     # ---- windows stretched by f --------------------------------------------------------
@@ -286,12 +290,19 @@ def path_ocp(N: int, solver: str = "fatrop") -> OCP:
     # ---- dynamics: exact integration of a constant acceleration -------------------------
     dyn = nxt - ca.vertcat(sigma + h * v + 0.5 * h * h * a, v + h * a, t + h, f)
     g = ca.vertcat(ca.vec(ca.vertcat(dyn, stage[:, :N])), stage[:, N])
-    # ---- objective: acceleration energy, arrival time, even steps, stretch --------------
-    J = w[0] * ca.sum2(a * a * h) + w[1] * x_end[2] + w[2] * ca.sum2(h * h) + w[3] * x_end[3]
+    # ---- objective: acceleration energy, arrival time, even steps, stretch, arrival ------
+    late = x_end[2] - w[5]
+    J = (
+        w[0] * ca.sum2(a * a * h)
+        + w[1] * x_end[2]
+        + w[2] * ca.sum2(h * h)
+        + w[3] * x_end[3]
+        + w[4] * late * late
+    )
     nlp = {"x": z, "p": ca.vertcat(w, lo.T, hi.T), "f": J, "g": g}
     options = _options(solver, 4, N, 2)
     fn, watcher = _nlpsol(f"path_{N}_{solver}", solver, nlp, options, key[-1])
-    ocp = OCP("path", solver, N, 4, 2, 2, 4 + 2 * (N + 1), fn, time.perf_counter() - t0, watcher)
+    ocp = OCP("path", solver, N, 4, 2, 2, 6 + 2 * (N + 1), fn, time.perf_counter() - t0, watcher)
     log.debug("built %s in %.3f s", fn.name(), ocp.build_time)
     with _LOCK:
         return _CACHE.setdefault(key, ocp)
@@ -307,7 +318,9 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     Variables per stage: ``x_k = (p_k, v_k, t_k)``, ``u_k = (a_k, h_k)``. Parameters per
     stage: the corridor's axis ``A_k`` (a point), unit direction ``e_k`` and a flag
     ``m_k`` (1: a cylinder around the axis line, 0: a ball around ``A_k``), for the node
-    and, separately, for the interval's middle control point; then ``(w_acc, w_time)``.
+    and, separately, for the interval's middle control point; then ``(w_acc, w_time,
+    w_arr, T_arr)``: objective ``w_acc * sum_k |a_k|^2 h_k + w_time * t_N + w_arr * (t_N
+    - T_arr)^2`` (the last as in :func:`path_ocp`).
     Stage constraints (bounds in ``lbg/ubg``, see :data:`CORRIDOR_ROWS`)::
 
         |v_k|^2 <= v_max^2,  |a_k|^2 <= a_max^2
@@ -340,7 +353,7 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     p, v, t = X[:dim, :], X[dim : 2 * dim, :], X[2 * dim, :]
     a, h = Z[nx : nx + dim, :], Z[nx + dim, :]
     P = ca.SX.sym("P", npar_stage, N + 1)
-    w = ca.SX.sym("w", 2)
+    w = ca.SX.sym("w", 4)  # w_acc, w_time, w_arr, T_arr
 
     def inside(pt, par):
         A, e, m = par[:dim, :], par[dim : 2 * dim, :], par[2 * dim, :]
@@ -366,14 +379,15 @@ def corridor_ocp(N: int, dim: int, solver: str = "ipopt") -> OCP:
     # ---- dynamics: exact integration of a constant acceleration -------------------------
     dyn = X[:, 1:] - ca.vertcat(pk + vk * hd + 0.5 * a * (hd * hd), vk + a * hd, t[:, :N] + h)
     g = ca.vertcat(ca.vec(ca.vertcat(dyn, stage[:, :N])), stage[:, N])
-    # ---- objective: acceleration energy and arrival time ------------------------------
-    J = w[0] * ca.sum2(ca.sum1(a * a) * h) + w[1] * x_end[2 * dim]
+    # ---- objective: acceleration energy, arrival time, arrival near T_arr --------------
+    late = x_end[2 * dim] - w[3]
+    J = w[0] * ca.sum2(ca.sum1(a * a) * h) + w[1] * x_end[2 * dim] + w[2] * late * late
     nlp = {"x": z, "p": ca.vertcat(ca.vec(P), w), "f": J, "g": g}
     ng = len(CORRIDOR_ROWS)
     options = _options(solver, nx, N, ng)
     fn, watcher = _nlpsol(f"corridor{dim}_{N}_{solver}", solver, nlp, options, key[-1])
     ocp = OCP(
-        f"corridor{dim}", solver, N, nx, nu, ng, npar_stage * (N + 1) + 2, fn,
+        f"corridor{dim}", solver, N, nx, nu, ng, npar_stage * (N + 1) + 4, fn,
         time.perf_counter() - t0, watcher,
     )  # fmt: skip
     log.debug("built %s in %.3f s", fn.name(), ocp.build_time)

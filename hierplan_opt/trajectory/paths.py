@@ -367,6 +367,31 @@ def path_bounds(
     return lbX, ubX, lbU, ubU, lbG, ubG, LO, HI
 
 
+def arrival_term(path: RobotPath, stretch: float, weights: Sequence[float]) -> tuple[float, float]:
+    """``(w_arr, T)`` of the arrival term ``w_arr (t_N - T)^2`` of a robot's objective.
+
+    ``weights``: ``(accel, time, step, arrival)``. ``T`` is the robot's scheduled
+    arrival stretched like its windows, ``w_arr = arrival * accel * a_max^2 / T`` (the
+    units of the acceleration energy, so the balance is the same in any units of length
+    and time). Without the term a robot whose last window reaches the makespan (every
+    robot that finishes early) takes all of it: its acceleration energy falls with its
+    arrival time. ``T`` is a constant, never ``f T`` with a free factor ``f``, so the
+    term never pulls a free stretch factor up.
+
+    Example
+    -------
+    >>> from types import SimpleNamespace
+    >>> p = SimpleNamespace(knot_t=np.array([0.0, 2.0]), limits=Limits(1, 3, math.inf, math.inf))
+    >>> arrival_term(p, 1.5, (1.0, 0.01, 1e-3, 10.0))  # 10 * 1 * 3**2 / (2 * 1.5)
+    (30.0, 3.0)
+    """
+    T = float(path.knot_t[-1]) * stretch
+    a = float(path.limits.a_max)
+    if T <= 0 or not math.isfinite(a) or len(weights) < 4:
+        return 0.0, T
+    return float(weights[3]) * float(weights[0]) * a * a / T, T
+
+
 def path_warm_start(pp: PathProblem, stretch: float) -> tuple[np.ndarray, np.ndarray]:
     """The constant-velocity schedule on the grid (rest at the stops)."""
     path, N = pp.path, pp.N
