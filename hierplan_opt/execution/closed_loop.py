@@ -17,7 +17,8 @@ Every ``dt`` the monitor reads which way-point each robot has reached, and
   is held for its duration), random delays (held at a vertex). Physical disturbances
   (slippery regions, ...) live in the plant: the monitor sees them as lateness;
 * **re-plan**: every working robot is held at its next vertex node; when all stand
-  still (slower than the plant's ``still_speed``, if it has one), a new plan from the vertices they stand on (broken robots' footprints blocked)
+  still (slower than the plant's ``still_speed``, if it has one), a new plan from the
+  vertices they stand on (broken robots' footprints blocked)
   goes through :func:`.chain.plan_and_post` and the new routes are assigned.
 """
 
@@ -119,6 +120,7 @@ class ClosedLoop:
         self.late_logged: set[int] = set()
         #: (robot, physical disturbance) pairs whose delay has been logged once.
         self.cause_logged: set[tuple[int, str]] = set()
+        #: The fastest robot's speed over the last step (m/s).
         self.last_motion = 0.0
         #: While a re-plan is pending: the node each robot (phase index) stops at.
         self.frontier: dict[int, int] = {}

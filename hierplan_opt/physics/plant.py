@@ -238,6 +238,7 @@ class MujocoPlant:
         self.measure = Measure()
         self.samples_t: list[float] = []
         self.samples_p: list[np.ndarray] = []
+        self.samples_v: list[np.ndarray] = []
         self._sample()
 
     # ------------------------------------------------------------------ world
@@ -745,6 +746,7 @@ class MujocoPlant:
     def _sample(self) -> None:
         self.samples_t.append(self.time)
         self.samples_p.append(self.positions())
+        self.samples_v.append(self.velocities())
 
     def cause(self, robot: int, window: float = 5.0) -> str:
         """The disturbance that acted on ``robot`` last within ``window`` seconds
