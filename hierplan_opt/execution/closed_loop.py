@@ -17,7 +17,8 @@ Every ``dt`` the monitor reads which way-point each robot has reached, and
   is held for its duration), random delays (held at a vertex). Physical disturbances
   (slippery regions, ...) live in the plant: the monitor sees them as lateness;
 * **re-plan**: every working robot is held at its next vertex node; when all stand
-  still, a new plan from the vertices they stand on (broken robots' footprints blocked)
+  still (slower than the plant's ``still_speed``, if it has one), a new plan from the
+  vertices they stand on (broken robots' footprints blocked)
   goes through :func:`.chain.plan_and_post` and the new routes are assigned.
 """
 
@@ -119,6 +120,7 @@ class ClosedLoop:
         self.late_logged: set[int] = set()
         #: (robot, physical disturbance) pairs whose delay has been logged once.
         self.cause_logged: set[tuple[int, str]] = set()
+        #: The fastest robot's speed over the last step (m/s).
         self.last_motion = 0.0
         #: While a re-plan is pending: the node each robot (phase index) stops at.
         self.frontier: dict[int, int] = {}
@@ -126,6 +128,10 @@ class ClosedLoop:
         self.halt_gate: dict[int, int] = {}
         #: Each robot's speed over the last step (metres per second).
         self.speeds = np.zeros(self.state.K)
+        #: Below this speed (m/s) a robot stands still: the plant's ``still_speed`` (a
+        #: physical robot's position hold creeps onto its way-point for seconds), else
+        #: any motion counts.
+        self.still_speed = float(getattr(plant, "still_speed", 0.0))
 
     # ------------------------------------------------------------ phases
     def _start(
@@ -208,7 +214,7 @@ class ClosedLoop:
                 st.traj[g].append((t, pos[g, :dim] / scale))
             moved = np.linalg.norm(pos - before, axis=1)
             self.speeds = moved / self.dt
-            self.last_motion = float(np.max(moved, initial=0.0))
+            self.last_motion = float(np.max(self.speeds, initial=0.0))
         # Close the running phase.
         ph = st.phases[-1]
         st.phases[-1] = Phase(ph.schedule, ph.agents, ph.start, st.t.copy(), st.T.copy(), st.stn)
@@ -481,7 +487,7 @@ class ClosedLoop:
             first = int(tpg.agent_ptr[j])
             end = int(tpg.agent_ptr[j + 1])
             r = first + self.plant.reached(g)
-            if g in self.halt_pending and self.speeds[g] <= 1e-9:
+            if g in self.halt_pending and self.speeds[g] <= max(self.still_speed, 1e-9):
                 self.halt_until[g] = now + self.halt_pending.pop(g)  # it stands: halt
             halted = now < self.halt_until[g] or g in self.halt_pending
             v = max(st.last_happened(j) + 1, first)
@@ -513,7 +519,7 @@ class ClosedLoop:
             self.plant.release(g, gate - first)
             if gate > r:
                 any_free = True
-        return any_free or self.last_motion > 1e-9
+        return any_free or self.last_motion > max(self.still_speed, 1e-9 / self.dt)
 
     def _stop_node(self, j: int, g: int, r: int, *, vertex: bool) -> int:
         """The first node after ``r`` (a vertex node with ``vertex``) that robot ``g``

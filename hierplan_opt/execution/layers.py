@@ -4,7 +4,8 @@
 * slack: :func:`lateness` and :func:`slack_decision` - is robot's next node late, and
   does its slack (latest time against the schedule's makespan and deadlines) absorb it;
 * stn: :func:`stn_resolve` - the incremental STN re-solve (its release raised, executed
-  events fixed, successors pushed in topological order);
+  events fixed at their times - an executed node's release never above its time -,
+  successors pushed in topological order);
 * adg: :func:`initial_targets` / :func:`latest_times` - no schedule, every node as soon
   as its dependencies allow.
 
@@ -65,6 +66,12 @@ def stn_resolve(state: ExecState, n: int | list[int], now: float) -> list[int]:
     nodes = [n] if isinstance(n, int) else list(n)
     stn = state.stn
     release = np.array(stn.release, dtype=float)
+    # An executed event's time is a fact, its release was a prediction: a robot may pass
+    # a node a little before the release an earlier re-solve gave it (a physical robot
+    # counts as there within its reach tolerance), which must not make the STN
+    # inconsistent.
+    done = ~np.isnan(state.t)
+    release[done] = np.minimum(release[done], state.t[done])
     fixed: dict[int, float] = {}
     for v in nodes:
         release[v] = max(release[v], float(state.phys[v]))

@@ -9,7 +9,9 @@ makes.
 "Reached" means within a plant-specific tolerance of the way-point (kinematic: exact;
 physics: e.g. 0.05 m and heading-independent). Physical disturbances (low-friction region,
 payload, weaker motor, wind, stop at time t) are configured on the plant itself at
-construction - the monitor only sees their effect as lateness.
+construction - the monitor only sees their effect as lateness. A plant may give
+``still_speed`` (m/s): a robot slower than that counts as standing still (a physical
+robot's position hold creeps onto its way-point for seconds); without it any motion counts.
 """
 
 from __future__ import annotations

@@ -29,12 +29,14 @@ def text_report(ex: Execution, title: str = "") -> str:
         f"safety: {st['collisions']} collisions, min distance {_min_distance(st)} m "
         f"vs guaranteed {_f(st['guaranteed_distance'])} m ({kept})"
     )
-    if "acceleration_violations" in st:
+    if st.get("acceleration_checked") == 0:
+        lines.append("dynamics: accelerations not checked (no robot type gives a_max)")
+    elif "acceleration_violations" in st:
         n = st["acceleration_violations"]
         worst = st.get("worst_acceleration")
+        how = "measured" if worst and "measured" in worst else "needed"
         more = (
-            f" (worst: {worst['agent']} at t={worst['time']:.2f} s needed "
-            f"{worst['needed']:.3g} m/s^2)"
+            f" (worst: {worst['agent']} at t={worst['time']:.2f} s {how} {worst[how]:.3g} m/s^2)"
             if worst
             else ""
         )

@@ -690,7 +690,11 @@ def _closed_loop(
     the robot pairs the engine saw in contact."""
     t0 = time.perf_counter()
     if mode == "physics":
-        from hierplan_opt.physics.run import make_plant, measured  # heavy module (MuJoCo)
+        from hierplan_opt.physics.run import (  # heavy module (MuJoCo)
+            make_plant,
+            measured,
+            type_a_max,
+        )
 
         plant: Any = make_plant(instance, schedule, disturbances, seed=seed, monitor=True)
         how: dict[str, Any] = {"mode": "physics", "wait_before": True}
@@ -714,7 +718,7 @@ def _closed_loop(
         return ex
     wall = time.perf_counter() - t0
     st = ex.statistics
-    me = measured(plant, schedule, wall)
+    me = measured(plant, schedule, wall, type_a_max(instance, schedule))
     st.update(me)
     st["sim_time"] = float(plant.time)
     st["wall"] = wall

@@ -106,6 +106,10 @@ class MujocoPlant:
         Standard deviation (m) of the position measurement the controllers see.
     timestep, control_period : float
         Physics step (default 5 ms, 2 ms with quadcopters) and control period (20 ms).
+    still_speed : float
+        A robot slower than this (m/s) counts as standing still for the execution
+        monitor (a held robot's position hold creeps onto its way-point for seconds at
+        ever smaller speeds; a re-plan or a halt must not wait for the creep to end).
 
     Example
     -------
@@ -136,6 +140,7 @@ class MujocoPlant:
         control_period: float = 0.02,
         reach_tol: float = 0.05,
         early: float = 0.1,
+        still_speed: float = 0.01,
     ) -> None:
         n = len(models)
         self.n = n
@@ -198,6 +203,7 @@ class MujocoPlant:
         self.control_period = self.control_every * self.timestep
         self.reach_tol = reach_tol
         self.early = early
+        self.still_speed = float(still_speed)
         self.noise = noise
         self.rng = np.random.default_rng(seed)
         self.z0 = np.where(self.is_quad, 0.0, 0.5 * CHASSIS_HEIGHT)
@@ -232,6 +238,7 @@ class MujocoPlant:
         self.measure = Measure()
         self.samples_t: list[float] = []
         self.samples_p: list[np.ndarray] = []
+        self.samples_v: list[np.ndarray] = []
         self._sample()
 
     # ------------------------------------------------------------------ world
@@ -739,6 +746,7 @@ class MujocoPlant:
     def _sample(self) -> None:
         self.samples_t.append(self.time)
         self.samples_p.append(self.positions())
+        self.samples_v.append(self.velocities())
 
     def cause(self, robot: int, window: float = 5.0) -> str:
         """The disturbance that acted on ``robot`` last within ``window`` seconds

@@ -327,17 +327,75 @@ def statistics(
     }
 
 
-def measured(plant: MujocoPlant, schedule: Schedule, wall: float) -> dict[str, Any]:
+#: A measured acceleration counts as a violation above ``a_max`` times ``1 + ACCEL_TOL``
+#: (the engine's velocities differenced over one control period: the servos' lag).
+ACCEL_TOL = 0.05
+
+
+def type_a_max(instance: Instance, schedule: Schedule) -> np.ndarray:
+    """Per schedule robot, the ``a_max`` of its robot type in m/s^2 (times the map's
+    cell size); NaN for a type without one (the physics model then picks its own)."""
+    by_name = {a.name: a for a in instance.agents}
+    out = np.full(schedule.num_agents, np.nan)
+    for i, n in enumerate(schedule.agent_names):
+        k = by_name[n].kinematics if n in by_name else instance.agents[i].kinematics
+        if k.a_max:
+            out[i] = float(k.a_max) * float(schedule.scale)
+    return out
+
+
+def accelerations(plant: MujocoPlant, a_max: np.ndarray) -> dict[str, Any]:
+    """The robots' accelerations measured from the engine's velocities (sampled every
+    control period, differenced) against ``a_max`` (m/s^2 per robot; NaN: not checked):
+    ``max_acceleration_ratio`` (largest |dv/dt| / a_max; NaN when no robot has an
+    a_max), ``acceleration_violations`` (control periods, per robot, above
+    ``a_max (1 + ACCEL_TOL)``), ``worst_acceleration`` (robot, time, measured m/s^2)
+    when there is one, ``acceleration_checked`` (how many robots were checked)."""
+    t = np.asarray(plant.samples_t, dtype=float)
+    v = np.asarray(plant.samples_v, dtype=float).reshape(len(t), plant.n, 3)
+    a_max = np.asarray(a_max, dtype=float).reshape(plant.n)
+    checked = np.flatnonzero(np.isfinite(a_max) & (a_max > 0))
+    out: dict[str, Any] = {
+        "acceleration_checked": len(checked),
+        "max_acceleration_ratio": math.nan,
+        "acceleration_violations": 0,
+    }
+    if not len(checked):
+        return out
+    if len(t) < 2:
+        out["max_acceleration_ratio"] = 0.0
+        return out
+    acc = np.linalg.norm(np.diff(v[:, checked], axis=0), axis=2) / np.diff(t)[:, None]
+    ratio = acc / a_max[checked][None, :]
+    out["max_acceleration_ratio"] = float(ratio.max())
+    over = ratio > 1.0 + ACCEL_TOL
+    out["acceleration_violations"] = int(over.sum())
+    if over.any():
+        k, c = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        out["worst_acceleration"] = {
+            "agent": plant.names[int(checked[c])],
+            "time": float(t[k + 1]),
+            "measured": float(acc[k, c]),
+        }
+    return out
+
+
+def measured(
+    plant: MujocoPlant, schedule: Schedule, wall: float, a_max: np.ndarray | None = None
+) -> dict[str, Any]:
     """What the plant measured, for an execution report: ``contacts`` (physics steps
     with a robot-robot contact) and ``contact_pairs``, ``measured_min_distance`` and
     ``measured_min_margin`` (every pair, every physics step), ``tracking_error_max`` /
     ``tracking_error_rms`` (against the first schedule), ``real_time_factor``,
-    ``physics_steps``, ``disturbed``."""
+    ``physics_steps``, ``disturbed``, and with ``a_max`` (per robot, m/s^2, NaN: the
+    type has none; :func:`type_a_max`) the measured accelerations
+    (:func:`accelerations`)."""
     me = plant.measure
     st_t, st_p = plant.samples
     err = np.linalg.norm(st_p - scheduled_positions(schedule, st_t), axis=2)
     sim = float(plant.time)
-    return {
+    dyn = accelerations(plant, a_max) if a_max is not None else {}
+    return dyn | {
         "contacts": int(me.contacts),
         "contact_pairs": sorted([plant.names[a], plant.names[b]] for a, b in me.contact_pairs),
         "measured_min_distance": float(me.min_distance),
