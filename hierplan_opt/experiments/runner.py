@@ -12,9 +12,10 @@ at the hard wall-clock limit, its wait status and peak resident memory come from
 ``os.wait4``, and whatever happened becomes the outcome fields of a ``runs`` row:
 
 * the worker's own report (OPTIMAL, FEASIBLE, INFEASIBLE, TIME_LIMIT, ERROR, MEMOUT);
-* killed at the hard limit: TIME_LIMIT; MEMOUT if its address space was then within
-  :data:`FULL_MB` (or a tenth) of its memory limit (a run that hangs after a failed
-  allocation, e.g. in a library that caught it, ran out of memory, not out of time);
+* killed at the hard limit: TIME_LIMIT; MEMOUT if its address space was then at its
+  memory limit (:func:`~hierplan_opt.experiments.worker.memory_full`; a run that hangs
+  after a failed allocation ran out of memory, not time; the worker's watchdog ends
+  such a run itself one second past its time limit, see its module doc);
 * died with a memory error (``MemoryError``, ``std::bad_alloc``, ``Cannot allocate
   memory``, LLVM's ``Unable to allocate`` / ``allocation failed``), or killed by a
   signal it was not sent (the kernel's OOM killer): MEMOUT;
@@ -36,7 +37,7 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from hierplan_opt.experiments.worker import TOO_BIG
+from hierplan_opt.experiments.worker import TOO_BIG, memory_full
 
 MEMOUT = "MEMOUT"
 #: Seconds a run may overrun its time limit before it is killed (solvers stop on their
@@ -50,12 +51,9 @@ _MEMORY_SIGNS = (
     "Unable to allocate",  # LLVM (numba's kernels): "Unable to allocate section memory!"
     "allocation failed",  # LLVM: "Buffer allocation failed"
 )
-#: A run killed at the hard limit whose address space is within this many MB (or a
-#: tenth of the limit, if more) of its memory limit is MEMOUT, not TIME_LIMIT.
-FULL_MB = 64.0
 
 
-def address_space_mb(pid: int) -> float:
+def space_mb_of(pid: int) -> float:
     """The virtual memory size of process ``pid`` (what ``RLIMIT_AS`` caps), in MB; 0 if
     unknown (no such process, not Linux)."""
     try:
@@ -66,20 +64,6 @@ def address_space_mb(pid: int) -> float:
     except (OSError, ValueError, IndexError):
         pass
     return 0.0
-
-
-def memory_full(space_mb: float, limit_mb: float | None) -> bool:
-    """Whether an address space of ``space_mb`` is at the memory limit ``limit_mb``
-    (within :data:`FULL_MB` or a tenth of it).
-
-    Example
-    -------
-    >>> memory_full(480.0, 512), memory_full(300.0, 512), memory_full(480.0, None)
-    (True, False, False)
-    """
-    if limit_mb is None or space_mb <= 0:
-        return False
-    return space_mb >= limit_mb - max(FULL_MB, 0.1 * limit_mb)
 
 
 def hard_limit(time_limit: float) -> float:
@@ -128,7 +112,7 @@ def run_fresh(task: dict[str, Any], python: str | None = None) -> dict[str, Any]
             space = [0.0]  # its address space when killed (MB)
 
             def kill() -> None:
-                space[0] = address_space_mb(proc.pid)
+                space[0] = space_mb_of(proc.pid)
                 killed.set()
                 proc.kill()
 
@@ -243,7 +227,7 @@ class _Server:
             space = [0.0]  # its address space when killed (MB)
 
             def kill() -> None:
-                space[0] = address_space_mb(pid)
+                space[0] = space_mb_of(pid)
                 killed.set()
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)
