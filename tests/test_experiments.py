@@ -40,6 +40,13 @@ def solve(instance, *, time_limit=None, seed=0, objective="soc", mode="ok", fail
         chunks = []
         while True:
             chunks.append(bytearray(64 * 2**20))
+    if mode == "hog_hang":  # fill the address space, keep it, hang (past the hard limit)
+        chunks = []
+        try:
+            while True:
+                chunks.append(bytearray(16 * 2**20))
+        except MemoryError:
+            time.sleep(120)
     if mode == "numpy_hog":
         import numpy
         numpy.ones(2**38)
@@ -266,6 +273,33 @@ def test_crash_and_memory_blowup_are_recorded_and_the_sweep_goes_on(
     assert rows["ok"]["status"] == "OPTIMAL" and rows["ok"]["cost"] == 4
 
 
+@pytest.mark.parametrize("how", ["fresh", "fork"])
+def test_a_run_hung_at_its_memory_limit_is_memout_at_the_hard_limit(
+    plugin: str, monkeypatch: pytest.MonkeyPatch, how: str
+) -> None:
+    """A run that hangs at its memory limit (after a failed allocation) ran out of
+    memory: MEMOUT, ended one second past its time limit (audit: TIME_LIMIT, at the
+    hard limit)."""
+    monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", how)
+    if how == "fork":
+        monkeypatch.setattr(runner, "run_fresh", _no_fresh)
+    monkeypatch.setattr(runner, "GRACE", 2.0)  # killed 2 s after its 1 s limit
+    inst = empty8([2])
+    files = {Path(inst[p]).name: Path(inst[p]).read_text() for p in ("map", "scen")}
+    task = {
+        "instance": {"kind": "movingai", "order": list(files), "files": files},
+        "agents": 2, "seed": 0, "solver": "plug", "target": plugin, "time_limit": 1,
+        "memory_limit_mb": 1500, "options": {"mode": "hog_hang"},
+    }  # fmt: skip
+    try:
+        out = runner.run_task(task)
+    finally:
+        runner.close_servers()
+    # ended by its own watchdog one second past its time limit, before the hard limit
+    assert out["status"] == "MEMOUT" and "memory limit" in out["error"], out
+    assert 2 <= out["wall"] < 3
+
+
 def test_crash_classification() -> None:
     bad_alloc = "terminate called after throwing an instance of 'std::bad_alloc'\n"
     assert runner._crashed(-6, False, bad_alloc, 1.0, 90, 10)["status"] == "MEMOUT"
@@ -275,6 +309,13 @@ def test_crash_classification() -> None:
     assert seg["status"] == "ERROR" and seg["error"] == "the run crashed (killed by SIGSEGV: boom)"
     assert runner._crashed(-9, True, "", 12.0, 90, 10)["status"] == "TIME_LIMIT"
     assert runner._crashed(3, False, "", 1.0, 90, 10)["error"] == "the run crashed (exit code 3)"
+    # numba's kernels loaded at the memory limit: LLVM aborts (audit: was ERROR)
+    for llvm in ("LLVM ERROR: Unable to allocate section memory!\n", "Buffer allocation failed\n"):
+        assert runner._crashed(-6, False, llvm, 3.0, 240, 16)["status"] == "MEMOUT"
+    full = runner._crashed(-9, True, "", 16.0, 240, 16, "its address space at 500 MB ...")
+    assert full["status"] == "MEMOUT" and "hard limit of 16 s" in full["error"]
+    assert runner.memory_full(470.0, 512) and not runner.memory_full(300.0, 512)
+    assert runner.space_mb_of(os.getpid()) > 0 and runner.space_mb_of(2**22 + 1) == 0
 
 
 def test_stop_on_failure_skips_larger_agent_counts(tmp_path: Path, plugin: str) -> None:

@@ -12,9 +12,13 @@ at the hard wall-clock limit, its wait status and peak resident memory come from
 ``os.wait4``, and whatever happened becomes the outcome fields of a ``runs`` row:
 
 * the worker's own report (OPTIMAL, FEASIBLE, INFEASIBLE, TIME_LIMIT, ERROR, MEMOUT);
-* killed at the hard limit: TIME_LIMIT;
+* killed at the hard limit: TIME_LIMIT; MEMOUT if its address space was then at its
+  memory limit (:func:`~hierplan_opt.experiments.worker.memory_full`; a run that hangs
+  after a failed allocation ran out of memory, not time; the worker's watchdog ends
+  such a run itself one second past its time limit, see its module doc);
 * died with a memory error (``MemoryError``, ``std::bad_alloc``, ``Cannot allocate
-  memory``), or killed by a signal it was not sent (the kernel's OOM killer): MEMOUT;
+  memory``, LLVM's ``Unable to allocate`` / ``allocation failed``), or killed by a
+  signal it was not sent (the kernel's OOM killer): MEMOUT;
 * any other crash: ERROR with the signal or exit code and the last line of stderr.
 """
 
@@ -33,13 +37,33 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from hierplan_opt.experiments.worker import TOO_BIG
+from hierplan_opt.experiments.worker import TOO_BIG, memory_full
 
 MEMOUT = "MEMOUT"
 #: Seconds a run may overrun its time limit before it is killed (solvers stop on their
 #: own at the limit; this catches the ones that do not).
 GRACE = 10.0
-_MEMORY_SIGNS = ("MemoryError", "bad_alloc", "Cannot allocate memory", "out of memory")
+_MEMORY_SIGNS = (
+    "MemoryError",
+    "bad_alloc",
+    "Cannot allocate memory",
+    "out of memory",
+    "Unable to allocate",  # LLVM (numba's kernels): "Unable to allocate section memory!"
+    "allocation failed",  # LLVM: "Buffer allocation failed"
+)
+
+
+def space_mb_of(pid: int) -> float:
+    """The virtual memory size of process ``pid`` (what ``RLIMIT_AS`` caps), in MB; 0 if
+    unknown (no such process, not Linux)."""
+    try:
+        with open(f"/proc/{pid}/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return 0.0
 
 
 def hard_limit(time_limit: float) -> float:
@@ -85,8 +109,10 @@ def run_fresh(task: dict[str, Any], python: str | None = None) -> dict[str, Any]
                 env={**os.environ, "PYTHONUNBUFFERED": "1"},
             )
             killed = threading.Event()
+            space = [0.0]  # its address space when killed (MB)
 
             def kill() -> None:
+                space[0] = space_mb_of(proc.pid)
                 killed.set()
                 proc.kill()
 
@@ -117,12 +143,22 @@ def run_fresh(task: dict[str, Any], python: str | None = None) -> dict[str, Any]
             out["wall"] = wall
             out["peak_mb"] = max(peak_mb, float(out.get("peak_mb") or 0.0))
             return out
-    return _crashed(proc.returncode, killed.is_set(), stderr, wall, peak_mb, limit)
+    full = _full(space[0], task)
+    return _crashed(proc.returncode, killed.is_set(), stderr, wall, peak_mb, limit, full)
+
+
+def _full(space_mb: float, task: dict[str, Any]) -> str:
+    """How full the address space of a run killed at the hard limit was, if it was at
+    its memory limit (see :func:`memory_full`), else ""."""
+    cap = task.get("memory_limit_mb")
+    if not memory_full(space_mb, cap):
+        return ""
+    return f"its address space at {space_mb:.0f} MB of its memory limit of {cap:g} MB"
 
 
 def _outcome(
     result_path: Path, err: IO[bytes], code: int, killed: bool, wall: float, peak_mb: float,
-    limit: float,
+    limit: float, full: str = "",
 ) -> dict[str, Any]:  # fmt: skip
     """The row fields of a finished run: its report, or how it crashed."""
     if result_path.exists():
@@ -132,7 +168,7 @@ def _outcome(
         return out
     err.seek(0)
     stderr = err.read()[-4000:].decode("utf-8", "replace")
-    return _crashed(code, killed, stderr, wall, peak_mb, limit)
+    return _crashed(code, killed, stderr, wall, peak_mb, limit, full)
 
 
 #: Arguments of the interpreter that runs a warm worker.
@@ -188,8 +224,10 @@ class _Server:
                 return None
             pid = int(started["pid"])
             killed = threading.Event()
+            space = [0.0]  # its address space when killed (MB)
 
             def kill() -> None:
+                space[0] = space_mb_of(pid)
                 killed.set()
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)
@@ -202,10 +240,11 @@ class _Server:
             finally:
                 timer.cancel()
             wall = time.perf_counter() - t0
+            full = _full(space[0], task)
             if done is None:  # the server itself died: its child stopped with it
                 with open(err_path, "rb") as err:
                     out = _outcome(result_path, err, -signal.SIGKILL, killed.is_set(), wall,
-                                   0.0, limit)  # fmt: skip
+                                   0.0, limit, full)  # fmt: skip
                 if out.get("status") == MEMOUT:
                     out["error"] = f"{out['error']} (the warm worker died)"
                 return out
@@ -214,7 +253,8 @@ class _Server:
                 return None
             peak_mb = float(done["maxrss_kb"]) / 1024.0
             with open(err_path, "rb") as err:
-                return _outcome(result_path, err, code, killed.is_set(), wall, peak_mb, limit)
+                return _outcome(result_path, err, code, killed.is_set(), wall, peak_mb, limit,
+                                full)  # fmt: skip
 
     def close(self) -> None:
         if self.proc.stdin is not None:
@@ -265,12 +305,21 @@ atexit.register(close_servers)
 
 
 def _crashed(
-    code: int, killed: bool, stderr: str, wall: float, peak_mb: float, limit: float
+    code: int,
+    killed: bool,
+    stderr: str,
+    wall: float,
+    peak_mb: float,
+    limit: float,
+    full: str = "",
 ) -> dict[str, Any]:
-    """The outcome of a run that left no report."""
+    """The outcome of a run that left no report (``full``: how full its address space
+    was when killed at the hard limit, if it was at its memory limit)."""
     lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
     last = lines[-1][:300] if lines else ""
-    if killed or (code == 137 and wall >= limit):  # 137: the worker's own watchdog
+    if (killed or (code == 137 and wall >= limit)) and full:
+        status, error = MEMOUT, f"out of memory (killed at the hard limit of {limit:g} s, {full})"
+    elif killed or (code == 137 and wall >= limit):  # 137: the worker's own watchdog
         status, error = "TIME_LIMIT", f"killed at the hard limit of {limit:g} s"
     elif any(s in stderr for s in _MEMORY_SIGNS) or code == -signal.SIGKILL:
         status = MEMOUT

@@ -6,7 +6,10 @@ needed), rebuilds the instance from the file contents or the generator in the ta
 solves it through the front door and writes the outcome as JSON to
 ``task["result_path"]``. A ``MemoryError`` becomes MEMOUT; any other exception ERROR.
 A watchdog thread ends the process when the parent dies (so a killed sweep leaves no
-orphans) or when the hard wall-clock limit passes.
+orphans) or when the hard wall-clock limit passes, and as MEMOUT (exit code 1 and a
+``MemoryError`` line on stderr) when the run is :data:`HUNG_S` seconds past its time
+limit with its address space at its memory limit (:func:`memory_full`): a run that hung
+after a failed allocation ends then, not at the hard limit.
 
 ``python -m hierplan_opt.experiments.worker --serve`` is the warm variant (a fork
 server, :func:`serve`): it imports the solvers, scipy's graph routines and (when numba's
@@ -54,6 +57,12 @@ MEMOUT = "MEMOUT"
 TOO_BIG = 75
 #: Megabytes of its memory limit a forked child must have left to start.
 HEADROOM_MB = 128
+#: A run killed at the hard limit whose address space is within this many MB (or a
+#: tenth of the limit, if more) of its memory limit is MEMOUT, not TIME_LIMIT.
+FULL_MB = 64.0
+#: Seconds past its time limit after which a run at its memory limit is ended (MEMOUT).
+HUNG_S = 1.0
+_HUNG_LINE = b"MemoryError: the run hung at its memory limit past its time limit\n"
 #: Packages whose versions are stored with every run.
 VERSIONED = ("hierplan_opt", "numpy", "scipy", "networkx", "ortools", "highspy", "pyomo")
 
@@ -69,17 +78,47 @@ def limit_memory(megabytes: float | None) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
 
 
-def watchdog(hard_limit: float | None, poll: float = 0.2) -> None:
+def memory_full(space_mb: float, limit_mb: float | None) -> bool:
+    """Whether an address space of ``space_mb`` is at the memory limit ``limit_mb``
+    (within :data:`FULL_MB` or a tenth of it).
+
+    Example
+    -------
+    >>> memory_full(480.0, 512), memory_full(300.0, 512), memory_full(480.0, None)
+    (True, False, False)
+    """
+    if limit_mb is None or space_mb <= 0:
+        return False
+    return space_mb >= limit_mb - max(FULL_MB, 0.1 * limit_mb)
+
+
+def watchdog(
+    hard_limit: float | None,
+    poll: float = 0.2,
+    time_limit: float | None = None,
+    memory_limit_mb: float | None = None,
+) -> None:
     """Start a daemon thread that exits the process (code 137) when the parent process
-    is gone or after ``hard_limit`` seconds."""
+    is gone or after ``hard_limit`` seconds, and (code 1, a ``MemoryError`` line on
+    stderr) once it is :data:`HUNG_S` seconds past ``time_limit`` with its address
+    space at ``memory_limit_mb``."""
     parent = os.getppid()
-    end = None if hard_limit is None else time.monotonic() + hard_limit
+    now = time.monotonic()
+    end = None if hard_limit is None else now + hard_limit
+    hung = None if time_limit is None or memory_limit_mb is None else now + time_limit + HUNG_S
 
     def watch() -> None:
         while True:
-            time.sleep(poll)
-            if os.getppid() != parent or (end is not None and time.monotonic() > end):
-                os._exit(137)
+            try:
+                time.sleep(poll)
+                if os.getppid() != parent or (end is not None and time.monotonic() > end):
+                    os._exit(137)
+                late = hung is not None and time.monotonic() > hung
+                if late and memory_full(address_space_mb(), memory_limit_mb):
+                    os.write(2, _HUNG_LINE)
+                    os._exit(1)
+            except MemoryError:  # (the run's memory is full: look again)
+                continue
 
     threading.Thread(target=watch, name="hierplan-watchdog", daemon=True).start()
 
@@ -161,8 +200,10 @@ def _json_safe(value: Any) -> bool:
 
 def report(task: dict[str, Any]) -> None:
     """Solve ``task`` (its memory limit and watchdog on) and write its outcome file."""
+    versions()  # (before the limit: a run that ran out of memory still reports them)
     limit_memory(task.get("memory_limit_mb"))
-    watchdog(task.get("hard_limit"))
+    watchdog(task.get("hard_limit"), time_limit=task.get("time_limit"),
+             memory_limit_mb=task.get("memory_limit_mb"))  # fmt: skip
     out: dict[str, Any]
     try:
         out = solve_task(task)
