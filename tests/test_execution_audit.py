@@ -142,11 +142,17 @@ def test_replay_min_distance_is_the_real_one(tmp_path: Path, capsys) -> None:
     assert code == 0 and "min distance inf" not in text
 
 
-def test_replay_min_distance_only_bounded_says_so(monkeypatch) -> None:
+def corners_measuring_no_skipped_pair(monkeypatch) -> tuple[hp.Instance, hp.Schedule]:
+    """The corner swap posted, with the replay measuring none of the pairs it prunes."""
     instance = load_instance_text(CORNERS)
     sched = postprocess(instance, hp.solve(instance, "cbs").plan)
     module = importlib.import_module("hierplan_opt.schedule.replay")
     monkeypatch.setattr(module.skipped_minimum, "__defaults__", (0,))  # measure none
+    return instance, sched
+
+
+def test_replay_min_distance_only_bounded_says_so(monkeypatch) -> None:
+    instance, sched = corners_measuring_no_skipped_pair(monkeypatch)
     rep = replay(sched, instance)
     truth = replay(sched, instance, all_pairs=True).min_distance
     assert not rep.min_distance_exact
@@ -197,10 +203,7 @@ def test_library_refuses_impossible_disturbances() -> None:
 
 
 def test_execution_min_distance_only_bounded_says_so(monkeypatch) -> None:
-    instance = load_instance_text(CORNERS)
-    sched = postprocess(instance, hp.solve(instance, "cbs").plan)
-    module = importlib.import_module("hierplan_opt.schedule.replay")
-    monkeypatch.setattr(module.skipped_minimum, "__defaults__", (0,))  # measure none
+    instance, sched = corners_measuring_no_skipped_pair(monkeypatch)
     ex = simulate(instance, sched)
     st = ex.statistics
     assert st["min_distance"] == math.inf and st["min_distance_above"] is not None
