@@ -245,3 +245,20 @@ def test_cbs_with_highways_refuses_a_node_limit(tmp_path: Path) -> None:
     inst = load_instance_text(TRAIN)
     with pytest.raises(hp.OptionError, match="no node_limit"):
         hp.solve(inst, "cbs", highways="crisscross", node_limit=5)
+
+
+def test_robot_mode_without_a_max_says_accelerations_not_checked() -> None:
+    # Audit: robot mode printed "max |a| / a_max 0, 0 acceleration violation(s)" when no
+    # robot type gives a_max, a check against nothing.
+    from hierplan_opt.execution.report import text_report
+
+    instance = load_instance_text(TRAIN)
+    sched = postprocess(instance, hp.solve(instance, "cbs").plan)
+    st = simulate(instance, sched, mode="robot", dt=0.05)
+    assert st.statistics["acceleration_checked"] == 0
+    assert "accelerations not checked" in text_report(st)
+    fast = hp.Kinematics("fast", v_max=1.0, a_max=2.0)
+    inst2 = hp.Instance.mapf(instance.graph, [(0, 0), (1, 0)], [(3, 0), (4, 0)], kinematics=fast)
+    ex = simulate(inst2, postprocess(inst2, hp.solve(inst2, "cbs").plan), mode="robot", dt=0.05)
+    assert ex.statistics["acceleration_checked"] == 2
+    assert "max |a| / a_max" in text_report(ex)

@@ -292,6 +292,11 @@ def finish(
         if robot.violations:
             t, g, need = max(robot.violations, key=lambda x: x[2])
             stats["worst_acceleration"] = {"agent": sim.names[g], "time": t, "needed": need}
+    if "acceleration_violations" in stats:
+        # robots without a_max accelerate freely: nothing to check them against
+        stats.setdefault(
+            "acceleration_checked", sum(bool(a.kinematics.a_max) for a in instance.agents)
+        )
     arrival.setflags(write=False)
     return Execution(
         policy=policy,
