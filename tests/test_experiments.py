@@ -283,7 +283,7 @@ def test_a_run_hung_at_its_memory_limit_is_memout_at_the_hard_limit(
     monkeypatch.setenv("HIERPLAN_SWEEP_WORKER", how)
     if how == "fork":
         monkeypatch.setattr(runner, "run_fresh", _no_fresh)
-    monkeypatch.setattr(runner, "GRACE", 2.0)  # killed 2 s after its 1 s limit
+    monkeypatch.setattr(runner, "GRACE", 8.0)  # the hard kill: 8 s after its 1 s limit
     inst = empty8([2])
     files = {Path(inst[p]).name: Path(inst[p]).read_text() for p in ("map", "scen")}
     task = {
@@ -295,9 +295,12 @@ def test_a_run_hung_at_its_memory_limit_is_memout_at_the_hard_limit(
         out = runner.run_task(task)
     finally:
         runner.close_servers()
-    # ended by its own watchdog one second past its time limit, before the hard limit
+    # ended by its own watchdog one second past its time limit, not by the hard kill
+    # (whose MEMOUT says "killed at the hard limit"); the wall bound only separates the
+    # two (a loaded machine delays the watchdog's poll)
     assert out["status"] == "MEMOUT" and "memory limit" in out["error"], out
-    assert 2 <= out["wall"] < 3
+    assert "hard limit" not in out["error"], out
+    assert 2 <= out["wall"] < 9
 
 
 def test_crash_classification() -> None:
