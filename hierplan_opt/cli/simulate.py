@@ -202,11 +202,12 @@ def report_execution(
     Monte Carlo run: 1 (a collision or the distance not kept in any), else 5 (a working
     robot not at its goal in any), else 0."""
     from hierplan_opt.execution.report import text_report, write_report
+    from hierplan_opt.execution.statistics import unsafe
 
     report: dict[str, Any] = ex.report()
     print(text_report(ex, title))
     st = ex.statistics
-    unsafe = bool(st["collisions"]) or not st["distance_kept"]
+    failed = unsafe(st)
     stranded = bool(st["stranded"])
     if args.runs:
         from hierplan_opt.execution.montecarlo import monte_carlo
@@ -242,7 +243,7 @@ def report_execution(
                 f"collision or the guaranteed distance not kept, {mc.stranded_runs} with a "
                 "working robot not at its goal)"
             )
-        unsafe = unsafe or mc.unsafe_runs > 0
+        failed = failed or mc.unsafe_runs > 0
         stranded = stranded or mc.stranded_runs > 0
         if mc.below:
             print(f"{len(mc.below)} location(s) on time with less than {args.replan_below:g}")
@@ -277,7 +278,7 @@ def report_execution(
         )
     # The base run and every Monte Carlo run: a safety failure wins over a robot away
     # from its goal. Broken robots are listed apart and do not change the exit code.
-    if unsafe:
+    if failed:
         return PLAN_INVALID
     return NOT_ARRIVED if stranded else OK
 

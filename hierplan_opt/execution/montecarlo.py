@@ -42,6 +42,7 @@ from hierplan_opt.execution.disturbances import Disturbance, RandomDelays, Stop
 from hierplan_opt.execution.follow import check_trajectories
 from hierplan_opt.execution.replan import rescheduled
 from hierplan_opt.execution.simulate import simulate
+from hierplan_opt.execution.statistics import unsafe
 from hierplan_opt.schedule.output import Schedule
 from hierplan_opt.schedule.tpg import VERTEX
 
@@ -116,7 +117,7 @@ class MonteCarloResult:
     @property
     def unsafe_runs(self) -> int:
         """Runs with a collision or the guaranteed distance not kept."""
-        return sum(bool(s["collisions"]) or not s["distance_kept"] for s in self.runs_stats)
+        return sum(unsafe(s) for s in self.runs_stats)
 
     @property
     def stranded_runs(self) -> int:
@@ -126,10 +127,7 @@ class MonteCarloResult:
     @property
     def failed_runs(self) -> int:
         """Runs that are unsafe or left a working robot away from its goal."""
-        return sum(
-            bool(s["collisions"]) or not s["distance_kept"] or bool(s["stranded"])
-            for s in self.runs_stats
-        )
+        return sum(unsafe(s) or bool(s["stranded"]) for s in self.runs_stats)
 
     @property
     def runs_per_second(self) -> float:

@@ -23,13 +23,7 @@ from hierplan_opt.execution.follow import follow_run, required_distance
 from hierplan_opt.execution.robot import robot_run
 from hierplan_opt.execution.state import DISTURBANCE_KINDS, ExecState, Execution
 from hierplan_opt.schedule.output import Schedule, Waypoints
-from hierplan_opt.schedule.replay import (
-    _boxes,
-    _candidate_pairs,
-    _pair_min,
-    collides,
-    skipped_minimum,
-)
+from hierplan_opt.schedule.replay import closest_pair, collides, pair_separations
 
 #: Distance tolerance (metres, relative).
 TOL = 1e-9
@@ -82,14 +76,16 @@ def executed_schedule(
 
 def distances(
     schedule: Schedule, instance: Instance, required: Any = None, slack: float = 0.0
-) -> tuple[float, int, bool, float]:
-    """``(min distance, collisions, distance kept, worst gap)`` over every pair.
+) -> tuple[float, int, bool, float, float | None]:
+    """``(min distance, collisions, distance kept, worst gap, above)`` over every pair.
 
     ``required(i, j)`` (default ``r_i + r_j + margin``) is the distance a pair must
     keep; ``slack`` is subtracted from every measured distance (a sampling bound). The
-    minimum is over every pair (pairs pruned as far apart are measured when no pair
-    checked came as close, if at most ``EXACT_SKIPPED``); ``inf`` when it is only known
-    to exceed :func:`skipped_bound`.
+    minimum is over every pair (:func:`~hierplan_opt.schedule.replay.closest_pair`:
+    pairs pruned as far apart are measured when no pair checked came as close);
+    ``inf`` when there are too many to measure, and then ``above`` is the distance every
+    pair stayed beyond (else None). Pairs are pruned as
+    :func:`~hierplan_opt.schedule.replay.pair_separations` does, watching one cell.
 
     Example
     -------
@@ -97,7 +93,7 @@ def distances(
     >>> from hierplan_opt.schedule import postprocess
     >>> inst = Instance.mapf(Graph.grid(3, 2), [(0, 0), (0, 1)], [(2, 0), (2, 1)])
     >>> distances(postprocess(inst, Plan.from_paths([[0, 1, 2], [3, 4, 5]]), margin=0), inst)
-    (1.0, 0, True, 1.0)
+    (1.0, 0, True, 1.0, None)
     """
     K = schedule.num_agents
     radius = np.array([a.kinematics.radius for a in instance.agents], dtype=float)
@@ -105,36 +101,37 @@ def distances(
     times = [np.asarray(w.arrival, dtype=float) for w in schedule.waypoints]
     pos = [np.asarray(w.coords, dtype=float) * schedule.scale for w in schedule.waypoints]
     if K < 2:
-        return math.inf, 0, True, math.inf
-    horizon = max(float(max(t[-1] for t in times)), 1e-9)
-    n_win = int(min(4096, max(1, sum(len(t) for t in times) // K)))
-    lo, hi = _boxes(times, pos, n_win, horizon / n_win * (1 + 1e-12))
-    pairs = _candidate_pairs(lo, hi, radius + m / 2 + schedule.scale / 2)
-    best, worst, collisions = math.inf, math.inf, 0
-    for a, b in pairs.tolist():
-        d, _ = _pair_min(times[a], pos[a], times[b], pos[b])
-        d -= slack
-        best = min(best, d)
+        return math.inf, 0, True, math.inf, None
+    sep = pair_separations(times, pos, radius, m, watch=schedule.scale, slack=slack)
+    worst, collisions = math.inf, 0
+    for k, (a, b) in enumerate(sep.pairs.tolist()):
+        d = float(sep.distance[k])
         body = radius[a] + radius[b]
         need = body + m if required is None else float(required(a, b))
-        worst = min(worst, float(d - need))
+        worst = min(worst, d - need)
         if collides(d, body):
             collisions += 1
+    closest = closest_pair(sep, times, pos, slack)
     # A collision is never a kept distance: at radius 0 and margin 0 two robots on one
     # point have gap 0 >= 0, yet they collided (``collides``).
-    if len(pairs) < K * (K - 1) // 2 and best > skipped_bound(instance, m, schedule.scale) - slack:
-        # No pair checked came as close as a skipped one may: measure those too (inf
-        # when there are too many: every pair stayed farther apart than the bound).
-        extra = skipped_minimum(times, pos, pairs)
-        best = math.inf if extra is None else min(best, extra[0] - slack)
     kept = collisions == 0 and bool(worst >= -TOL * max(1.0, float(radius.max()) * 2 + m))
-    return float(best), collisions, kept, float(worst)
+    if closest is None:  # every pair stayed beyond the bound; too many to measure
+        return math.inf, collisions, kept, float(worst), sep.skipped_bound
+    return closest[0], collisions, kept, float(worst), None
 
 
-def skipped_bound(instance: Instance, margin: float, scale: float) -> float:
-    """Every pair that :func:`distances` skips stays farther apart than this (metres)."""
-    r = sorted(a.kinematics.radius for a in instance.agents)
-    return float(r[0] + r[1] + margin + scale) if len(r) > 1 else math.inf
+def unsafe(stats: dict[str, Any]) -> bool:
+    """Whether a run's ``statistics`` show a collision or the guaranteed distance not
+    kept: the exit code 1 of ``simulate`` and ``run``, over the base run and every Monte
+    Carlo run.
+
+    Example
+    -------
+    >>> unsafe({"collisions": 0, "distance_kept": True}), unsafe({"collisions": 1,
+    ...                                                           "distance_kept": False})
+    (False, True)
+    """
+    return bool(stats["collisions"]) or not stats["distance_kept"]
 
 
 def outcomes(
@@ -239,7 +236,7 @@ def finish(
         base = replace(schedule, margin=low)
         guaranteed = min(guaranteed, low)
     exe = executed_schedule(sim.names, traj, base, policy)
-    d_min, collisions, kept, worst = distances(exe, instance, required, slack)
+    d_min, collisions, kept, worst, above = distances(exe, instance, required, slack)
     # A physical plant stops within its reach tolerance (metres) of a way-point.
     goal_tol = max(1e-6, float(getattr(plant, "reach_tol", 0.0)) / float(schedule.scale))
     done, why, stranded = outcomes(instance, sim, arrival, [tr[-1, 1:] for tr in traj], goal_tol)
@@ -252,11 +249,7 @@ def finish(
         "collisions": collisions,
         "min_distance": d_min,
         # inf: every pair stayed farther apart than this (too many to measure exactly).
-        "min_distance_above": (
-            skipped_bound(instance, base.margin, schedule.scale)
-            if math.isinf(d_min) and sim.K > 1
-            else None
-        ),
+        "min_distance_above": above,
         "guaranteed_distance": guaranteed,
         "trajectories": "refined" if sim.follow is not None else "constant velocity",
         "distance_bound": slack,

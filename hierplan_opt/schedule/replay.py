@@ -190,6 +190,42 @@ def skipped_minimum(
     return best
 
 
+def closest_pair(
+    sep: PairSeparations,
+    times: list[np.ndarray],
+    positions: list[np.ndarray],
+    slack: float = 0.0,
+) -> tuple[float, int, int, float] | None:
+    """The closest pair of robots over all pairs: ``(distance, i, j, time)``, the
+    distance less ``slack`` (as in ``sep``, made with that slack). The closest pair
+    checked, unless pairs were skipped and none checked came within their bound: then
+    the closest over all (:func:`skipped_minimum`). None without a pair, or when the
+    skipped pairs are too many to measure (the minimum then exceeds
+    ``sep.skipped_bound``).
+
+    Example
+    -------
+    >>> t = [np.array([0.0, 1.0])] * 3
+    >>> p = [np.array([[0.0, 0.0], [0.0, 0.0]]), np.array([[5.0, 0.0], [3.0, 0.0]]),
+    ...      np.array([[9.0, 0.0], [9.0, 0.0]])]
+    >>> closest_pair(pair_separations(t, p, np.zeros(3), watch=0.5), t, p)
+    (3.0, 0, 1, 1.0)
+    """
+    best = (math.inf, -1, -1, math.nan)
+    if len(sep.pairs):
+        k = int(np.argmin(sep.distance))
+        a, b = sep.pairs[k].tolist()
+        best = (float(sep.distance[k]), a, b, float(sep.time[k]))
+    if sep.pairs_skipped and best[0] + slack > sep.skipped_bound:
+        # No pair checked came as close as a skipped one may: measure those too.
+        extra = skipped_minimum(times, positions, sep.pairs)
+        if extra is None:
+            return None
+        if extra[0] - slack < best[0]:
+            best = (extra[0] - slack, extra[1], extra[2], extra[3])
+    return best if best[1] >= 0 else None
+
+
 @dataclass(frozen=True)
 class ReplayReport:
     """Result of :func:`replay`.
@@ -382,15 +418,11 @@ def replay(
         old = by_type.get(key, (math.inf, 0.0))
         by_type[key] = (min(old[0], d), max(old[1], need))
     ok = not bool(violated.any())
-    exact = True
-    if sep.pairs_skipped and best[0] > sep.skipped_bound:
-        # No pair checked came as close as a skipped one may: measure those too.
-        extra = skipped_minimum(times, pos, sep.pairs)
-        if extra is None:
-            exact = False
-        elif extra[0] < best[0]:
-            names = (schedule.agent_names[extra[1]], schedule.agent_names[extra[2]])
-            best = (extra[0], names, extra[3])
+    closest = closest_pair(sep, times, pos)
+    exact = closest is not None
+    if closest is not None and closest[0] < best[0]:
+        names = (schedule.agent_names[closest[1]], schedule.agent_names[closest[2]])
+        best = (closest[0], names, closest[3])
     return ReplayReport(
         best[0],
         best[1],
