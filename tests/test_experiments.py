@@ -22,7 +22,7 @@ import pytest
 
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
-from hierplan_opt.experiments import data, reports, runner, store
+from hierplan_opt.experiments import data, reports, runner, store, worker
 from hierplan_opt.experiments.spec import load_spec, parse_spec
 from hierplan_opt.experiments.sweeps import plan_runs, sweep
 
@@ -318,7 +318,7 @@ def test_crash_classification() -> None:
     full = runner._crashed(-9, True, "", 16.0, 240, 16, "its address space at 500 MB ...")
     assert full["status"] == "MEMOUT" and "hard limit of 16 s" in full["error"]
     assert runner.memory_full(470.0, 512) and not runner.memory_full(300.0, 512)
-    assert runner.space_mb_of(os.getpid()) > 0 and runner.space_mb_of(2**22 + 1) == 0
+    assert worker.address_space_mb(os.getpid()) > 0 and worker.address_space_mb(2**22 + 1) == 0
 
 
 def test_stop_on_failure_skips_larger_agent_counts(tmp_path: Path, plugin: str) -> None:
@@ -767,7 +767,6 @@ def test_worker_records_a_search_stopped_at_its_memory_limit_as_memout(
     """A search that stopped itself near the memory limit (core.timer.MEMORY_MARGIN) is a
     MEMOUT row, with the lower bound it proved; a plain time-out stays TIME_LIMIT."""
     from hierplan_opt.core.result import Result, Status
-    from hierplan_opt.experiments import worker
 
     stats = {"stopped_by": "memory_limit", "reason": "CBS stopped at the memory limit"}
     task = {

@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
-from hierplan_opt.experiments.worker import TOO_BIG, memory_full
+from hierplan_opt.experiments.worker import TOO_BIG, address_space_mb, memory_full
 
 MEMOUT = "MEMOUT"
 #: Seconds a run may overrun its time limit before it is killed (solvers stop on their
@@ -51,19 +51,6 @@ _MEMORY_SIGNS = (
     "Unable to allocate",  # LLVM (numba's kernels): "Unable to allocate section memory!"
     "allocation failed",  # LLVM: "Buffer allocation failed"
 )
-
-
-def space_mb_of(pid: int) -> float:
-    """The virtual memory size of process ``pid`` (what ``RLIMIT_AS`` caps), in MB; 0 if
-    unknown (no such process, not Linux)."""
-    try:
-        with open(f"/proc/{pid}/status", encoding="ascii") as fh:
-            for line in fh:
-                if line.startswith("VmSize:"):
-                    return int(line.split()[1]) / 1024.0
-    except (OSError, ValueError, IndexError):
-        pass
-    return 0.0
 
 
 def hard_limit(time_limit: float) -> float:
@@ -112,7 +99,7 @@ def run_fresh(task: dict[str, Any], python: str | None = None) -> dict[str, Any]
             space = [0.0]  # its address space when killed (MB)
 
             def kill() -> None:
-                space[0] = space_mb_of(proc.pid)
+                space[0] = address_space_mb(proc.pid)
                 killed.set()
                 proc.kill()
 
@@ -227,7 +214,7 @@ class _Server:
             space = [0.0]  # its address space when killed (MB)
 
             def kill() -> None:
-                space[0] = space_mb_of(pid)
+                space[0] = address_space_mb(pid)
                 killed.set()
                 with contextlib.suppress(ProcessLookupError):
                     os.kill(pid, signal.SIGKILL)

@@ -228,10 +228,11 @@ def main() -> int:
     return 0
 
 
-def address_space_mb() -> float:
-    """This process's virtual memory size (what ``RLIMIT_AS`` caps), in MB (0 if unknown)."""
+def address_space_mb(pid: int | None = None) -> float:
+    """The virtual memory size (what ``RLIMIT_AS`` caps) of process ``pid`` (default:
+    this one), in MB; 0 if unknown (no such process, not Linux)."""
     try:
-        with open("/proc/self/statm", encoding="ascii") as fh:
+        with open(f"/proc/{'self' if pid is None else pid}/statm", encoding="ascii") as fh:
             pages = int(fh.read().split()[0])
     except (OSError, ValueError, IndexError):
         return 0.0
