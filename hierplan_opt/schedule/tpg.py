@@ -520,7 +520,7 @@ def _rotation_arcs(
     dst: np.ndarray,
     rot_src: np.ndarray,
     rot_dst: np.ndarray,
-    cross: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None,
+    cross: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> TPG:
     """The plain TPG with rotations: for each rotation arc (A enters w in the step B
     enters v, the vertex A leaves) two arcs through markers ``ROTATION_MARK`` of the
@@ -531,7 +531,7 @@ def _rotation_arcs(
     cross in the open (:func:`_crossings`): from a visit or a marker past the crossing
     point to a marker at it, lock -2 (no vertex; never switched at run time)."""
     f = ROTATION_MARK
-    cs_origin, cs_frac, c_origin, c_frac = cross if cross is not None else _crossings(g, vis)
+    cs_origin, cs_frac, c_origin, c_frac = cross
     c_visit = cs_frac >= 1.0  # from the visit the move ends at
     cm_origin, cm_frac = cs_origin[~c_visit], cs_frac[~c_visit]  # from a marker past X
     a_origin = rot_src - 1  # A's visit of v: its move v -> w carries A's marker
