@@ -408,3 +408,115 @@ def hp_component(g: hp.Graph, v: int) -> list[int]:
                 seen.add(w)
                 todo.append(w)
     return sorted(seen)
+
+
+# ------------------------------------------ edges through vertices, overlapping edges
+THROUGH = """\
+format: hierplan/1
+name: through
+graph:
+  type: roadmap
+  vertices: {A: [0, 0], C: [1, 0], B: [2, 0], D: [1, 1], E: [1, -1], G: [3, 0]}
+  edges: [[A, B], [D, C], [C, E], [C, G]]
+robot_types:
+  pt: {drive: omni, v_max: 1.0, radius: 0.0}
+agents:
+"""
+
+
+def _through_schedule(tmp_path: Path, paths: list[list[str]]):
+    path = tmp_path / "through.yaml"
+    agents = "".join(
+        f"  - {{name: r{i}, start: {p[0]}, goal: {p[-1]}, type: pt}}\n" for i, p in enumerate(paths)
+    )
+    path.write_text(THROUGH + agents)
+    inst = hp.load_instance(path)
+    g = inst.graph
+    plan = hp.Plan.from_paths([[g.vertex(v) for v in p] for p in paths])
+    return inst, postprocess(inst, plan, margin=0)
+
+
+@pytest.mark.parametrize(
+    "paths",
+    [
+        [["A", "B"], ["D", "C", "E"]],  # r0 passes C half a step before r1 arrives
+        [["A", "A", "B"], ["D", "C", "E"]],  # r1 stands on C while r0 would pass
+        [["A", "B"], ["D", "D", "C", "E"]],
+        [["A", "B"], ["D", "D", "C"]],  # C is r1's goal, reached after r0 passed
+        [["A", "A", "A", "B"], ["D", "C"]],  # ... reached before r0 passes: r0 goes first
+        [["A", "B"], ["C", "C", "E"]],  # r1 starts on C
+        [["A", "A", "A", "B"], ["D", "C", "G"]],  # r1 passes B, r0's goal, before r0
+        [["A", "A", "B"], ["C", "G"]],  # C - G overlaps A - B on C - B, one direction
+    ],
+)
+def test_point_robots_on_edges_through_vertices_never_meet(
+    tmp_path: Path, paths: list[list[str]]
+) -> None:
+    # A roadmap edge A - B that runs through vertex C (not one of its ends), and an
+    # edge C - G that overlaps it on C - B: before, MAPF-POST at margin 0 ordered
+    # nothing there, so point robots stood on one point at one time (replay: 1
+    # violation, minimum distance 0) while post printed its guarantee.
+    inst, s = _through_schedule(tmp_path, paths)
+    rep = replay(s, inst, all_pairs=True)
+    times = [np.asarray(w.arrival) for w in s.waypoints]
+    pos = [np.asarray(w.coords) * s.scale for w in s.waypoints]
+    brute = float(brute_min_distances(times, pos)[0, 1])
+    assert rep.ok and rep.violations == 0 and brute > 0.1
+    assert rep.min_distance == pytest.approx(brute, abs=1e-7)
+    assert s.stn is not None and np.count_nonzero(s.stn.tpg.arc_lock == -2) >= 1
+
+
+def test_head_on_along_overlapping_edges_is_refused_in_one_line(tmp_path: Path) -> None:
+    # r0 drives A -> B while r1 drives G -> C in the same step: they meet head on in
+    # the stretch C - B both edges share; no order of the two passes avoids that.
+    with pytest.raises(ClearanceError) as err:
+        _through_schedule(tmp_path, [["A", "B"], ["G", "C"]])
+    msg = str(err.value)
+    assert len(msg.splitlines()) == 1
+    assert "r0 -> r1 -> r0" in msg and "overlap" in msg
+
+
+def lattice_with_long_edges(seed: int, n: int = 7) -> hp.Graph:
+    """An n x n lattice with its unit edges, some edges two cells long along a row or
+    column (through a vertex, overlapping two unit edges) and some diagonals (crossing
+    each other)."""
+    rng = np.random.default_rng(seed)
+    names = {(x, y): f"v{x}_{y}" for x in range(n) for y in range(n)}
+    edges = set()
+    for (x, y), name in names.items():
+        for dx, dy in ((1, 0), (0, 1)):
+            if (x + dx, y + dy) in names:
+                edges.add((name, names[x + dx, y + dy]))
+        for dx, dy, p in ((2, 0, 0.3), (0, 2, 0.3), (1, 1, 0.15), (-1, 1, 0.15)):
+            if (x + dx, y + dy) in names and rng.random() < p:
+                edges.add((name, names[x + dx, y + dy]))
+    return hp.Graph.roadmap({v: (float(x), float(y)) for (x, y), v in names.items()}, sorted(edges))
+
+
+def test_lattices_with_long_edges_keep_point_robots_apart() -> None:
+    # Point robots at margin 0 on roadmaps whose edges run through vertices, overlap
+    # and cross. Before, every one of these ten schedules put two robots on one point
+    # (replay minimum 0). Now every schedule keeps every pair apart (brute force), and
+    # post refuses (one line) only plans whose own uniform motion, step by step, puts
+    # two robots on one point; the draws exercise the new arcs.
+    scheduled = contact_arcs = 0
+    for seed in range(10):
+        g = lattice_with_long_edges(seed)
+        rng = np.random.default_rng(100 + seed)
+        sel = rng.choice(g.n, 20, replace=False)
+        inst = hp.Instance.mapf(
+            g, [g.location(int(v)) for v in sel[:10]], [g.location(int(v)) for v in sel[10:]]
+        )
+        res = hp.solve(inst, "lacam", anytime=0, time_limit=10)
+        assert res.plan is not None
+        if check_fleet(inst, res.plan, 0.0) == "scheduled":
+            scheduled += 1
+            stn = postprocess(inst, res.plan, margin=0, check_plan=False).stn
+            assert stn is not None
+            contact_arcs += int(np.count_nonzero(stn.tpg.arc_lock == -2))
+        else:
+            times = [np.arange(len(p), dtype=float) for p in res.plan.paths]
+            pos = [g.coords[np.asarray(p)].astype(float) for p in res.plan.paths]
+            d = brute_min_distances(times, pos, dt=0.01)
+            assert float(d[np.triu_indices(len(times), 1)].min()) < 1e-9
+    assert scheduled >= 3 and contact_arcs >= 10, (scheduled, contact_arcs)

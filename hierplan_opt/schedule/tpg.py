@@ -35,6 +35,7 @@ Nodes of robot j are contiguous, in path order: ``agent_ptr[j]:agent_ptr[j+1]``.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -423,19 +424,27 @@ CROSS_END = 1e-9
 
 
 def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Plain-TPG arcs for roadmap edges that cross in the open (point robots).
+    """Plain-TPG arcs for roadmap edges that meet in the open (point robots).
 
-    Two moves of different robots along roadmap edges whose segments intersect away
-    from their ends pass the same point X without visiting a common vertex, so the
-    vertex arcs do not order them. The passages of every crossing point are ordered as
-    in the plan: by the time the plan's uniform motion is at X (the step of the move
-    plus the fraction of the move; ties by robot). Each later robot may reach X (a
-    marker on its move) only once the earlier one has reached the end of its move
-    or, when both cross in one step, once the earlier one is past X (a marker half way
-    to where the later one is at X in the plan's motion), so that every arc goes
-    forward in the plan's time. Returns the arcs as (source's move origin, its fraction
-    of that move: 1 for the visit the move ends at; target's move origin, fraction).
-    Grids join axis neighbours only: no crossings.
+    Robots on roadmap edges can meet at points that the vertex arcs do not order:
+
+    * two edges *cross* at a point X that is no end of either;
+    * an edge passes *through a vertex* C that is not one of its ends, where other
+      robots stand (from their arrival until they move on);
+    * two edges *overlap*: collinear, sharing a stretch R of positive length.
+
+    The passages of each such point or stretch are ordered as in the plan: by the time
+    the plan's uniform motion enters it (the step of the move plus the fraction of the
+    move; a stay at C from the step of the arrival; ties by robot). Each later robot may
+    enter (a marker on its move, or its arrival at C) only once the earlier one has left:
+    reached the end of its move (or of its move away from C), when that ends before the
+    later one's move begins; otherwise once it is past (a marker half way from where it
+    leaves to where it is when the later one enters, in the plan's motion), so that arcs
+    between passages that do not overlap in the plan go forward in its time. Returns the
+    arcs as (source's move origin, its fraction of that move; target's move origin,
+    fraction), a fraction of 1 meaning the visit that move ends at. Grids join axis
+    neighbours only: nothing to add. A robot that stays at C for good (its goal) comes
+    after every robot that passes C, whenever the plan has them pass.
 
     Example
     -------
@@ -450,64 +459,193 @@ def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     """
     none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), np.zeros(0))
     mv = vis.mv
-    if g.kind == "grid" or len(mv) < 2 or len(np.unique(vis.A[mv])) < 2:
+    if g.kind == "grid" or len(mv) < 1 or len(np.unique(vis.A)) < 2:
         return none
-    # not at the top: the geometry is only needed for roadmaps
-    from hierplan_opt.schedule.geometry import segment_closest
-
     a, b = vis.V[mv], vis.V[mv + 1]
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     edges, inv = np.unique(np.stack([lo, hi], axis=1), axis=0, return_inverse=True)
     inv = inv.ravel()
     P = g.coords[edges[:, 0]].astype(float) * g.scale
     Q = g.coords[edges[:, 1]].astype(float) * g.scale
-    box_lo, box_hi = np.minimum(P, Q), np.maximum(P, Q)
-    tol = 1e-9 * max(1.0, float(np.abs(np.concatenate([P, Q])).max(initial=0.0)))
-    ne = len(edges)
-    pairs: list[tuple[int, int, float, float]] = []
-    chunk = max(1, 2_000_000 // max(ne, 1))
-    for i0 in range(0, ne, chunk):
-        i = np.arange(i0, min(ne, i0 + chunk))[:, None]
-        j = np.arange(ne)[None, :]
-        ii, jj = np.broadcast_arrays(i, j)
-        sel = (jj > ii) & np.all(box_lo[ii] <= box_hi[jj] + tol, axis=2)
-        sel &= np.all(box_lo[jj] <= box_hi[ii] + tol, axis=2)
-        ii, jj = ii[sel], jj[sel]
-        share = (edges[ii, 0] == edges[jj, 0]) | (edges[ii, 0] == edges[jj, 1])
-        share |= (edges[ii, 1] == edges[jj, 0]) | (edges[ii, 1] == edges[jj, 1])
-        ii, jj = ii[~share], jj[~share]
-        if not len(ii):
-            continue
-        d, s, t = segment_closest(P[ii], Q[ii], P[jj], Q[jj])
-        hit = (d <= tol) & (s > CROSS_END) & (s < 1 - CROSS_END)
-        hit &= (t > CROSS_END) & (t < 1 - CROSS_END)
-        pairs += zip(
-            ii[hit].tolist(), jj[hit].tolist(), s[hit].tolist(), t[hit].tolist(), strict=True
-        )
-    if not pairs:
+    verts = np.unique(vis.V)
+    C = g.coords[verts].astype(float) * g.scale
+    tol = 1e-9 * max(1.0, float(np.abs(np.concatenate([P, Q, C])).max(initial=0.0)))
+    touch = _touches(edges, P, Q, verts, C, tol)
+    if not any(touch):
         return none
+    crossing, on_edge, overlap = touch
     by_edge: dict[int, list[int]] = {}
     for k, e in enumerate(inv.tolist()):
         by_edge.setdefault(e, []).append(k)
+
+    def moves(e: int, f0: float, f1: float) -> list[_Pass]:
+        """Passages of the moves along edge ``e`` over its stretch [f0, f1] (from its
+        lower end)."""
+        out = []
+        for k in by_edge.get(e, ()):
+            o = int(mv[k])
+            fin, fout = (f0, f1) if vis.V[o] == edges[e, 0] else (1.0 - f1, 1.0 - f0)
+            t0 = float(vis.T[o + 1] - 1)
+            out.append(_Pass(t0 + fin, int(vis.A[o]), o, fin, t0 + fout, o, fout, False))
+        return out
+
+    regions: list[list[_Pass]] = []
+    for e1, e2, s1, s2 in crossing:
+        regions.append(moves(e1, s1, s1) + moves(e2, s2, s2))
+    stays: dict[int, list[_Pass]] = {c: [] for c in on_edge}
+    for i in np.flatnonzero(np.isin(vis.V, list(on_edge))).tolist():
+        out = np.inf if vis.is_last[i] else float(vis.T[i + 1] - 1)
+        stays[int(vis.V[i])].append(
+            _Pass(float(vis.T[i]), int(vis.A[i]), i - 1, 1.0, out, i, 0.0, True)
+        )
+    for v, passing in on_edge.items():
+        regions.append(stays[v] + [p for e, s in passing for p in moves(e, s, s)])
+    for e1, e2, (u0, u1), (w0, w1) in overlap:
+        regions.append(moves(e1, u0, u1) + moves(e2, w0, w1))
     arcs: list[tuple[int, float, int, float]] = []
-    for e1, e2, s1, s2 in pairs:
-        passes = []  # (plan time at X, robot, move origin, fraction of the move)
-        for e, f in ((e1, s1), (e2, s2)):
-            for k in by_edge.get(e, ()):
-                o = int(mv[k])
-                fk = f if vis.V[o] == edges[e, 0] else 1.0 - f
-                passes.append((float(vis.T[o + 1] - 1) + fk, int(vis.A[o]), o, fk))
-        passes.sort()
-        for (ta, ra, oa, fa), (tb, rb, ob, fb) in zip(passes[:-1], passes[1:], strict=True):
-            if ra == rb:
-                continue
-            if vis.T[oa + 1] <= vis.T[ob + 1] - 1:  # A's move ends before B's starts
-                arcs.append((oa, 1.0, ob, fb))
-            else:  # one step: A past X, half way to B's time at X (ties: half way on)
-                past = fa + (tb - ta) / 2 if tb > ta else (1.0 + fa) / 2
-                arcs.append((oa, past, ob, fb))
-    so, sf, do, df = zip(*arcs, strict=True) if arcs else ((), (), (), ())
+    for passes in regions:
+        # a robot that stays for good (at its goal) comes last: the others pass first
+        passes.sort(key=lambda p: (p.t_in if p.t_out < np.inf else np.inf, not p.stay, p.robot))
+        for pa, pb in zip(passes[:-1], passes[1:], strict=True):
+            if pa.robot == pb.robot or (pa.stay and pb.stay):
+                continue  # along one path; or a vertex's visits (the vertex arcs)
+            if pb.in_origin < 0 or vis.A[pb.in_origin] != pb.robot:
+                continue  # b starts there: first in its order, it never waits
+            begins = vis.T[pb.in_origin + 1] - 1  # the step b's move there begins
+            if vis.T[pa.out_origin + 1] <= begins:  # a's move ends before b's begins
+                arcs.append((pa.out_origin, 1.0, pb.in_origin, pb.f_in))
+            else:
+                room = 1.0 - pa.f_out
+                lead = pb.t_in - pa.t_out
+                past = pa.f_out + (min(lead, room) if lead > 0 else room) / 2
+                arcs.append((pa.out_origin, past, pb.in_origin, pb.f_in))
+    if not arcs:
+        return none
+    so, sf, do, df = zip(*dict.fromkeys(arcs), strict=True)
     return np.array(so, np.int64), np.array(sf), np.array(do, np.int64), np.array(df)
+
+
+@dataclass(frozen=True)
+class _Pass:
+    """One robot's passage of a meeting point or stretch (see :func:`_crossings`): the
+    plan's time it enters, the move (origin visit) and fraction where it enters (a
+    fraction of 1: the visit the move ends at), the time it leaves (inf: never), the move
+    and fraction where it has left (0 on the move away from a vertex), and whether it
+    stays at a vertex (the vertex arcs order two stays)."""
+
+    t_in: float
+    robot: int
+    in_origin: int
+    f_in: float
+    t_out: float
+    out_origin: int
+    f_out: float
+    stay: bool
+
+
+_Touches = tuple[
+    list[tuple[int, int, float, float]],
+    dict[int, list[tuple[int, float]]],
+    list[tuple[int, int, tuple[float, float], tuple[float, float]]],
+]
+
+
+def _touches(
+    edges: np.ndarray, P: np.ndarray, Q: np.ndarray, verts: np.ndarray, C: np.ndarray, tol: float
+) -> _Touches:
+    """Where the used edges ``P[e]Q[e]`` meet away from common vertices: crossings
+    ``(e1, e2, s1, s2)`` (fractions from each edge's first end), vertices on an edge's
+    inside ``{vertex: [(e, s), ...]}``, and collinear overlaps ``(e1, e2, (u0, u1),
+    (w0, w1))`` (the shared stretch as fractions of each edge)."""
+    # not at the top: the geometry is only needed for roadmaps
+    from hierplan_opt.schedule.geometry import segment_closest
+
+    box_lo, box_hi = np.minimum(P, Q), np.maximum(P, Q)
+    D = Q - P
+    L2 = np.einsum("ij,ij->i", D, D)
+    crossing: list[tuple[int, int, float, float]] = []
+    overlap: list[tuple[int, int, tuple[float, float], tuple[float, float]]] = []
+    for ii, jj in _box_pairs(box_lo, box_hi, box_lo, box_hi, tol):
+        keep = jj > ii
+        ii, jj = ii[keep], jj[keep]
+        dot = np.einsum("ij,ij->i", D[ii], D[jj])
+        parallel = L2[ii] * L2[jj] - dot * dot <= (1e-9 * L2[ii]) * L2[jj]
+        share = (edges[ii, 0] == edges[jj, 0]) | (edges[ii, 0] == edges[jj, 1])
+        share |= (edges[ii, 1] == edges[jj, 0]) | (edges[ii, 1] == edges[jj, 1])
+        x = ~share & ~parallel
+        ci, cj = ii[x], jj[x]
+        d, s, t = segment_closest(P[ci], Q[ci], P[cj], Q[cj])
+        hit = (d <= tol) & (s > CROSS_END) & (s < 1 - CROSS_END)
+        hit &= (t > CROSS_END) & (t < 1 - CROSS_END)
+        crossing += zip(
+            ci[hit].tolist(), cj[hit].tolist(), s[hit].tolist(), t[hit].tolist(), strict=True
+        )
+        overlap += _overlaps(ii[parallel], jj[parallel], P, D, L2, tol)
+    on_edge: dict[int, list[tuple[int, float]]] = {}
+    for ee, vv in _box_pairs(box_lo, box_hi, C, C, tol):
+        keep = (edges[ee, 0] != verts[vv]) & (edges[ee, 1] != verts[vv])
+        ee, vv = ee[keep], vv[keep]
+        s = np.einsum("ij,ij->i", C[vv] - P[ee], D[ee]) / L2[ee]
+        near = P[ee] + s[:, None] * D[ee] - C[vv]
+        hit = (np.einsum("ij,ij->i", near, near) <= tol * tol) & (s > CROSS_END)
+        hit &= s < 1 - CROSS_END
+        for e, v, f in zip(ee[hit].tolist(), verts[vv[hit]].tolist(), s[hit].tolist(), strict=True):
+            on_edge.setdefault(v, []).append((e, f))
+    return crossing, on_edge, overlap
+
+
+#: Candidate pairs per batch of :func:`_box_pairs`.
+BOX_BATCH = 2_000_000
+
+
+def _box_pairs(
+    lo_a: np.ndarray, hi_a: np.ndarray, lo_b: np.ndarray, hi_b: np.ndarray, tol: float
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Batches ``(ia, ib)`` of the pairs of boxes ``a``, ``b`` that overlap (within
+    ``tol``): a sweep along x, so short edges on a large map pair with their
+    neighbours only, not with every edge."""
+    order = np.argsort(lo_b[:, 0], kind="stable")
+    xs = lo_b[order, 0]
+    width = float((hi_b[:, 0] - lo_b[:, 0]).max(initial=0.0))
+    start = np.searchsorted(xs, lo_a[:, 0] - tol - width, "left")
+    n = np.searchsorted(xs, hi_a[:, 0] + tol, "right") - start
+    a0 = 0
+    while a0 < len(lo_a):
+        cum = np.cumsum(n[a0:])
+        a1 = a0 + max(1, int(np.searchsorted(cum, BOX_BATCH, "right")))
+        cnt = n[a0:a1]
+        ia = np.repeat(np.arange(a0, a1), cnt)
+        off = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        ib = order[np.repeat(start[a0:a1], cnt) + off]
+        sel = np.all(lo_a[ia] <= hi_b[ib] + tol, axis=1)
+        sel &= np.all(lo_b[ib] <= hi_a[ia] + tol, axis=1)
+        if np.any(sel):
+            yield ia[sel], ib[sel]
+        a0 = a1
+
+
+def _overlaps(
+    ii: np.ndarray, jj: np.ndarray, P: np.ndarray, D: np.ndarray, L2: np.ndarray, tol: float
+) -> list[tuple[int, int, tuple[float, float], tuple[float, float]]]:
+    """The stretches that parallel edge pairs ``(ii, jj)`` share, as fractions of each;
+    pairs not on one line or sharing at most a point are left out."""
+    p1, d1, p2, d2 = P[ii], D[ii], P[jj], D[jj]
+    u_p = np.einsum("ij,ij->i", p2 - p1, d1) / L2[ii]
+    u_q = np.einsum("ij,ij->i", p2 + d2 - p1, d1) / L2[ii]
+    off = p2 - (p1 + u_p[:, None] * d1)
+    u0 = np.maximum(0.0, np.minimum(u_p, u_q))
+    u1 = np.minimum(1.0, np.maximum(u_p, u_q))
+    keep = np.einsum("ij,ij->i", off, off) <= tol * tol
+    keep &= (u1 - u0) * np.sqrt(L2[ii]) > tol
+    k = np.flatnonzero(keep)
+    w_a = np.einsum("ij,ij->i", p1[k] + u0[k, None] * d1[k] - p2[k], d2[k]) / L2[jj[k]]
+    w_b = np.einsum("ij,ij->i", p1[k] + u1[k, None] * d1[k] - p2[k], d2[k]) / L2[jj[k]]
+    w0 = np.clip(np.minimum(w_a, w_b), 0.0, 1.0).tolist()
+    w1 = np.clip(np.maximum(w_a, w_b), 0.0, 1.0).tolist()
+    return [
+        (int(ii[m]), int(jj[m]), (float(u0[m]), float(u1[m])), (w0[n], w1[n]))
+        for n, m in enumerate(k.tolist())
+    ]
 
 
 def _rotation_arcs(
@@ -534,12 +672,14 @@ def _rotation_arcs(
     cs_origin, cs_frac, c_origin, c_frac = cross
     c_visit = cs_frac >= 1.0  # from the visit the move ends at
     cm_origin, cm_frac = cs_origin[~c_visit], cs_frac[~c_visit]  # from a marker past X
+    to_visit = c_frac >= 1.0  # to the visit the move ends at (an arrival at a vertex)
+    ct_origin, ct_frac = c_origin[~to_visit], c_frac[~to_visit]  # to a marker at X
     a_origin = rot_src - 1  # A's visit of v: its move v -> w carries A's marker
     b_next = ~vis.is_last[rot_dst]  # B moves on after v: its marker on that move
     b_origin = rot_dst[b_next]
-    na, nb, nc = len(a_origin), len(b_origin), len(c_origin)
-    m_origin = np.concatenate([a_origin, b_origin, c_origin, cm_origin])
-    m_frac = np.concatenate([np.full(na + nb, f), c_frac, cm_frac])
+    na, nb, nc = len(a_origin), len(b_origin), len(ct_origin)
+    m_origin = np.concatenate([a_origin, b_origin, ct_origin, cm_origin])
+    m_frac = np.concatenate([np.full(na + nb, f), ct_frac, cm_frac])
     pair = np.stack([m_origin.astype(float), m_frac], axis=1)
     uniq, inv = np.unique(pair, axis=0, return_inverse=True)
     inv = inv.ravel()
@@ -567,20 +707,23 @@ def _rotation_arcs(
     agent_ptr[1:] = np.cumsum(np.bincount(node_agent, minlength=len(vis.ptr) - 1))
     last = np.zeros(nvis + nm, dtype=bool)
     last[agent_ptr[1:] - 1] = True
-    c_src = np.empty(nc, dtype=np.int64)
+    c_src = np.empty(len(c_origin), dtype=np.int64)
     c_src[c_visit] = vis_node[cs_origin[c_visit] + 1]
     c_src[~c_visit] = mark_node[inv[na + nb + nc :]]
+    c_dst = np.empty(len(c_origin), dtype=np.int64)
+    c_dst[to_visit] = vis_node[c_origin[to_visit] + 1]
+    c_dst[~to_visit] = mark_node[inv[na + nb : na + nb + nc]]
     arc_src = np.concatenate([vis_node[src], mark_node[inv[:na]], vis_node[rot_src[b_next]], c_src])
     arc_dst = np.concatenate(
         [
             vis_node[dst],
             vis_node[rot_dst],
             mark_node[inv[na : na + nb]],
-            mark_node[inv[na + nb : na + nb + nc]],
+            c_dst,
         ]
     )
     lock = np.concatenate(
-        [vis.V[dst], vis.V[rot_dst], vis.V[rot_dst[b_next]], np.full(nc, -2, np.int64)]
+        [vis.V[dst], vis.V[rot_dst], vis.V[rot_dst[b_next]], np.full(len(c_dst), -2, np.int64)]
     )
     fc = fr[:, None]
     t1 = np.flatnonzero(~last)
@@ -946,16 +1089,17 @@ def _check_acyclic(tpg: TPG, g, room: str) -> None:
         robots.append(a)
         need = max(need, req.required(a, b))
         lock = int(tpg.arc_lock[k])
-        locs.append(tpg.location_names[lock] if lock >= 0 else "crossing edges")
+        locs.append(tpg.location_names[lock] if lock >= 0 else "edges that meet in the open")
         steps.add(int(tpg.node_step[w]))
     names = [tpg.agent_names[a] for a in robots]
     ring = " -> ".join([*names, names[0]]) if names else "?"
     where = ", ".join(dict.fromkeys(locs))
-    if tpg.regime == "none" and "crossing edges" in locs:
+    if tpg.regime == "none" and "edges that meet in the open" in locs:
         raise ClearanceError(
             f"robots {ring} wait for each other around {where}: each would have to pass "
-            "a point where roadmap edges cross only after the next one has; MAPF-POST "
-            "cannot order them without two robots meeting, replan"
+            "a point where roadmap edges cross, overlap or run through a vertex only "
+            "after the next one has; MAPF-POST cannot order them without two robots "
+            "meeting, replan"
         )
     if tpg.regime == "none":
         at = f" at step {min(steps) - 1}" if steps else ""
