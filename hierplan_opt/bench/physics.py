@@ -7,7 +7,8 @@ Five tables, every run in one process, one after the other:
    spill, random delays), CBM plan, MAPF-POST, physics closed loop (slack -> STN ->
    re-plan). Targets: every working robot at its goal, 0 contacts, minimum distance >=
    the guaranteed clearance (and how much of the schedule's own minimum distance tracking
-   error ate), each disturbance handled by a named layer, >= 10x real time.
+   error ate), each disturbance handled by a named layer, >= 10x real time. Tables 1-3
+   also print the accelerations the engine measured against the robots' ``a_max``.
 2. **32-quadcopter formation** (``formation-usc.yaml``, 3D): 0 contacts, all at targets.
 3. **200 differential drives** (iRobot Create 2 size) on ``warehouse-10-20-10-2-1``,
    LaCAM (first plan; the next seed when MAPF-POST finds a rotation that no clearance
@@ -60,6 +61,20 @@ def _plan(inst: Any, solver: str, limit: float, **options: Any) -> Any:
     if planned.schedule is None:
         raise RuntimeError(f"{inst.name}: {planned.why}")
     return planned.schedule
+
+
+def _accel(st: dict[str, Any]) -> str:
+    """The measured accelerations of an execution's statistics: largest |a| / a_max and
+    the control periods above it (``physics.run.accelerations``), or why not checked."""
+    if not st.get("acceleration_checked"):
+        return "accelerations not checked (no robot type gives a_max)"
+    from hierplan_opt.physics.run import ACCEL_TOL
+
+    return (
+        f"measured max |a| / a_max {st['max_acceleration_ratio']:.2f} (|dv/dt| of the "
+        f"velocity vector, turns included), {st['acceleration_violations']} control "
+        f"period(s) above a_max + {ACCEL_TOL:.0%}"
+    )
 
 
 def _planned_min(sched: Any, t: np.ndarray) -> float:
@@ -125,6 +140,7 @@ def warehouse(limit: float) -> list[dict[str, Any]]:
             f"{h.get('replan', 0):>6} {h.get('none', 0):>4} {st['real_time_factor']:>6.1f}  "
             + ", ".join(f"{k}: {'/'.join(v)}" for k, v in sorted(named.items()))
         )
+        print(f"       {_accel(st)}")
         target = (
             st["finished"] == working
             and st["contacts"] == 0
@@ -165,7 +181,8 @@ def formation(limit: float) -> None:
         f"robots {n}, at targets {st['finished']}, contacts {st['contacts']}, min distance "
         f"{st['measured_min_distance']:.3f} m (guaranteed {st['guaranteed_distance']:.3f}),"
         f" makespan {st['makespan']:.2f} s (planned {st['planned_makespan']:.2f}), latest "
-        f"way-point {_lateness(ex).max():.2f} s late, RTF {st['real_time_factor']:.1f}"
+        f"way-point {_lateness(ex).max():.2f} s late, RTF {st['real_time_factor']:.1f}; "
+        + _accel(st)
     )
     ok = st["contacts"] == 0 and st["collisions"] == 0 and st["finished"] == n
     print(f"target (0 contacts, every quadcopter at its target): {_ok(ok)}")
@@ -209,7 +226,7 @@ def fleet(n: int, limit: float) -> None:
         f"{st['measured_min_distance']:.3f} m (guaranteed {st['guaranteed_distance']:.3f}), "
         "simulated "
         f"{st['sim_time']:.1f} s in {wall:.1f} s wall: {st['sim_time'] / wall:.2f} sim s per "
-        f"wall s, {st['physics_steps']} physics steps"
+        f"wall s, {st['physics_steps']} physics steps; {_accel(st)}"
     )
     print(f"target (>= 1 simulated second per wall second): {_ok(st['sim_time'] / wall >= 1)}")
 
