@@ -520,3 +520,116 @@ def test_lattices_with_long_edges_keep_point_robots_apart() -> None:
             d = brute_min_distances(times, pos, dt=0.01)
             assert float(d[np.triu_indices(len(times), 1)].min()) < 1e-9
     assert scheduled >= 3 and contact_arcs >= 10, (scheduled, contact_arcs)
+
+
+# A review tried to break the arcs above (about 128,000 valid random plans): each case
+# below put two point robots on one point while post printed its guarantee.
+REVIEW_CASES = {
+    # two edges crossing at 2/3 of both, passed in one step: the times differ by
+    # rounding, so the "past" marker landed on the crossing point itself
+    "tie": ({"P": (0, 0), "Q": (2, 1), "R": (2, 0), "S": (1, 1)}, [("P", "Q"), ("R", "S")],
+            [["R", "S"], ["P", "Q"]]),
+    # Q - S crosses P - R and M - R (overlapping) at one point: two markers a rounding
+    # step apart, and r1 waited on the point between them
+    "split": ({"P": (0, 2), "Q": (1, 0), "M": (1, 1), "R": (2, 0), "S": (2, 2)},
+              [("P", "R"), ("Q", "R"), ("Q", "S"), ("M", "R")],
+              [["M", "R", "P"], ["R", "Q", "S"]]),
+    # edges crossing at a very shallow angle were taken for parallel and dropped
+    "shallow": ({"A": (0, 0), "B": (1, 0), "C": (0, -1e-5), "D": (1, 1e-5)},
+                [("A", "B"), ("C", "D")], [["A", "B"], ["C", "D"]]),
+}  # fmt: skip
+
+
+def _roadmap_case(
+    vertices: dict[str, tuple[float, ...]], edges: list[tuple[str, str]], paths: list[list[str]]
+) -> tuple[hp.Instance, hp.Plan]:
+    g = hp.Graph.roadmap(vertices, edges)
+    inst = hp.Instance.mapf(
+        g,
+        [g.location(g.vertex(p[0])) for p in paths],
+        [g.location(g.vertex(p[-1])) for p in paths],
+    )
+    return inst, hp.Plan.from_paths([[g.vertex(v) for v in p] for p in paths])
+
+
+@pytest.mark.parametrize("name", sorted(REVIEW_CASES))
+def test_review_cases_keep_point_robots_apart(name: str) -> None:
+    inst, plan = _roadmap_case(*REVIEW_CASES[name])
+    s = postprocess(inst, plan, margin=0)
+    rep = replay(s, inst, all_pairs=True)
+    times = [np.asarray(w.arrival) for w in s.waypoints]
+    pos = [np.asarray(w.coords) * s.scale for w in s.waypoints]
+    brute = float(brute_min_distances(times, pos)[0, 1])
+    assert rep.ok and rep.violations == 0 and brute > 5e-6
+
+
+@pytest.mark.parametrize(
+    ("case", "words"),
+    [
+        # r1 never moves, on C inside r0's edge A - B: no order avoids the meeting
+        (({"A": (0, 0), "C": (1, 0), "B": (2, 0)}, [("A", "B")], [["A", "B"], ["C"]]),
+         "stands on C for the whole plan"),
+        # two vertices at one point (B and X): the plan's robots there would meet
+        (({"A": (0, 0), "B": (1, 0), "X": (1, 0), "Y": (2, 0)}, [("A", "B"), ("X", "Y")],
+          [["A", "B"], ["Y", "X"]]), "are at one point"),
+    ],
+)  # fmt: skip
+def test_review_cases_without_a_safe_order_are_refused(case: tuple, words: str) -> None:
+    inst, plan = _roadmap_case(*case)
+    with pytest.raises(ClearanceError) as err:
+        postprocess(inst, plan, margin=0)
+    assert len(str(err.value).splitlines()) == 1 and words in str(err.value)
+
+
+def _random_walks(g: hp.Graph, rng: np.random.Generator, k: int, steps: int) -> list[list[int]]:
+    """``k`` random walks with waits (the validator sorts out conflicting ones)."""
+    paths = [[int(v)] for v in rng.choice(g.n, k, replace=False)]
+    for _ in range(steps):
+        for p in paths:
+            nb = g.neighbors(p[-1]).tolist()
+            p.append(int(rng.choice(nb)) if nb and rng.random() < 0.65 else p[-1])
+    return paths
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_random_small_roadmaps_never_put_point_robots_on_one_point(dim: int) -> None:
+    # Random roadmaps on integer points (edges cross, overlap and run through vertices
+    # all the time), 2-4 point robots on random valid plans, margin 0: every schedule
+    # keeps every pair apart (brute force), and every refusal is one line and concerns
+    # a plan whose own step-by-step motion puts two robots on one point.
+    rng = np.random.default_rng(dim)
+    count = {"scheduled": 0, "refused": 0, "contact arcs": 0}
+    while count["scheduled"] + count["refused"] < 300:
+        pts = {tuple(int(x) for x in rng.integers(0, 4, dim)) for _ in range(8)}
+        names = [f"p{i}" for i in range(len(pts))]
+        verts = dict(zip(names, [tuple(float(c) for c in p) for p in sorted(pts)], strict=True))
+        pairs = [(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
+        pick = rng.choice(len(pairs), min(len(pairs), int(rng.integers(6, 16))), replace=False)
+        g = hp.Graph.roadmap(verts, [pairs[int(i)] for i in pick])
+        k = min(g.n, int(rng.integers(2, 5)))
+        paths = _random_walks(g, rng, k, int(rng.integers(3, 8)))
+        inst = hp.Instance.mapf(
+            g, [g.location(p[0]) for p in paths], [g.location(p[-1]) for p in paths]
+        )
+        plan = hp.Plan.from_paths(paths)
+        if hp.validate(inst, plan):
+            continue
+        try:
+            s = postprocess(inst, plan, margin=0)
+        except ClearanceError as exc:
+            assert len(str(exc).splitlines()) == 1
+            times = [np.arange(len(p), dtype=float) for p in paths]
+            pos = [g.coords[np.asarray(p)].astype(float) for p in paths]
+            d = brute_min_distances(times, pos, dt=0.01)
+            assert float(d[np.triu_indices(len(paths), 1)].min()) < 1e-9, str(exc)
+            count["refused"] += 1
+            continue
+        times = [np.asarray(w.arrival) for w in s.waypoints]
+        pos = [np.asarray(w.coords) * s.scale for w in s.waypoints]
+        d = brute_min_distances(times, pos)
+        assert float(d[np.triu_indices(len(times), 1)].min()) > 1e-9, paths
+        count["scheduled"] += 1
+        assert s.stn is not None
+        count["contact arcs"] += int(np.count_nonzero(s.stn.tpg.arc_lock == -2))
+    assert count["scheduled"] >= 150 and count["contact arcs"] >= 20, count
+    assert count["refused"] >= (5 if dim == 2 else 0), count

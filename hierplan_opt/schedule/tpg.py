@@ -35,7 +35,7 @@ Nodes of robot j are contiguous, in path order: ``agent_ptr[j]:agent_ptr[j+1]``.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -407,7 +407,7 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
     keep[rot] = False
     coords = g.coords[vis.V].astype(float)
     names = tuple(a.name for a in instance.agents)
-    cross = _crossings(g, vis)
+    cross = _crossings(g, vis, names)
     if not len(rot) and not len(cross[0]):
         t1 = np.flatnonzero(~vis.is_last)
         return _plain_tpg(
@@ -421,9 +421,15 @@ def _plain(instance: Instance, vis: _Visits, req: Requirement) -> TPG:
 #: Crossing points closer than this fraction of a move to either end are left to the
 #: vertex arcs (the robots meet at a vertex there, not in the open).
 CROSS_END = 1e-9
+#: Passing times closer than this (steps) are a tie: the "past" marker goes half way on.
+TIE = 1e-6
+#: Markers of one move closer than this fraction of it are one node (rounding).
+SNAP = 1e-9
 
 
-def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _crossings(
+    g, vis: _Visits, names: Sequence[str] = ()
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Plain-TPG arcs for roadmap edges that meet in the open (point robots).
 
     Robots on roadmap edges can meet at points that the vertex arcs do not order:
@@ -444,7 +450,9 @@ def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     arcs as (source's move origin, its fraction of that move; target's move origin,
     fraction), a fraction of 1 meaning the visit that move ends at. Grids join axis
     neighbours only: nothing to add. A robot that stays at C for good (its goal) comes
-    after every robot that passes C, whenever the plan has them pass.
+    after every robot that passes C, whenever the plan has them pass; one that stands on
+    C for the whole plan while another passes, and two used vertices at one point, are
+    refused (:class:`ClearanceError`, one line).
 
     Example
     -------
@@ -470,6 +478,7 @@ def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     verts = np.unique(vis.V)
     C = g.coords[verts].astype(float) * g.scale
     tol = 1e-9 * max(1.0, float(np.abs(np.concatenate([P, Q, C])).max(initial=0.0)))
+    _refuse_shared_points(g, verts, C, tol)
     touch = _touches(edges, P, Q, verts, C, tol)
     if not any(touch):
         return none
@@ -510,14 +519,16 @@ def _crossings(g, vis: _Visits) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
             if pa.robot == pb.robot or (pa.stay and pb.stay):
                 continue  # along one path; or a vertex's visits (the vertex arcs)
             if pb.in_origin < 0 or vis.A[pb.in_origin] != pb.robot:
-                continue  # b starts there: first in its order, it never waits
+                # b starts there: first in its order unless it never leaves
+                raise ClearanceError(_stands_in_the_way(g, vis, names, pb, pa))
             begins = vis.T[pb.in_origin + 1] - 1  # the step b's move there begins
             if vis.T[pa.out_origin + 1] <= begins:  # a's move ends before b's begins
                 arcs.append((pa.out_origin, 1.0, pb.in_origin, pb.f_in))
             else:
                 room = 1.0 - pa.f_out
                 lead = pb.t_in - pa.t_out
-                past = pa.f_out + (min(lead, room) if lead > 0 else room) / 2
+                # exact ties (up to rounding): half way on, never on the point itself
+                past = pa.f_out + (min(lead, room) if lead > TIE else room) / 2
                 arcs.append((pa.out_origin, past, pb.in_origin, pb.f_in))
     if not arcs:
         return none
@@ -541,6 +552,39 @@ class _Pass:
     out_origin: int
     f_out: float
     stay: bool
+
+
+def _stands_in_the_way(g, vis: _Visits, names: Sequence[str], stay: _Pass, other: _Pass) -> str:
+    """One line: a robot stands for the whole plan where another robot's edge runs."""
+
+    def name(r: int) -> str:
+        return names[r] if r < len(names) else f"agent{r}"
+
+    c = _loc(g, int(vis.V[stay.out_origin]))
+    o = other.out_origin
+    a, b = _loc(g, int(vis.V[o])), _loc(g, int(vis.V[o + 1]))
+    return (
+        f"robot {name(stay.robot)} stands on {c} for the whole plan and robot "
+        f"{name(other.robot)} drives through it (roadmap edge {a} - {b} runs through {c}): "
+        "point robots would meet there; replan (or split the edge at the vertex)"
+    )
+
+
+def _refuse_shared_points(g, verts: np.ndarray, C: np.ndarray, tol: float) -> None:
+    """Refuse, in one line, two visited vertices at one point: point robots on them
+    would be on one point although the plan has them on different vertices."""
+    if len(verts) < 2:
+        return
+    order = np.lexsort(C.T[::-1])
+    gap = np.abs(np.diff(C[order], axis=0)).max(axis=1)
+    same = np.flatnonzero(gap <= tol)
+    if not len(same):
+        return
+    u, w = int(verts[order[same[0]]]), int(verts[order[same[0] + 1]])
+    raise ClearanceError(
+        f"roadmap vertices {_loc(g, u)} and {_loc(g, w)} are at one point: robots on them "
+        "would meet although the plan has them apart; merge the two vertices"
+    )
 
 
 _Touches = tuple[
@@ -570,9 +614,15 @@ def _touches(
         ii, jj = ii[keep], jj[keep]
         dot = np.einsum("ij,ij->i", D[ii], D[jj])
         parallel = L2[ii] * L2[jj] - dot * dot <= (1e-9 * L2[ii]) * L2[jj]
+        # on one line: both ends of jj within tol of ii's line (else they may cross)
+        on_line = parallel.copy()
+        for X in (P[jj], Q[jj]):
+            u = np.einsum("ij,ij->i", X - P[ii], D[ii]) / L2[ii]
+            off = X - P[ii] - u[:, None] * D[ii]
+            on_line &= np.einsum("ij,ij->i", off, off) <= tol * tol
         share = (edges[ii, 0] == edges[jj, 0]) | (edges[ii, 0] == edges[jj, 1])
         share |= (edges[ii, 1] == edges[jj, 0]) | (edges[ii, 1] == edges[jj, 1])
-        x = ~share & ~parallel
+        x = ~share & ~on_line
         ci, cj = ii[x], jj[x]
         d, s, t = segment_closest(P[ci], Q[ci], P[cj], Q[cj])
         hit = (d <= tol) & (s > CROSS_END) & (s < 1 - CROSS_END)
@@ -580,7 +630,7 @@ def _touches(
         crossing += zip(
             ci[hit].tolist(), cj[hit].tolist(), s[hit].tolist(), t[hit].tolist(), strict=True
         )
-        overlap += _overlaps(ii[parallel], jj[parallel], P, D, L2, tol)
+        overlap += _overlaps(ii[on_line], jj[on_line], P, D, L2, tol)
     on_edge: dict[int, list[tuple[int, float]]] = {}
     for ee, vv in _box_pairs(box_lo, box_hi, C, C, tol):
         keep = (edges[ee, 0] != verts[vv]) & (edges[ee, 1] != verts[vv])
@@ -648,6 +698,27 @@ def _overlaps(
     ]
 
 
+def _snap(origin: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """Fractions of one move within :data:`SNAP` of each other made equal (one node):
+    markers for one point computed two ways differ by rounding, and a robot held at the
+    first would stand on the point while it waits for the second.
+
+    Example
+    -------
+    >>> _snap(np.array([0, 0, 1]), np.array([0.5, 0.5 + 1e-15, 0.5])).tolist()
+    [0.5, 0.5, 0.5]
+    """
+    if len(frac) < 2:
+        return frac
+    order = np.lexsort((frac, origin))
+    f, o = frac[order], origin[order]
+    new = np.ones(len(f), dtype=bool)
+    new[1:] = (o[1:] != o[:-1]) | (np.diff(f) > SNAP)
+    out = np.empty_like(frac)
+    out[order] = f[np.flatnonzero(new)[np.cumsum(new) - 1]]
+    return out
+
+
 def _rotation_arcs(
     vis: _Visits,
     req: Requirement,
@@ -679,7 +750,7 @@ def _rotation_arcs(
     b_origin = rot_dst[b_next]
     na, nb, nc = len(a_origin), len(b_origin), len(ct_origin)
     m_origin = np.concatenate([a_origin, b_origin, ct_origin, cm_origin])
-    m_frac = np.concatenate([np.full(na + nb, f), ct_frac, cm_frac])
+    m_frac = _snap(m_origin, np.concatenate([np.full(na + nb, f), ct_frac, cm_frac]))
     pair = np.stack([m_origin.astype(float), m_frac], axis=1)
     uniq, inv = np.unique(pair, axis=0, return_inverse=True)
     inv = inv.ravel()
