@@ -24,6 +24,7 @@ from hierplan_opt.cli.common import (
     configure_logging,
     memory_guard,
     one_line_errors,
+    refuse_overwriting_inputs,
 )
 from hierplan_opt.core.errors import HierplanError
 from hierplan_opt.core.version import __version__
@@ -92,6 +93,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"hierplan {args.command}: error: {exc}", file=sys.stderr)
         return BAD_INPUT
     try:
+        refuse_overwriting_inputs(args, argv)
         apply_limits(args)
         with memory_guard(args):
             return int(args._run(args))

@@ -13,7 +13,7 @@ import contextlib
 import logging
 import math
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -234,9 +234,13 @@ def memory_guard(args: argparse.Namespace) -> Iterator[None]:
     if not hasattr(args, "memory_limit"):
         yield
         return
+    from hierplan_opt.core.options import AMOUNT_CAP
     from hierplan_opt.formulations.memory import GB, memory_budget, memory_limit
 
-    budget = memory_budget() if args.memory_limit is None else int(args.memory_limit * GB)
+    if args.memory_limit is None:
+        budget = memory_budget()
+    else:  # a limit beyond any machine is none (and fits a C long)
+        budget = int(min(args.memory_limit * GB, AMOUNT_CAP))
     with memory_limit(budget), _data_limit(budget):
         yield
 
@@ -298,9 +302,12 @@ def _data_limit(budget: int) -> Iterator[None]:
         want = min(want, hard)
     if soft != resource.RLIM_INFINITY:
         want = min(want, soft)
+    if want >= 1 << 62:  # beyond any machine (and a C long): no limit to set
+        yield
+        return
     try:
         resource.setrlimit(resource.RLIMIT_DATA, (want, hard))
-    except (ValueError, OSError):  # pragma: no cover - the estimate alone guards
+    except (ValueError, OSError, OverflowError):  # pragma: no cover - the estimate guards
         yield
         return
     try:
@@ -338,6 +345,54 @@ def check_outputs(*outputs: tuple[str, str | Path | None, Iterable[str] | None])
     from hierplan_opt.io.files import check_outputs as _check
 
     _check(outputs)
+
+
+#: Options whose value a command writes (checked against what it reads).
+OUTPUT_DESTS = frozenset({"out", "dot", "gantt", "plot", "animate"})
+
+
+def refuse_overwriting_inputs(args: argparse.Namespace, argv: Sequence[str]) -> None:
+    """Refuse an output option that names a file the command reads (the instance, a
+    plan, a problem, a delays log...): writing it would destroy the input. Checked
+    before any work; only existing files can be both.
+
+    Example
+    -------
+    >>> import tempfile, os
+    >>> f = os.path.join(tempfile.mkdtemp(), "a.yaml"); _ = open(f, "w").write("x")
+    >>> refuse_overwriting_inputs(argparse.Namespace(instance=f, out=f), [f, "--out", f])
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.OutputError: --out ...a.yaml: the same file as the input INSTANCE; ...
+    """
+    import os
+
+    from hierplan_opt.core.errors import OutputError
+
+    def paths(value: object) -> list[str]:
+        items = value if isinstance(value, (list, tuple)) else [value]
+        return [str(v) for v in items if isinstance(v, (str, Path)) and str(v)]
+
+    inputs = [
+        (dest, p)
+        for dest, value in vars(args).items()
+        if dest not in OUTPUT_DESTS and not dest.startswith("_")
+        for p in paths(value)
+        if os.path.isfile(p)
+    ]
+    for dest in sorted(OUTPUT_DESTS):
+        for out in paths(getattr(args, dest, None)):
+            if not os.path.isfile(out):
+                continue
+            for name, p in inputs:
+                with contextlib.suppress(OSError):
+                    if os.path.samefile(out, p):
+                        flag = f"--{name.replace('_', '-')}"
+                        what = flag if flag in argv else name.upper()
+                        raise OutputError(
+                            f"--{dest} {out}: the same file as the input {what}; write the "
+                            "output elsewhere"
+                        )
 
 
 def _int_at_least(text: str, low: int, what: str) -> int:

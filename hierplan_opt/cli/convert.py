@@ -114,14 +114,15 @@ def run(args: argparse.Namespace) -> int:
     if kind == "instance":
         from hierplan_opt.io import save_instance
 
-        if to == "lmrp":  # write what the format carries; say what it cannot
+        if to in ("lmrp", "movingai"):  # write what the format carries; say what it cannot
             from hierplan_opt.io.lmrp_yaml import without_extras
 
             instance, lost = without_extras(instance)
+            fmt = "libMultiRobotPlanning" if to == "lmrp" else "MovingAI"
             for what in lost:
                 print(
-                    f"hierplan convert: warning: the libMultiRobotPlanning format cannot hold "
-                    f"{what}; left out of {out}",
+                    f"hierplan convert: warning: the {fmt} format cannot hold {what}; left "
+                    f"out of {out}",
                     file=sys.stderr,
                 )
         save_instance(out, instance, format=to)

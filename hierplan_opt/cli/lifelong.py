@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 
 from hierplan_opt.cli.common import (
     add_progress_arguments,
@@ -13,6 +14,8 @@ from hierplan_opt.cli.common import (
 )
 from hierplan_opt.core.errors import InputError
 from hierplan_opt.io.values import to_json
+
+log = logging.getLogger(__name__)
 
 HELP = "run a League of Robot Runners problem lifelong (tasks, delays) and write its log"
 
@@ -97,7 +100,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
-    from hierplan_opt.io.lorr import load_problem, read_log, write_log
+    from hierplan_opt.io.lorr import load_problem, parse_delay_intervals, read_log, write_log
     from hierplan_opt.lifelong import check_log, run_lifelong
     from hierplan_opt.lifelong.delays import ReplayDelays
 
@@ -117,11 +120,16 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(
                 "--replay-delays takes the delays from the log; drop --p-delay/--event-model"
             )
-        intervals = read_log(args.replay_delays).get("delayIntervals")
-        if not isinstance(intervals, list) or len(intervals) != problem.team_size:
-            raise InputError(
-                f"{args.replay_delays}: delayIntervals must list {problem.team_size} robots"
-            )
+        recorded = read_log(args.replay_delays)
+        intervals = parse_delay_intervals(
+            recorded.get("delayIntervals"), problem.team_size, str(args.replay_delays)
+        )
+        span = recorded.get("makespan")
+        if isinstance(span, int) and not isinstance(span, bool) and span < args.ticks:
+            log.warning(
+                "%s records %d ticks: from tick %d on no delays are replayed",
+                args.replay_delays, span, span,
+            )  # fmt: skip
         delays = ReplayDelays(intervals)
     with progress_of(args, f"lifelong {problem.name}"):
         res = run_lifelong(

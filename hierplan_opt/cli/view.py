@@ -12,6 +12,7 @@ from hierplan_opt.cli.common import (
     add_instance_arguments,
     check_outputs,
     load_instance_from_args,
+    positive_int,
 )
 from hierplan_opt.core.errors import InputError
 
@@ -34,7 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--title", metavar="TEXT", help="title shown on the page")
     p.add_argument(
         "--agent-counter",
-        type=int,
+        type=positive_int,
         metavar="K",
         help="LoRR 3.x logs: ticks per action (the problem's agentCounter; default: the "
         "log's, else 1)",

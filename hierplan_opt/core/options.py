@@ -46,6 +46,10 @@ def parse_bool(text: str) -> bool | None:
     return None
 
 
+#: The largest amount a setting stands for (2^62; more means no limit at all).
+AMOUNT_CAP = float(1 << 62)
+
+
 def positive_amount(text: str, what: str, scale: int = 1, unit: str = "") -> int:
     """``text`` as a positive number times ``scale``, at least 1 (settings read from
     the environment, such as memory and size limits).
@@ -68,7 +72,7 @@ def positive_amount(text: str, what: str, scale: int = 1, unit: str = "") -> int
         raise InputError(message) from None
     if not math.isfinite(value) or value <= 0:
         raise InputError(message)
-    return max(1, int(value * scale))
+    return max(1, int(min(value * scale, AMOUNT_CAP)))  # beyond any machine: no cap
 
 
 @dataclass(frozen=True)

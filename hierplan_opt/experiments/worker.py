@@ -69,7 +69,7 @@ VERSIONED = ("hierplan_opt", "numpy", "scipy", "networkx", "ortools", "highspy",
 
 def limit_memory(megabytes: float | None) -> None:
     """Cap this process's address space at ``megabytes`` (``None``: no cap)."""
-    if megabytes is None:
+    if megabytes is None or megabytes * 1024 * 1024 >= 1 << 62:  # beyond any machine
         return
     limit = int(megabytes * 1024 * 1024)
     _, hard = resource.getrlimit(resource.RLIMIT_AS)

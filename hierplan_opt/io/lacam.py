@@ -108,6 +108,13 @@ def parse(text: str, name: str, instance: Instance) -> tuple[Plan, dict[str, Any
         configs.append(_config(ctx, graph, m.group(2), k, t, lineno))
     if not configs:
         raise ctx.error("the solution has no timesteps", first_step)
+    span = stats.get("makespan")
+    if isinstance(span, int) and not isinstance(span, bool) and span >= len(configs):
+        raise ctx.error(
+            f"the file says makespan={span} but its solution stops at timestep "
+            f"{len(configs) - 1} (a truncated file?)",
+            len(lines),
+        )
     paths = [tuple(c[i] for c in configs) for i in range(k)]
     return Plan(tuple(paths)), stats
 

@@ -175,7 +175,10 @@ def parse_lorr_map(text: str, name: str = "<map>") -> tuple[int, int, np.ndarray
 
 def _int_fields(line: str, name: str, lineno: int) -> list[int]:
     out = []
-    for f in line.split(","):
+    fields = line.split(",")
+    if len(fields) > 1 and not fields[-1].strip():
+        fields.pop()  # a trailing comma, as the Start-Kit's reader accepts
+    for f in fields:
         f = f.strip()
         if not re.fullmatch(r"-?\d+", f):
             raise InputError(f"{name}:{lineno}: expected comma-separated integers, got {f!r}")
@@ -266,6 +269,10 @@ def parse_delay_config(obj: Any, name: str = "<problem>") -> DelayConfig:
     return DelayConfig(seed, lo, hi, ev.lower(), p, dur.lower(), mean, std)
 
 
+#: Tasks revealed at once beyond which a problem is refused (memory: each is an object).
+MAX_REVEALED = 100_000
+
+
 def load_problem(path: str | Path) -> LorrProblem:
     """Read a LoRR problem JSON and the map, agent and task files it names.
 
@@ -301,6 +308,12 @@ def load_problem(path: str | Path) -> LorrProblem:
     reveal = float(_opt(data, "numTasksReveal", (int, float), 1.0, name))
     if not (math.isfinite(reveal) and reveal > 0):
         raise InputError(f"{name}: numTasksReveal must be a positive number, got {reveal}")
+    if reveal * team > MAX_REVEALED:
+        raise InputError(
+            f"{name}: numTasksReveal {reveal:g} x teamSize {team} keeps "
+            f"{reveal * team:.3g} tasks revealed at once; at most {MAX_REVEALED:,} are "
+            "supported (the Start-Kit's problems use 1 to 1.5)"
+        )
     size = float(_opt(data, "agentSize", (int, float), 1.0, name))
     if not (math.isfinite(size) and size > 0):
         raise InputError(f"{name}: agentSize must be a positive number, got {size}")
@@ -390,8 +403,15 @@ def encode_path(
 _SEG = re.compile(r"\[\((-?\d+),(-?\d+),(-?\d+),(-?\d+),(-?\d+)\):\(([^)]*)\)\]")
 
 
-def decode_path(text: str, where: str = "path") -> tuple[tuple[int, int, int, int], str]:
-    """The first snapshot ``(row, col, ori, counter)`` and the per-tick action letters.
+#: Ticks a recorded path may expand to (run-length counts are refused beyond it).
+MAX_PATH_TICKS = 1 << 25
+
+
+def decode_path(
+    text: str, where: str = "path", max_ticks: int = MAX_PATH_TICKS
+) -> tuple[tuple[int, int, int, int], str]:
+    """The first snapshot ``(row, col, ori, counter)`` and the per-tick action letters
+    (at most ``max_ticks``: a log's run-length counts are refused beyond it).
 
     Example
     -------
@@ -399,6 +419,7 @@ def decode_path(text: str, where: str = "path") -> tuple[tuple[int, int, int, in
     ((2, 1, 0, 0), 'FFFWW')
     """
     pos = 0
+    total = 0
     letters: list[str] = []
     first: tuple[int, int, int, int] | None = None
     while pos < len(text):
@@ -411,11 +432,50 @@ def decode_path(text: str, where: str = "path") -> tuple[tuple[int, int, int, in
             parts = run.split()
             if len(parts) != 2 or parts[0] not in ACTION_LETTERS or not parts[1].isdigit():
                 raise InputError(f"{where}: bad action run {run!r}")
+            total += int(parts[1])
+            if total > max_ticks:
+                raise InputError(
+                    f"{where}: the action runs add up to more than {max_ticks:,} ticks (at {run!r})"
+                )
             letters.append(parts[0] * int(parts[1]))
         pos = m.end()
     if first is None:
         raise InputError(f"{where}: empty path string")
     return first, "".join(letters)
+
+
+def parse_delay_intervals(obj: Any, robots: int, where: str) -> list[list[tuple[int, int]]]:
+    """A log's ``delayIntervals``: per robot a list of ``[start, end]`` ticks (whole
+    numbers, ``0 <= start <= end``); one line naming ``where`` for anything else.
+
+    Example
+    -------
+    >>> parse_delay_intervals([[[3, 5]], []], 2, "log.json")
+    [[(3, 5)], []]
+    >>> parse_delay_intervals([[["a", "b"]], []], 2, "log.json")
+    Traceback (most recent call last):
+    ...
+    hierplan_opt.core.errors.InputError: log.json: delayIntervals[0][0] must be ... got ['a', 'b']
+    """
+    if not isinstance(obj, list) or len(obj) != robots:
+        got = f"{len(obj)} entries" if isinstance(obj, list) else type(obj).__name__
+        raise InputError(f"{where}: delayIntervals must list {robots} robots, got {got}")
+    out: list[list[tuple[int, int]]] = []
+    for i, ivs in enumerate(obj):
+        if not isinstance(ivs, list):
+            raise InputError(f"{where}: delayIntervals[{i}] must be a list of [start, end]")
+        row = []
+        for k, iv in enumerate(ivs):
+            ok = isinstance(iv, list) and len(iv) == 2
+            ok = ok and all(isinstance(x, int) and not isinstance(x, bool) for x in iv)
+            if not ok or not 0 <= iv[0] <= iv[1]:
+                raise InputError(
+                    f"{where}: delayIntervals[{i}][{k}] must be [start, end] ticks (whole "
+                    f"numbers, 0 <= start <= end), got {iv!r}"
+                )
+            row.append((int(iv[0]), int(iv[1])))
+        out.append(row)
+    return out
 
 
 def is_lorr(data: Any) -> bool:

@@ -32,7 +32,13 @@ from hierplan_opt.core.graph import Graph
 from hierplan_opt.core.instance import Instance
 from hierplan_opt.core.plan import Plan
 from hierplan_opt.core.progress import tick
-from hierplan_opt.io.lorr import decode_path, is_lorr, read_log
+from hierplan_opt.io.lorr import (
+    MAX_PATH_TICKS,
+    decode_path,
+    is_lorr,
+    parse_delay_intervals,
+    read_log,
+)
 
 #: Colour of each layer of the hierarchy that handles a disturbance.
 LAYER_COLORS = {
@@ -414,16 +420,18 @@ _DRC = {0: (0, 1), 1: (1, 0), 2: (0, -1), 3: (-1, 0)}
 
 
 def _segment_keys(
-    graph: Graph, path: str | Path, paths: list[Any], counter: int
+    graph: Graph, path: str | Path, paths: list[Any], counter: int, max_ticks: int
 ) -> list[np.ndarray]:
     """Per robot ``(t, x, y)`` keys of Start-Kit 3.x paths: an action takes ``counter``
-    ticks (a forward move advances ``1 / counter`` of a cell per tick, a wait pauses it);
+    ticks (a forward move advances ``1 / counter`` of a cell per tick, a wait pauses it;
+    at most ``max_ticks`` ticks, the log's makespan);
     only the ticks where the motion changes are kept."""
     assert graph.shape is not None
     W, H = graph.shape[0], graph.shape[1]
     keys = []
     for i, text in enumerate(paths):
-        (r, c, o, cnt), acts = decode_path(str(text), f"{path}: actualPaths[{i}]")
+        where = f"{path}: actualPaths[{i}]"
+        (r, c, o, cnt), acts = decode_path(str(text), where, max_ticks)
         cur = "T"
         xy = np.empty((len(acts) + 1, 2))
         xy[0] = (c, r)
@@ -494,21 +502,32 @@ def scene_from_lorr(
     W, H = g_shape
     paths = data.get("actualPaths")
     if isinstance(paths, list) and paths and str(paths[0]).startswith("[("):
-        k = counter or data.get("agentCounter") or data.get("agentMaxCounter") or 1
-        if not isinstance(k, int) or k < 1:
-            raise InputError(f"{path}: agentCounter must be a positive whole number, got {k!r}")
-        keys = _segment_keys(graph, path, paths, k)
+        k = counter
+        for key in ("agentCounter", "agentMaxCounter"):
+            v = data.get(key)
+            if k is None and v is not None:
+                if not isinstance(v, int) or isinstance(v, bool) or v < 1:
+                    raise InputError(f"{path}: {key} must be a positive whole number, got {v!r}")
+                k = v
+        k = k or 1
+        start = data.get("start")
+        if isinstance(start, list) and len(start) != len(paths):
+            raise InputError(
+                f"{path}: 'start' lists {len(start)} robots but 'actualPaths' {len(paths)}"
+            )
+        span = data.get("makespan")
+        cap = span if isinstance(span, int) and not isinstance(span, bool) and span > 0 else 0
+        keys = _segment_keys(graph, path, paths, k, cap or MAX_PATH_TICKS)
         n = len(keys)
         plain = {a: b for a, b in data.items() if isinstance(b, (int, float, str))}
         delays = []  # the Start-Kit's delay intervals [start, end) per robot, as disturbances
-        for i, ivs in enumerate(data.get("delayIntervals") or []):
-            for iv in ivs if isinstance(ivs, list) else []:
-                if isinstance(iv, list) and len(iv) == 2 and i < n:
-                    s0, e0 = float(iv[0]), float(iv[1])
-                    delays.append(
-                        {"time": s0, "agent": f"r{i}", "kind": "delay", "layer": "none",
-                         "delay": e0 - s0, "detail": f"held for ticks {iv[0]}..{iv[1]}"}
-                    )  # fmt: skip
+        given = data.get("delayIntervals")
+        for i, ivs in enumerate(parse_delay_intervals(given, n, str(path)) if given else []):
+            for s0, e0 in ivs:
+                delays.append(
+                    {"time": float(s0), "agent": f"r{i}", "kind": "delay", "layer": "none",
+                     "delay": float(e0 - s0), "detail": f"held for ticks {s0}..{e0}"}
+                )  # fmt: skip
         return Scene(
             title=title or f"{Path(path).name}: lifelong (LoRR 3.x), {n} robots",
             source="lifelong",

@@ -1,0 +1,230 @@
+"""Defects of a user audit of ``lifelong``, ``view``, ``convert`` and ``verify`` (after
+stop 47), each with its reproducer.
+
+A. an output option naming a file the command reads is refused (the input survives);
+B. a memory limit beyond any machine is no limit, not an internal error;
+C. LoRR problems that reveal absurd numbers of tasks are refused in one line;
+D. a LoRR log's run-length actions may not expand beyond its makespan (``view``);
+E. malformed ``delayIntervals`` are one line (``lifelong --replay-delays``, ``view``),
+   and a replayed log shorter than the run says so;
+F. ``view``: ``--agent-counter 0``, ``agentMaxCounter: 0`` and a ``start`` list of
+   another length are refused, naming what is wrong;
+G. a LaCAM file cut short (its ``makespan=`` line promises more) is refused;
+H. task and agent files with a trailing comma are read, as the Start-Kit reads them.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hierplan_opt.cli import main
+
+ROOT = Path(__file__).parent.parent
+MAZE = ROOT / "instances" / "lorr" / "maze.domain"
+MAZE_MAP = MAZE / "maps" / "maze-32-32-2.map"
+EMPTY = ROOT / "instances" / "movingai" / "empty-8-8.map"
+EMPTY_SCEN = ROOT / "instances" / "movingai" / "empty-8-8-even-1.scen"
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
+    """``hierplan ARGV`` in this process: (exit code, stderr)."""
+    code = main(list(argv))
+    return code, capsys.readouterr().err
+
+
+@pytest.fixture
+def maze(tmp_path: Path) -> Path:
+    """A copy of the bundled maze problem (its files are relative to it)."""
+    shutil.copytree(MAZE, tmp_path / "maze")
+    return tmp_path / "maze"
+
+
+@pytest.fixture
+def log10(maze: Path, capsys: pytest.CaptureFixture[str]) -> dict[str, Any]:
+    """A 10-tick lifelong log of the maze problem (LoRR 3.x layout)."""
+    out = maze / "log10.json"
+    code, _ = run(capsys, "lifelong", str(maze / "maze-example_40.json"), "--ticks", "10",
+                  "--out", str(out))  # fmt: skip
+    assert code == 0
+    return json.loads(out.read_text())
+
+
+# ------------------------------------------------------------------ A. inputs kept
+def test_solve_does_not_overwrite_its_instance(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    inst = tmp_path / "i.yaml"
+    inst.write_text(
+        "map: {dimensions: [3, 1], obstacles: []}\n"
+        "agents:\n  - {name: a, start: [0, 0], goal: [2, 0]}\n"
+    )
+    before = inst.read_text()
+    code, err = run(capsys, "solve", str(inst), "--solver", "cbs", "--out", str(inst))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "the same file as the input INSTANCE" in err
+    assert inst.read_text() == before
+
+
+def test_lifelong_does_not_overwrite_its_problem_or_delays(
+    maze: Path, log10: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    problem = maze / "maze-example_40.json"
+    before = problem.read_text()
+    code, err = run(capsys, "lifelong", str(problem), "--ticks", "5", "--out", str(problem))
+    assert code == 2 and "the same file as the input PROBLEM" in err
+    assert problem.read_text() == before
+    log = maze / "log10.json"
+    kept = log.read_text()
+    code, err = run(capsys, "lifelong", str(problem), "--ticks", "5", "--replay-delays",
+                    str(log), "--out", str(log))  # fmt: skip
+    assert code == 2 and "the same file as the input --replay-delays" in err
+    assert log.read_text() == kept
+
+
+# ------------------------------------------------------------------ B. memory limits
+@pytest.mark.parametrize("limit", ["1e18", "1e300"])
+def test_a_memory_limit_beyond_any_machine_is_no_limit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], limit: str
+) -> None:
+    # 1e18 GB overflowed setrlimit's C long, 1e300 GB became an infinite float
+    out = tmp_path / "p.yaml"
+    args = [str(EMPTY), "--scen", str(EMPTY_SCEN), "--agents", "2"]
+    code, err = run(capsys, "solve", *args, "--solver", "cbs", "--memory-limit", limit,
+                    "--out", str(out))  # fmt: skip
+    assert code == 0, err
+    code, err = run(capsys, "verify", *args, str(out), "--memory-limit", limit)
+    assert code == 0, err
+
+
+def test_a_huge_memory_limit_in_the_environment_is_no_limit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("HIERPLAN_MEMORY_LIMIT_GB", "1e300")
+    args = [str(EMPTY), "--scen", str(EMPTY_SCEN), "--agents", "2"]
+    code, err = run(capsys, "solve", *args, "--solver", "cbs", "--out", str(tmp_path / "p.yaml"))
+    assert code == 0, err
+
+
+# ------------------------------------------------------------------ C. revealed tasks
+@pytest.mark.parametrize("reveal", [1e6, 1e300])
+def test_absurd_numbers_of_revealed_tasks_are_refused(
+    maze: Path, capsys: pytest.CaptureFixture[str], reveal: float
+) -> None:
+    # 1e6 grew past 3.8 GB; 1e300 crashed in a float32 cast
+    doc = json.loads((maze / "maze-example_40.json").read_text())
+    doc["numTasksReveal"] = reveal
+    bad = maze / "reveal.json"
+    bad.write_text(json.dumps(doc))
+    code, err = run(capsys, "lifelong", str(bad), "--ticks", "5", "--out", str(maze / "o.json"))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "numTasksReveal" in err and "tasks revealed at once" in err
+    assert not (maze / "o.json").exists()
+
+
+# ------------------------------------------------------------------ D. run lengths
+@pytest.mark.parametrize("run_", ["F 999999999", "W 99999999999"])
+def test_view_refuses_action_runs_beyond_the_makespan(
+    maze: Path, log10: dict[str, Any], capsys: pytest.CaptureFixture[str], run_: str
+) -> None:
+    # 'F 999999999' took 2 GB before failing with a misleading message
+    paths = log10["actualPaths"]
+    paths[0] = paths[0].replace(":(", f":({run_},", 1)
+    bad = maze / "long.json"
+    bad.write_text(json.dumps(log10))
+    page = maze / "v.html"
+    code, err = run(capsys, "view", str(MAZE_MAP), str(bad), "--out", str(page))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "more than 10 ticks" in err and not page.exists()
+
+
+# ------------------------------------------------------------------ E. delay intervals
+@pytest.mark.parametrize("interval", [["a", "b"], [5], [7, 3], [1.5, 2]])
+def test_malformed_delay_intervals_are_one_line(
+    maze: Path,
+    log10: dict[str, Any],
+    capsys: pytest.CaptureFixture[str],
+    interval: list[Any],
+) -> None:
+    log10["delayIntervals"][0] = [interval]
+    bad = maze / "delays.json"
+    bad.write_text(json.dumps(log10))
+    problem = str(maze / "maze-example_40.json")
+    code, err = run(capsys, "lifelong", problem, "--ticks", "5", "--replay-delays", str(bad),
+                    "--out", str(maze / "o.json"))  # fmt: skip
+    assert code == 2 and "delayIntervals[0][0] must be [start, end]" in err
+    code, err = run(capsys, "view", str(MAZE_MAP), str(bad), "--out", str(maze / "v.html"))
+    assert code == 2 and "delayIntervals[0][0] must be [start, end]" in err
+    assert not (maze / "v.html").exists() and not (maze / "o.json").exists()
+
+
+def test_a_shorter_replayed_log_says_so(
+    maze: Path, log10: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    problem = str(maze / "maze-example_40.json")
+    code, err = run(capsys, "lifelong", problem, "--ticks", "20", "--replay-delays",
+                    str(maze / "log10.json"), "--out", str(maze / "o.json"))  # fmt: skip
+    assert code == 0
+    assert "records 10 ticks: from tick 10 on no delays are replayed" in err
+
+
+# ------------------------------------------------------------------ F. view's counters
+def test_view_refuses_counters_below_one_and_other_starts(
+    maze: Path, log10: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    good = maze / "log10.json"
+    page = maze / "v.html"
+    with pytest.raises(SystemExit) as usage:  # argparse's usage error, one line
+        main(["view", str(MAZE_MAP), str(good), "--agent-counter", "0", "--out", str(page)])
+    assert usage.value.code == 2 and "--agent-counter" in capsys.readouterr().err
+    zero = dict(log10, agentMaxCounter=0)
+    (maze / "zero.json").write_text(json.dumps(zero))
+    code, err = run(capsys, "view", str(MAZE_MAP), str(maze / "zero.json"), "--out", str(page))
+    assert code == 2 and "agentMaxCounter must be a positive whole number, got 0" in err
+    few = dict(log10, start=log10["start"][:5])
+    (maze / "few.json").write_text(json.dumps(few))
+    code, err = run(capsys, "view", str(MAZE_MAP), str(maze / "few.json"), "--out", str(page))
+    assert code == 2 and "'start' lists 5 robots but 'actualPaths' 40" in err
+    assert not page.exists()
+
+
+# ------------------------------------------------------------------ G. LaCAM files
+def test_a_truncated_lacam_file_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = [str(EMPTY), "--scen", str(EMPTY_SCEN), "--agents", "2"]
+    full = tmp_path / "p.txt"
+    code, _ = run(capsys, "convert", *args, "--plan", str(_plan(tmp_path, capsys, args)),
+                  "--to", "lacam", "--out", str(full))  # fmt: skip
+    assert code == 0
+    code, _ = run(capsys, "validate", *args, str(full))
+    assert code == 0
+    lines = full.read_text().splitlines()
+    cut = tmp_path / "cut.txt"
+    cut.write_text("\n".join(lines[:-1]) + "\n")  # the last timestep is gone
+    code, err = run(capsys, "validate", *args, str(cut))
+    assert code == 2 and "truncated" in err
+
+
+def _plan(tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str]) -> Path:
+    out = tmp_path / "plan.yaml"
+    code, _ = run(capsys, "solve", *args, "--solver", "cbs", "--out", str(out))
+    assert code == 0
+    return out
+
+
+# ------------------------------------------------------------------ H. trailing commas
+def test_task_files_with_a_trailing_comma_are_read(
+    maze: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    doc = json.loads((maze / "maze-example_40.json").read_text())
+    tasks = maze / doc["taskFile"]
+    lines = tasks.read_text().splitlines()
+    tasks.write_text("\n".join([lines[0], *(f"{x}," for x in lines[1:])]) + "\n")
+    code, err = run(capsys, "lifelong", str(maze / "maze-example_40.json"), "--ticks", "5",
+                    "--out", str(maze / "o.json"))  # fmt: skip
+    assert code == 0, err
