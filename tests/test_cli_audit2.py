@@ -228,3 +228,25 @@ def test_task_files_with_a_trailing_comma_are_read(
     code, err = run(capsys, "lifelong", str(maze / "maze-example_40.json"), "--ticks", "5",
                     "--out", str(maze / "o.json"))  # fmt: skip
     assert code == 0, err
+
+
+# ------------------------------------------------------------------ I. --budget
+@pytest.mark.parametrize("budget", ["-1", "0", "0.01", "nan"])
+def test_lifelong_budget_says_its_floor_once(
+    capsys: pytest.CaptureFixture[str], budget: str
+) -> None:
+    # -1, 0 and 0.01 got three different messages ('>= 0', '> 0', '> 0.05 s')
+    with pytest.raises(SystemExit) as usage:
+        main(["lifelong", str(MAZE / "maze-example_40.json"), "--budget", budget])
+    err = capsys.readouterr().err
+    assert usage.value.code == 2 and "expected seconds above 0.05" in err
+
+
+def test_agent_size_above_one_names_the_problem_file(
+    maze: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    doc = json.loads((maze / "maze-example_40.json").read_text())
+    doc["agentSize"] = 5
+    (maze / "size5.json").write_text(json.dumps(doc))
+    code, err = run(capsys, "lifelong", str(maze / "size5.json"), "--ticks", "3")
+    assert code == 2 and "size5.json: agentSize 5 > 1" in err

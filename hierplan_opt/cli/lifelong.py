@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 
 from hierplan_opt.cli.common import (
     add_progress_arguments,
@@ -30,10 +31,18 @@ def _non_negative(text: str) -> float:
     return value
 
 
-def _positive(text: str) -> float:
-    value = _non_negative(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+def _budget(text: str) -> float:
+    """argparse type of ``--budget``: seconds above the planner's reserve."""
+    from hierplan_opt.lifelong.run import BUDGET_MARGIN
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > BUDGET_MARGIN):
+        raise argparse.ArgumentTypeError(
+            f"expected seconds above {BUDGET_MARGIN:g} (the planner's reserve), got {text!r}"
+        )
     return value
 
 
@@ -58,11 +67,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--budget",
-        type=_positive,
+        type=_budget,
         default=1.0,
         metavar="S",
-        help="seconds per planning call (default 1, the Start-Kit's); the planner returns "
-        "the steps done by then and robots without a plan wait",
+        help="seconds per planning call, above 0.05 (default 1, the Start-Kit's); the "
+        "planner returns the steps done by then and robots without a plan wait",
     )
     p.add_argument(
         "--period", type=positive_int, default=10, help="ticks between planning calls (default 10)"

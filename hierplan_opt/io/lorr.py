@@ -317,6 +317,11 @@ def load_problem(path: str | Path) -> LorrProblem:
     size = float(_opt(data, "agentSize", (int, float), 1.0, name))
     if not (math.isfinite(size) and size > 0):
         raise InputError(f"{name}: agentSize must be a positive number, got {size}")
+    if size > 1.0:
+        raise InputError(
+            f"{name}: agentSize {size:g} > 1: footprints reach into neighbouring cells, "
+            "which the cell-based executor does not guard"
+        )
     counter = _opt(data, "agentCounter", int, 10, name)
     if counter < 1:
         raise InputError(f"{name}: agentCounter must be at least 1, got {counter}")
