@@ -191,6 +191,8 @@ class CpSatBackend:
         t0 = time.perf_counter()
         model, index = model_of(net, objective)
         stats: dict = {"model_time": time.perf_counter() - t0}
+        if time_limit is not None and stats["model_time"] >= time_limit:
+            return Outcome(Status.TIME_LIMIT, stats=stats)  # the model took the budget
         if hint is not None:
             stats["hinted"] = add_hint(model, index, hint)
         cp = cp_model.CpSolver()

@@ -169,6 +169,11 @@ class _Stopped(Exception):
         self.result = result
 
 
+#: The next network and model take about this many times the last one's set-up (each
+#: horizon or slack step adds arcs; measured 1.2-2x on random-32-32-20, 60 agents).
+SETUP_GROWTH = 1.5
+
+
 def solve_with(
     backend: Backend,
     instance: Instance,
@@ -203,15 +208,21 @@ def _search(
     bound = makespan_upper_bound(instance)  # every solvable instance has a plan within it
     cap = search_cap(instance, max_horizon, bound)
     stats: dict = {"solves": 0, "build_time": 0.0, "solve_time": 0.0, "horizons": []}
+    # seconds the last network took to build and turn into a model: a next one is not
+    # started when less time is left (it could not be stopped half way)
+    setup = [0.0, 0.0]
 
     def run(net: TimeExpandedNetwork, hint: Plan | None) -> Outcome:
         if net.num_arcs == 0:  # everyone is at a goal at t = 0: nothing to decide
             return Outcome(Status.OPTIMAL, np.zeros(0), float(net.soc_constant()), 0.0)
+        if deadline.expired():  # building the network took the rest of the budget
+            return Outcome(Status.TIME_LIMIT)
         stats["solves"] += 1
         t0 = time.perf_counter()
         remaining = deadline.remaining() if time_limit is not None else None
         out = backend(net, objective, remaining, hint, seed)
         stats["solve_time"] += time.perf_counter() - t0
+        setup[1] = setup[0] + float(out.stats.get("model_time", 0.0))
         stats.update(net.stats(objective))
         stats["horizons"].append((net.horizon, str(out.status)))
         for key, value in out.stats.items():
@@ -235,8 +246,13 @@ def _search(
             raise _Stopped(limit(proven, "memory_limit")) from None
         t0 = time.perf_counter()
         net = build(instance, horizon, **kwargs)
-        stats["build_time"] += time.perf_counter() - t0
+        setup[0] = time.perf_counter() - t0
+        stats["build_time"] += setup[0]
         return net
+
+    def out_of_time() -> bool:
+        """The budget is spent, or too little is left to build the next model."""
+        return deadline.expired() or deadline.remaining() < SETUP_GROWTH * setup[1]
 
     best: list[Plan] = []  # the cheapest plan found so far (sum of costs): never dropped
 
@@ -261,7 +277,7 @@ def _search(
                 return no_plan()  # every horizon up to the bound was proven infeasible
             if horizon > cap:
                 return limit(horizon, "max_horizon")
-            if deadline.expired():
+            if out_of_time():
                 return limit(horizon, "time_limit")
             # First a network where each commodity may detour little from its shortest
             # paths (small, fast); any plan in it has makespan <= horizon. Only if it has
@@ -296,7 +312,7 @@ def _search(
         # solved even past the default cap; a cap the user gave still stops the search.
         if max(base) + delta > reach and (max_horizon is not None or not best):
             return limit(proven, "max_horizon")
-        if deadline.expired():
+        if out_of_time():
             return limit(proven, "time_limit")
         net = make(max(base) + delta, proven, deadlines=[b + delta for b in base])
         out = Outcome(Status.INFEASIBLE) if net.infeasible else run(net, hint)

@@ -181,9 +181,11 @@ class MipBackend:
     ) -> Outcome:
         t0 = time.perf_counter()
         m = model_of(net, objective)
-        stats: dict = {"model_time": time.perf_counter() - t0}
         opt = _highs(seed)
         opt.set_instance(m)  # builds the highspy model now, for the progress callbacks
+        stats: dict = {"model_time": time.perf_counter() - t0}  # Pyomo's and HiGHS' model
+        if time_limit is not None and time.perf_counter() - t0 >= time_limit:
+            return Outcome(Status.TIME_LIMIT, stats=stats)  # the model took the budget
         watch = partial(watching_highs, opt._solver_model)  # Pyomo keeps it private
 
         def budget() -> None:
@@ -216,6 +218,8 @@ class MipBackend:
             ):
                 setattr(opt.update_config, flag, False)
             opt.update_variables(list(m.x.values()))
+            if time_limit is not None and time.perf_counter() - t0 >= time_limit:
+                return Outcome(Status.TIME_LIMIT, stats=stats)  # the LP took the budget
         budget()
         with watch():
             res = opt.solve(m)
