@@ -272,3 +272,86 @@ def test_formulations_honour_their_time_limit(solver: str) -> None:
     wall = time.perf_counter() - t0
     assert res.status.value in ("TIME_LIMIT", "FEASIBLE", "OPTIMAL")
     assert wall < 3.3, (wall, res.stats.get("horizons"))
+
+
+# ------------------------------------------------------------------ K. sweeps
+def test_report_tells_two_contents_of_one_instance_name_apart() -> None:
+    # A scenario edited between sweeps keeps its name: its runs were grouped as one
+    # instance, and an OPTIMAL run showed cost 0.2 x the "best lower bound" (the other
+    # content's). Now a run is compared with the bounds of its own content only.
+    import pandas as pd
+
+    from hierplan_opt.experiments.reports import cost_table
+
+    rows = [
+        ("cbs", "OPTIMAL", 10.0, 10.0, "h1"),
+        ("pibt", "FEASIBLE", 60.0, 50.0, "h2"),
+    ]
+    df = pd.DataFrame(
+        [
+            {"label": lab, "status": st, "cost": c, "lower_bound": lb, "instance": "corr",
+             "instance_hash": h, "agents": 2, "objective": "soc", "seed": 0}
+            for lab, st, c, lb, h in rows
+        ]
+    )  # fmt: skip
+    table = cost_table(df)
+    assert table.loc["cbs", "cost/best LB median"] == pytest.approx(1.0)
+    assert table.loc["pibt", "cost/best LB median"] == pytest.approx(1.2)
+
+
+def test_runs_skipped_by_stop_on_failure_run_in_a_later_sweep(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # SKIPPED rows counted as finished: a later sweep without stop_on_failure re-used
+    # them and never ran those K (the report showed them as failures)
+    import sqlite3
+
+    movingai = ROOT / "instances" / "movingai"
+    spec = (
+        "name: sof\nsolvers: [{name: cbs}]\ninstances:\n"
+        f"  - {{map: {movingai / 'random-32-32-20.map'}, "
+        f"scen: {movingai / 'random-32-32-20-random-1.scen'}}}\n"
+        "agents: [60, 70, 80, 90]\ntime_limit: 0.5\n"
+    )
+    (tmp_path / "a.yaml").write_text(spec + "stop_on_failure: true\n")
+    (tmp_path / "b.yaml").write_text(spec + "stop_on_failure: false\n")
+    db = str(tmp_path / "s.sqlite")
+    assert main(["sweep", str(tmp_path / "a.yaml"), "--db", db]) == 0
+    con = sqlite3.connect(db)
+    statuses = [st for (st,) in con.execute("SELECT status FROM runs")]
+    skipped = statuses.count("SKIPPED")
+    assert skipped >= 1, statuses
+    capsys.readouterr()
+    assert main(["sweep", str(tmp_path / "b.yaml"), "--db", db]) == 0
+    assert f"{4 - skipped} re-used, {skipped} run" in capsys.readouterr().out
+    statuses = [st for (st,) in con.execute("SELECT status FROM runs")]
+    assert len(statuses) == 4 and "SKIPPED" not in statuses, statuses
+
+
+def test_a_damaged_store_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    import sqlite3
+
+    good = tmp_path / "good.sqlite"
+    con = sqlite3.connect(good)
+    con.execute("CREATE TABLE t (x)")
+    con.executemany("INSERT INTO t VALUES (?)", [("x" * 500,)] * 200)
+    con.commit()
+    con.close()
+    bad = tmp_path / "bad.sqlite"
+    bad.write_bytes(good.read_bytes()[:3000])  # cut: 'database disk image is malformed'
+    code, err = run(capsys, "sweep", "report", str(bad))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "the SQLite database cannot be used" in err
+
+
+def test_a_time_limit_beyond_a_week_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # 1e300 s finished, but printed threading.Timer's OverflowError traceback
+    spec = tmp_path / "t.yaml"
+    spec.write_text(
+        "name: t\nsolvers: [{name: cbs}]\ninstances:\n"
+        f"  - {{map: {EMPTY}, scen: {EMPTY_SCEN}}}\nagents: [2]\ntime_limit: 1.0e+300\n"
+    )
+    code, err = run(capsys, "sweep", str(spec), "--dry-run")
+    assert code == 2 and "time_limit must be at most 604800 s" in err

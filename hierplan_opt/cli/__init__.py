@@ -119,6 +119,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:  # an internal bug, not a user error
         if args.debug:
             raise
+        if type(exc).__module__ == "sqlite3":  # a damaged store is bad input
+            print(
+                f"hierplan {args.command}: error: the SQLite database cannot be used: {exc} "
+                "(a damaged file, or not one that hierplan sweep wrote)",
+                file=sys.stderr,
+            )
+            return BAD_INPUT
         print(
             f"hierplan {args.command}: internal error: {type(exc).__name__}: {exc} "
             "(run with --debug for the traceback)",

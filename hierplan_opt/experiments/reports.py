@@ -103,12 +103,21 @@ def runtime_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out).set_index("solver") if out else pd.DataFrame()
 
 
+def _content(df: pd.DataFrame) -> pd.Series:
+    """Per run, its instance's name and content hash (older stores: the name only)."""
+    if "instance_hash" not in df:
+        return df["instance"].astype(str)
+    return df["instance"].astype(str) + "#" + df["instance_hash"].fillna("").astype(str)
+
+
 def cost_table(df: pd.DataFrame) -> pd.DataFrame:
     """Cost over lower bounds of the solved runs per solver."""
     import pandas as pd  # heavy module: pandas
 
+    df = df.assign(content=_content(df))
     ok: Any = df[df["status"].isin(("OPTIMAL", "FEASIBLE")) & df["cost"].notna()].copy()
-    group = ["instance", "agents", "objective", "seed"]
+    # one instance is one content: a scenario edited between sweeps keeps its name
+    group = ["content", "agents", "objective", "seed"]
     best: Any = df[df["lower_bound"].notna()].groupby(group)["lower_bound"].max()
     ok = ok.join(best.rename("best_lb"), on=group)
     ok["own"] = ok["cost"] / ok["lower_bound"].where(ok["lower_bound"] > 0)
@@ -180,7 +189,7 @@ def report(db: str | Path, stats: list[str] | tuple[str, ...] = ()) -> str:
         return f"no runs recorded in {db}"
     statuses = df["status"].value_counts()
     head = (
-        f"{len(df)} runs of {df['label'].nunique()} solvers on {df['instance'].nunique()} "
+        f"{len(df)} runs of {df['label'].nunique()} solvers on {_content(df).nunique()} "
         f"instances: " + ", ".join(f"{k} {v}" for k, v in statuses.items())
     )
     succ = success_table(df).map(lambda v: "-" if v != v else f"{100 * v:.0f}%")

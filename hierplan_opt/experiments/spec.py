@@ -133,6 +133,17 @@ class SweepSpec:
         return inst.agents if inst.agents is not None else self.agents
 
 
+#: The longest time limit of a run (a week): the kill timer cannot wait much longer.
+MAX_TIME_LIMIT = 7 * 24 * 3600.0
+
+
+def _check_time_limit(ctx: Any, value: float, what: str, line: int | None) -> None:
+    if value > MAX_TIME_LIMIT:
+        raise ctx.error(
+            f"{what} must be at most {MAX_TIME_LIMIT:g} s (a week), got {value:g}", line
+        )
+
+
 def load_spec(path: str | Path) -> SweepSpec:
     """Read and check a sweep spec file.
 
@@ -199,6 +210,7 @@ def parse_spec(
     time_limit = 60.0
     if "time_limit" in top:
         time_limit = ctx.number(top["time_limit"], "time_limit", line("time_limit"), positive=True)
+        _check_time_limit(ctx, time_limit, "time_limit", line("time_limit"))
     memory: float | None = 4000.0
     if "memory_limit_mb" in top:
         memory = _memory(ctx, top["memory_limit_mb"], line("memory_limit_mb"))
@@ -347,6 +359,7 @@ def _solvers(
         if "time_limit" in d:
             tl = ctx.number(d["time_limit"], f"{what}.time_limit", d.lines.get("time_limit"),
                             positive=True)  # fmt: skip
+            _check_time_limit(ctx, tl, f"{what}.time_limit", d.lines.get("time_limit"))
         label = default_label(name, options)
         if "label" in d:
             label = ctx.string(d["label"], f"{what}.label", d.lines.get("label"))

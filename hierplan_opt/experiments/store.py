@@ -102,8 +102,9 @@ def open_existing(path: str | Path) -> sqlite3.Connection:
 
 
 def finished_keys(con: sqlite3.Connection) -> set[str]:
-    """Keys of the runs already recorded."""
-    return {k for (k,) in con.execute("SELECT key FROM runs")}
+    """Keys of the runs already recorded (not the SKIPPED ones: ``stop_on_failure`` left
+    them unrun, so a later sweep runs them)."""
+    return {k for (k,) in con.execute("SELECT key FROM runs WHERE status != 'SKIPPED'")}
 
 
 def insert_run(con: sqlite3.Connection, row: Mapping[str, Any]) -> bool:
@@ -114,6 +115,8 @@ def insert_run(con: sqlite3.Connection, row: Mapping[str, Any]) -> bool:
         if name in JSON_COLUMNS and v is not None and not isinstance(v, str):
             v = to_json(v, sort_keys=True, default=str)
         values.append(v)
+    # a run that a stop_on_failure had skipped takes its row
+    con.execute("DELETE FROM runs WHERE key = ? AND status = 'SKIPPED'", (row.get("key"),))
     cur = con.execute(
         f"INSERT OR IGNORE INTO runs ({', '.join(NAMES[1:])}) "
         f"VALUES ({', '.join('?' * (len(NAMES) - 1))})",
