@@ -355,3 +355,32 @@ def test_a_time_limit_beyond_a_week_is_refused(
     )
     code, err = run(capsys, "sweep", str(spec), "--dry-run")
     assert code == 2 and "time_limit must be at most 604800 s" in err
+
+
+def test_ctrl_c_does_not_wait_for_the_runs_in_flight(tmp_path: Path) -> None:
+    # one SIGINT waited until the runs in flight reached their hard limit (13 s here
+    # with time_limit 15), then dropped them; now they are killed at once
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    movingai = ROOT / "instances" / "movingai"
+    spec = tmp_path / "slow.yaml"
+    spec.write_text(
+        "name: slow\nsolvers: [{name: cbs}]\ninstances:\n"
+        f"  - {{map: {movingai / 'random-32-32-20.map'}, "
+        f"scen: {movingai / 'random-32-32-20-random-1.scen'}}}\n"
+        "agents: [60, 70]\ntime_limit: 30\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hierplan_opt", "sweep", str(spec), "--db",
+         str(tmp_path / "s.sqlite")],
+        stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    time.sleep(4)  # the first run is in flight
+    t0 = time.perf_counter()
+    proc.send_signal(signal.SIGINT)
+    code = proc.wait(timeout=60)
+    assert code == 130 and time.perf_counter() - t0 < 10
+    assert proc.stderr is not None and "interrupted" in proc.stderr.read()

@@ -53,6 +53,21 @@ _MEMORY_SIGNS = (
 )
 
 
+#: Processes of the runs in flight (pid), for :func:`kill_running` on an interrupt.
+_RUNNING: set[int] = set()
+
+
+def kill_running() -> int:
+    """Kill the processes of every run in flight (a sweep interrupted by Ctrl-C does
+    not wait for them to reach their limits); the number killed."""
+    killed = 0
+    for pid in list(_RUNNING):
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+            killed += 1
+    return killed
+
+
 def hard_limit(time_limit: float) -> float:
     """The wall-clock kill limit of a run with solver limit ``time_limit``.
 
@@ -106,6 +121,7 @@ def run_fresh(task: dict[str, Any], python: str | None = None) -> dict[str, Any]
             timer = threading.Timer(limit, kill)
             timer.daemon = True
             timer.start()
+            _RUNNING.add(proc.pid)
             try:
                 assert proc.stdin is not None
                 try:
@@ -120,6 +136,7 @@ def run_fresh(task: dict[str, Any], python: str | None = None) -> dict[str, Any]
                 raise
             finally:
                 timer.cancel()
+                _RUNNING.discard(proc.pid)
             proc.returncode = os.waitstatus_to_exitcode(status)
             wall = time.perf_counter() - t0
             err.seek(0)
@@ -222,10 +239,12 @@ class _Server:
             timer = threading.Timer(limit, kill)
             timer.daemon = True
             timer.start()
+            _RUNNING.add(pid)
             try:
                 done = self._answer()
             finally:
                 timer.cancel()
+                _RUNNING.discard(pid)
             wall = time.perf_counter() - t0
             full = _full(space[0], task)
             if done is None:  # the server itself died: its child stopped with it

@@ -29,7 +29,7 @@ from hierplan_opt.core.errors import InputError
 from hierplan_opt.core.progress import Progress
 from hierplan_opt.experiments import store
 from hierplan_opt.experiments.generators import GENERATORS
-from hierplan_opt.experiments.runner import close_servers, run_task
+from hierplan_opt.experiments.runner import close_servers, kill_running, run_task
 from hierplan_opt.experiments.spec import (
     InstanceSpec,
     SolverSpec,
@@ -210,6 +210,11 @@ class _Local:
 
     def cancel(self, future: Any) -> bool:
         return bool(future.cancel())
+
+    def abort(self) -> None:
+        """Ctrl-C: cancel the queued runs and kill the ones in flight (not recorded)."""
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        kill_running()
 
     def close(self) -> None:
         self.pool.shutdown(wait=True, cancel_futures=True)
@@ -492,6 +497,10 @@ def _execute(
                             bar.advance()
                 solved = sum(statuses[s] for s in SOLVED)
                 bar.advance(solved=solved, failed=sum(statuses.values()) - solved - skipped)
+    except KeyboardInterrupt:
+        if isinstance(backend, _Local):  # do not wait for the runs in flight
+            backend.abort()
+        raise
     finally:
         backend.close()
     return skipped
