@@ -103,11 +103,13 @@ def runtime_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out).set_index("solver") if out else pd.DataFrame()
 
 
-def _content(df: pd.DataFrame) -> pd.Series:
-    """Per run, its instance's name and content hash (older stores: the name only)."""
+def _content(df: pd.DataFrame) -> Any:
+    """Per run (a Series), its instance's name and content hash (older stores: the name
+    only)."""
+    names: Any = df["instance"].astype(str)
     if "instance_hash" not in df:
-        return df["instance"].astype(str)
-    return df["instance"].astype(str) + "#" + df["instance_hash"].fillna("").astype(str)
+        return names
+    return names + "#" + df["instance_hash"].fillna("").astype(str)
 
 
 def cost_table(df: pd.DataFrame) -> pd.DataFrame:
