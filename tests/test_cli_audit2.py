@@ -384,3 +384,19 @@ def test_ctrl_c_does_not_wait_for_the_runs_in_flight(tmp_path: Path) -> None:
     code = proc.wait(timeout=60)
     assert code == 130 and time.perf_counter() - t0 < 10
     assert proc.stderr is not None and "interrupted" in proc.stderr.read()
+
+
+def test_sweep_report_and_export_check_their_outputs_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # report --plots FILE printed the whole report, then 'File exists'; export to a
+    # missing folder named its temporary '.part' file
+    import sqlite3
+
+    db = tmp_path / "r.sqlite"
+    sqlite3.connect(db).close()
+    (tmp_path / "afile").write_text("")
+    code, err = run(capsys, "sweep", "report", str(db), "--plots", str(tmp_path / "afile"))
+    assert code == 2 and "a file, not a folder" in err
+    code, err = run(capsys, "sweep", "export", str(db), str(tmp_path / "no" / "x.csv"))
+    assert code == 2 and ".part" not in err and "does not exist" in err

@@ -16,7 +16,7 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
-from hierplan_opt.cli.common import OK, positive_int
+from hierplan_opt.cli.common import OK, check_outputs, positive_int
 from hierplan_opt.core.errors import InputError
 
 HELP = "run solvers x instances x agents x seeds, one process per run, into SQLite"
@@ -153,6 +153,8 @@ def _report(args: argparse.Namespace) -> int:
     if len(args.paths) != 1:
         raise InputError("usage: hierplan sweep report DB [--plots DIR] [--stats KEY,...]")
     keys = [k.strip() for k in (args.stats or "").split(",") if k.strip()]
+    if args.plots and Path(args.plots).exists() and not Path(args.plots).is_dir():
+        raise InputError(f"--plots {args.plots}: a file, not a folder for the figures")
     print(report(args.paths[0], stats=keys))
     if args.plots:
         for p in save_figures(args.paths[0], args.plots):
@@ -165,6 +167,7 @@ def _export(args: argparse.Namespace) -> int:
 
     if len(args.paths) != 2:
         raise InputError("usage: hierplan sweep export DB OUT.csv|OUT.parquet")
+    check_outputs(("OUT", args.paths[1], (".csv", ".parquet")))
     n = export(args.paths[0], args.paths[1])
     print(f"wrote {n} runs to {args.paths[1]}")
     return OK
