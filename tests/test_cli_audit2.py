@@ -400,3 +400,26 @@ def test_sweep_report_and_export_check_their_outputs_first(
     assert code == 2 and "a file, not a folder" in err
     code, err = run(capsys, "sweep", "export", str(db), str(tmp_path / "no" / "x.csv"))
     assert code == 2 and ".part" not in err and "does not exist" in err
+
+
+@pytest.mark.parametrize(
+    ("params", "words"),
+    [
+        ("width: -3, height: 8, obstacles: 0.1", "width and height must be positive"),
+        ("width: 8, height: 8, obstacles: 1.5", "obstacles must be a fraction"),
+        ("width: 4, height: 4, obstacles: 0.0", "fewer than 30 agents"),
+    ],
+)
+def test_generator_values_are_checked_before_the_first_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], params: str, words: str
+) -> None:
+    # they passed --dry-run, and every run was then recorded as ERROR (exit 0)
+    spec = tmp_path / "g.yaml"
+    spec.write_text(
+        "name: g\nsolvers: [{name: cbs}]\ninstances:\n"
+        f"  - {{generator: random_grid, params: {{{params}}}}}\nagents: [30]\n"
+    )
+    db = tmp_path / "g.sqlite"
+    code, err = run(capsys, "sweep", str(spec), "--dry-run", "--db", str(db))
+    assert code == 2 and words in err and "with 30 agents, seed 0" in err
+    assert not db.exists()

@@ -163,6 +163,33 @@ def plan_runs(spec: SweepSpec, problems: Mapping[str, str] | None = None) -> lis
     return [r for _, r in runs]
 
 
+#: Generated maps up to this many cells are built once per seed (largest K) by the
+#: check before the first run; larger ones are left to the runs and their limits.
+CHECK_CELLS = 1_000_000
+
+
+def _check_generated(spec: SweepSpec, inst: Any, gen: Any) -> None:
+    """Build a generator's instance with its largest K for every seed, so that values
+    it refuses (a negative width, more agents than free cells) are one line before the
+    first run rather than an ERROR row per run."""
+    params = dict(inst.params or {})
+    full = {k: v for k, (_, v) in gen.params.items()} | params
+    cells = 1
+    for key in ("width", "height"):
+        if isinstance(full.get(key), int):
+            cells *= max(1, full[key])
+    if cells > CHECK_CELLS:
+        return
+    k = max(a for a in spec.agents_of(inst) if a is not None)
+    for seed in spec.seeds:
+        try:
+            gen(params, agents=k, seed=seed)
+        except InputError as exc:
+            raise InputError(
+                f"{spec.file}: instance {inst.name!r} with {k} agents, seed {seed}: {exc}"
+            ) from None
+
+
 def check_instances(spec: SweepSpec) -> dict[str, str]:
     """Load each file instance once with its largest K, so that bad files and agent
     counts beyond a scenario are refused before the first run; returns the problem
@@ -176,7 +203,9 @@ def check_instances(spec: SweepSpec) -> dict[str, str]:
                     f"{spec.file}: instance {inst.name!r}: a generator needs agent counts "
                     "('agents: [..]')"
                 )
-            problems[inst.name] = GENERATORS[str(inst.generator)].problem
+            gen = GENERATORS[str(inst.generator)]
+            _check_generated(spec, inst, gen)
+            problems[inst.name] = gen.problem
             continue
         ks = spec.agents_of(inst)
         k = None if None in ks else max(k for k in ks if k is not None)
