@@ -296,13 +296,15 @@ def _data_limit(budget: int) -> Iterator[None]:
     except ImportError:  # pragma: no cover - not on POSIX: the estimate alone guards
         yield
         return
+    from hierplan_opt.core.options import AMOUNT_CAP
+
     soft, hard = resource.getrlimit(resource.RLIMIT_DATA)
     want = data_size() + budget + DATA_HEADROOM
     if hard != resource.RLIM_INFINITY:
         want = min(want, hard)
     if soft != resource.RLIM_INFINITY:
         want = min(want, soft)
-    if want >= 1 << 62:  # beyond any machine (and a C long): no limit to set
+    if want >= AMOUNT_CAP:  # beyond any machine (and a C long): no limit to set
         yield
         return
     try:

@@ -45,6 +45,7 @@ from typing import Any
 from hierplan_opt import registry
 from hierplan_opt.api import solve
 from hierplan_opt.core.errors import InputError
+from hierplan_opt.core.options import AMOUNT_CAP
 from hierplan_opt.core.result import Status
 from hierplan_opt.experiments.generators import GENERATORS
 from hierplan_opt.io import load_instance
@@ -69,7 +70,7 @@ VERSIONED = ("hierplan_opt", "numpy", "scipy", "networkx", "ortools", "highspy",
 
 def limit_memory(megabytes: float | None) -> None:
     """Cap this process's address space at ``megabytes`` (``None``: no cap)."""
-    if megabytes is None or megabytes * 1024 * 1024 >= 1 << 62:  # beyond any machine
+    if megabytes is None or megabytes * 1024 * 1024 >= AMOUNT_CAP:  # beyond any machine
         return
     limit = int(megabytes * 1024 * 1024)
     _, hard = resource.getrlimit(resource.RLIMIT_AS)

@@ -677,17 +677,14 @@ def _box_pairs(
 def _overlaps(
     ii: np.ndarray, jj: np.ndarray, P: np.ndarray, D: np.ndarray, L2: np.ndarray, tol: float
 ) -> list[tuple[int, int, tuple[float, float], tuple[float, float]]]:
-    """The stretches that parallel edge pairs ``(ii, jj)`` share, as fractions of each;
-    pairs not on one line or sharing at most a point are left out."""
+    """The stretches that edge pairs ``(ii, jj)`` on one line (``_touches`` checked
+    both ends) share, as fractions of each; pairs sharing at most a point are left out."""
     p1, d1, p2, d2 = P[ii], D[ii], P[jj], D[jj]
     u_p = np.einsum("ij,ij->i", p2 - p1, d1) / L2[ii]
     u_q = np.einsum("ij,ij->i", p2 + d2 - p1, d1) / L2[ii]
-    off = p2 - (p1 + u_p[:, None] * d1)
     u0 = np.maximum(0.0, np.minimum(u_p, u_q))
     u1 = np.minimum(1.0, np.maximum(u_p, u_q))
-    keep = np.einsum("ij,ij->i", off, off) <= tol * tol
-    keep &= (u1 - u0) * np.sqrt(L2[ii]) > tol
-    k = np.flatnonzero(keep)
+    k = np.flatnonzero((u1 - u0) * np.sqrt(L2[ii]) > tol)
     w_a = np.einsum("ij,ij->i", p1[k] + u0[k, None] * d1[k] - p2[k], d2[k]) / L2[jj[k]]
     w_b = np.einsum("ij,ij->i", p1[k] + u1[k, None] * d1[k] - p2[k], d2[k]) / L2[jj[k]]
     w0 = np.clip(np.minimum(w_a, w_b), 0.0, 1.0).tolist()
